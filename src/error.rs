@@ -1,0 +1,49 @@
+//! The library's error type. Every variant names the input or the Vulkan call it is about, so
+//! `main` can print the whole cause chain and choose the exit code (2 for bad input).
+
+use std::path::PathBuf;
+
+/// Errors surfaced by the library.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The user's input (file, config value, flag) is wrong; exit code 2.
+    #[error("{input}: {message}")]
+    Input { input: String, message: String },
+    /// An I/O failure on a named path.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A Vulkan call failed.
+    #[error("Vulkan: {call} failed: {result:?}")]
+    Vulkan { call: &'static str, result: ash::vk::Result },
+    /// The GPU back end cannot run (no loader, no device, missing feature).
+    #[error("GPU: {0}")]
+    Gpu(String),
+    /// HDF5 writing/reading failed for a named file.
+    #[error("{path}: HDF5: {message}")]
+    Hdf5 { path: PathBuf, message: String },
+    /// Anything else that is a failure of pedscan itself, not of the input.
+    #[error("{0}")]
+    Internal(String),
+}
+
+impl Error {
+    /// A bad-input error naming `input`.
+    pub fn input(input: impl std::fmt::Display, message: impl std::fmt::Display) -> Self {
+        Error::Input { input: input.to_string(), message: message.to_string() }
+    }
+    /// An I/O error on `path`.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io { path: path.into(), source }
+    }
+    /// True when the user's input is at fault (exit code 2).
+    pub fn is_input(&self) -> bool {
+        matches!(self, Error::Input { .. })
+    }
+}
+
+/// Shorthand for results of the library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,20 @@
+//! pedscan: automatically labeled LiDAR sequences of walking people.
+//!
+//! Modules follow the data flow of one frame: `sensor` (beam model) -> `scene` (humans,
+//! trajectories, sensor poses, background) -> `human` (glTF, skinning, gait) -> `geometry`
+//! (posed triangles in the sensor frame) -> `projection` + `raster` on `gpu` (Vulkan) ->
+//! `resample` (beam grid) -> `post` (composite, labels, velocity) -> `output` (HDF5, XML, PNG).
+//! `raycast` is the independent CPU reference over the same triangles.
+
+pub mod error;
+pub mod geometry;
+pub mod output;
+pub mod projection;
+pub mod sensor;
+
+pub use error::{Error, Result};
+
+/// The crate version, recorded in every output file.
+pub fn version() -> &'static str {
+    env!("CARGO_PKG_VERSION")
+}

@@ -1,0 +1,83 @@
+//! Stage 5: writers. One sequence = one file set (`seq_NNNNNN.h5`, `seq_NNNNNN.xml`, optional
+//! PNGs), each written under a temporary name and renamed when complete, so a failure never
+//! leaves a partial file and never touches sequences written before.
+//!
+//! The pipeline hands over plain structs: [`SequenceMeta`] once, then one [`FrameOutput`] per
+//! frame, in order. Grids are row-major `row * columns + col`, row 0 = highest beam.
+
+use crate::sensor::Sensor;
+
+/// What a sequence is about; written once per sequence.
+#[derive(Clone, Debug)]
+pub struct SequenceMeta {
+    /// Sequence number: files are named `seq_{index:06}`.
+    pub index: usize,
+    /// The seed that produced this sequence.
+    pub seed: u64,
+    pub sensor: Sensor,
+    /// The full, resolved configuration as TOML text (root attribute `config`).
+    pub config_toml: String,
+    /// Number of frames that will be written.
+    pub frames: usize,
+    /// The people of the sequence; instance k (1-based) is `humans[k - 1]`.
+    pub humans: Vec<HumanMeta>,
+    /// Which optional per-beam outputs are present in every frame.
+    pub outputs: OutputSet,
+}
+
+/// One person of a sequence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HumanMeta {
+    pub height_m: f32,
+    pub weight_kg: f32,
+    /// Model name (file stem of the glTF, e.g. `h1700_w60`).
+    pub model: String,
+}
+
+/// Which optional datasets are computed and written (range, label and instance always are).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OutputSet {
+    pub xyz: bool,
+    pub velocity: bool,
+    pub background: bool,
+}
+
+impl Default for OutputSet {
+    fn default() -> Self {
+        OutputSet { xyz: true, velocity: true, background: true }
+    }
+}
+
+/// State of one person at one frame (world frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HumanState {
+    pub position_m: [f64; 3],
+    pub heading_rad: f32,
+    pub velocity_mps: [f32; 3],
+    /// Gait phase in [0, 1).
+    pub gait_phase: f32,
+}
+
+/// Everything of one frame. Per-beam vectors have `rows * columns` entries.
+#[derive(Clone, Debug, Default)]
+pub struct FrameOutput {
+    /// Metres, 0 = no return.
+    pub range: Vec<f32>,
+    /// 0 background / no return, 1 human.
+    pub label: Vec<u8>,
+    /// 0 none, k = k-th human.
+    pub instance: Vec<u16>,
+    /// Sensor frame xyz, metres (present iff `OutputSet::xyz`).
+    pub xyz: Vec<[f32; 3]>,
+    /// Sensor-frame velocity of the surface point relative to the sensor, m/s
+    /// (present iff `OutputSet::velocity`).
+    pub velocity: Vec<[f32; 3]>,
+    /// Range of the background alone, metres, 0 = no return (present iff `OutputSet::background`).
+    pub background_range: Vec<f32>,
+    /// Seconds since the start of the sequence.
+    pub time_s: f64,
+    /// Row-major 4x4 pose of the sensor in the world.
+    pub world_from_sensor: [[f64; 4]; 4],
+    /// One entry per person of the sequence (same order as `SequenceMeta::humans`).
+    pub humans: Vec<HumanState>,
+}

@@ -1,0 +1,273 @@
+//! Stage 0: the beam model (pure math). A sensor is a list of elevations (row 0 = highest),
+//! a column count and range limits. Directions are unit vectors in the sensor frame
+//! (x forward, y left, z up). Column convention (RangeNet++ / SemanticKITTI):
+//! `col = floor(0.5 * (1 - atan2(y, x) / pi) * W)`; a cell's beam is its centre,
+//! azimuth `pi * (1 - 2 * (col + 0.5) / W)`.
+
+use crate::error::{Error, Result};
+use glam::DVec3;
+use serde::Deserialize;
+use std::path::Path;
+
+/// A spinning multi-beam LiDAR on a regular azimuth grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sensor {
+    /// Preset or file name, recorded in the outputs.
+    pub name: String,
+    /// Beam elevations in degrees, strictly descending (row 0 = highest).
+    pub elevation_deg: Vec<f64>,
+    /// Number of columns (azimuth cells) per revolution.
+    pub columns: usize,
+    /// Revolutions per second (frame rate).
+    pub rate_hz: f64,
+    /// Returns nearer than this are dropped (no return), metres.
+    pub min_range_m: f64,
+    /// Returns farther than this are dropped (no return), metres.
+    pub max_range_m: f64,
+}
+
+/// The TOML form of a custom sensor (`--sensor FILE.toml` or `[sensor]` in a config).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorFile {
+    pub name: Option<String>,
+    /// Explicit elevation list in degrees; any order (sorted descending on load).
+    pub elevation_deg: Vec<f64>,
+    pub columns: usize,
+    pub rate_hz: Option<f64>,
+    pub min_range_m: Option<f64>,
+    pub max_range_m: Option<f64>,
+}
+
+impl Sensor {
+    /// Velodyne HDL-32E as in the paper (Table 1): 32 rows from +10.67 to -30.67 degrees in
+    /// 4/3 degree steps rounded to 0.01 deg as in Velodyne's calibration table
+    /// (`round(k * 4/3, 2)` for k = 8 down to -23), 1024 columns, 10 Hz, 0.5 to 100 m.
+    pub fn hdl32e() -> Sensor {
+        let elevation_deg =
+            (-23..=8).rev().map(|k: i32| (k as f64 * 4.0 / 3.0 * 100.0).round() / 100.0).collect();
+        Sensor {
+            name: "hdl32e".into(),
+            elevation_deg,
+            columns: 1024,
+            rate_hz: 10.0,
+            min_range_m: 0.5,
+            max_range_m: 100.0,
+        }
+    }
+
+    /// Velodyne VLP-16 (Puck): 16 rows from +15 to -15 degrees in 2 degree steps, 1024
+    /// columns, 10 Hz, 0.5 to 100 m.
+    pub fn vlp16() -> Sensor {
+        let elevation_deg = (0..16).map(|i| 15.0 - (i as f64) * 2.0).collect();
+        Sensor {
+            name: "vlp16".into(),
+            elevation_deg,
+            columns: 1024,
+            rate_hz: 10.0,
+            min_range_m: 0.5,
+            max_range_m: 100.0,
+        }
+    }
+
+    /// A preset by name (`hdl32e`, `vlp16`) or a TOML file path.
+    pub fn from_name_or_file(spec: &str) -> Result<Sensor> {
+        match spec {
+            "hdl32e" | "HDL-32E" => Ok(Sensor::hdl32e()),
+            "vlp16" | "VLP-16" => Ok(Sensor::vlp16()),
+            path => {
+                let p = Path::new(path);
+                if !p.exists() {
+                    return Err(Error::input(
+                        format!("--sensor {path}"),
+                        "neither a preset (hdl32e, vlp16) nor an existing TOML file",
+                    ));
+                }
+                let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+                let file: SensorFile =
+                    toml::from_str(&text).map_err(|e| Error::input(p.display(), e))?;
+                let name = file.name.clone().unwrap_or_else(|| {
+                    p.file_stem().map(|s| s.to_string_lossy().into()).unwrap_or_default()
+                });
+                Sensor::from_file(file, name, &p.display().to_string())
+            }
+        }
+    }
+
+    /// Builds and checks a sensor from its TOML form; `input` names the source in errors.
+    pub fn from_file(file: SensorFile, name: String, input: &str) -> Result<Sensor> {
+        let mut elevation_deg = file.elevation_deg;
+        elevation_deg.sort_by(|a, b| b.partial_cmp(a).unwrap_or(std::cmp::Ordering::Equal));
+        let s = Sensor {
+            name,
+            elevation_deg,
+            columns: file.columns,
+            rate_hz: file.rate_hz.unwrap_or(10.0),
+            min_range_m: file.min_range_m.unwrap_or(0.5),
+            max_range_m: file.max_range_m.unwrap_or(100.0),
+        };
+        s.validate(input)?;
+        Ok(s)
+    }
+
+    /// Rejects impossible sensors with a message naming `input`.
+    pub fn validate(&self, input: &str) -> Result<()> {
+        let bad = |m: String| Err(Error::input(input, m));
+        if self.elevation_deg.is_empty() {
+            return bad("sensor has no beams (elevation_deg is empty)".into());
+        }
+        if self.elevation_deg.len() > 4096 {
+            return bad(format!("{} rows is more than the supported 4096", self.elevation_deg.len()));
+        }
+        for e in &self.elevation_deg {
+            if !e.is_finite() || e.abs() > MAX_ELEVATION_DEG {
+                return bad(format!(
+                    "elevation {e} deg is outside the supported band of +-{MAX_ELEVATION_DEG} deg"
+                ));
+            }
+        }
+        for w in self.elevation_deg.windows(2) {
+            if w[0] == w[1] {
+                return bad(format!("elevation {} deg appears twice", w[0]));
+            }
+        }
+        if self.columns < 8 || self.columns > 65536 {
+            return bad(format!("columns = {} must be in 8..=65536", self.columns));
+        }
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
+            return bad(format!("rate_hz = {} must be in (0, 1000]", self.rate_hz));
+        }
+        if !(self.min_range_m.is_finite() && self.min_range_m >= 0.0) {
+            return bad(format!("min_range_m = {} must be >= 0", self.min_range_m));
+        }
+        if !(self.max_range_m.is_finite() && self.max_range_m > self.min_range_m) {
+            return bad(format!(
+                "max_range_m = {} must be finite and greater than min_range_m = {}",
+                self.max_range_m, self.min_range_m
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of rows (beams per column).
+    pub fn rows(&self) -> usize {
+        self.elevation_deg.len()
+    }
+
+    /// Azimuth of the centre of column `col`, radians, in (-pi, pi].
+    pub fn azimuth_rad(&self, col: usize) -> f64 {
+        std::f64::consts::PI * (1.0 - 2.0 * (col as f64 + 0.5) / self.columns as f64)
+    }
+
+    /// Unit beam direction of cell (`row`, `col`) in the sensor frame.
+    pub fn beam_dir(&self, row: usize, col: usize) -> DVec3 {
+        let az = self.azimuth_rad(col);
+        let el = self.elevation_deg[row].to_radians();
+        DVec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
+    }
+
+    /// All beam directions, row-major (`row * columns + col`).
+    pub fn beam_dirs(&self) -> Vec<DVec3> {
+        let mut v = Vec::with_capacity(self.rows() * self.columns);
+        for r in 0..self.rows() {
+            for c in 0..self.columns {
+                v.push(self.beam_dir(r, c));
+            }
+        }
+        v
+    }
+
+    /// Column of a sensor-frame direction (x, y): `floor(0.5 * (1 - atan2(y, x) / pi) * W)`,
+    /// wrapped into `0..W`.
+    pub fn column_of(&self, x: f64, y: f64) -> usize {
+        let w = self.columns as f64;
+        let c = (0.5 * (1.0 - y.atan2(x) / std::f64::consts::PI) * w).floor();
+        (c as i64).rem_euclid(self.columns as i64) as usize
+    }
+
+    /// Highest absolute elevation of any beam, degrees.
+    pub fn max_abs_elevation_deg(&self) -> f64 {
+        self.elevation_deg.iter().fold(0.0f64, |m, e| m.max(e.abs()))
+    }
+}
+
+/// Beams must stay inside the band that 4 side faces of a cube can see (atan(1/sqrt 2)).
+pub const MAX_ELEVATION_DEG: f64 = 35.26;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hdl32e_table() {
+        let s = Sensor::hdl32e();
+        assert_eq!(s.rows(), 32);
+        assert!((s.elevation_deg[0] - 10.67).abs() < 1e-12);
+        assert!((s.elevation_deg[31] - (-30.67)).abs() < 1e-9);
+        assert!((s.elevation_deg[1] - 9.33).abs() < 1e-12);
+        assert_eq!(s.elevation_deg[8], 0.0);
+        for w in s.elevation_deg.windows(2) {
+            assert!((w[0] - w[1] - 4.0 / 3.0).abs() < 0.011);
+        }
+        s.validate("hdl32e").unwrap();
+    }
+
+    #[test]
+    fn column_zero_looks_backwards_and_columns_go_clockwise() {
+        let s = Sensor::hdl32e();
+        // Column 0's centre is just below +180 deg azimuth: it looks backwards.
+        let az0 = s.azimuth_rad(0).to_degrees();
+        assert!((az0 - (180.0 - 180.0 / 1024.0)).abs() < 1e-9, "{az0}");
+        // Azimuth decreases with the column: clockwise seen from above (z up).
+        assert!(s.azimuth_rad(1) < s.azimuth_rad(0));
+        // Forward (+x) is the middle column boundary; left (+y) is a quarter in.
+        assert_eq!(s.column_of(1.0, 1e-9), 511);
+        assert_eq!(s.column_of(1.0, -1e-9), 512);
+        assert_eq!(s.column_of(0.0, 1.0), 256);
+        assert_eq!(s.column_of(-1.0, -1e-12), 1023);
+    }
+
+    #[test]
+    fn column_of_inverts_beam_centre() {
+        for s in [Sensor::hdl32e(), Sensor::vlp16()] {
+            for c in 0..s.columns {
+                let d = s.beam_dir(3, c);
+                assert_eq!(s.column_of(d.x, d.y), c, "column {c}");
+            }
+        }
+    }
+
+    #[test]
+    fn beam_dirs_are_unit_and_have_their_elevation() {
+        let s = Sensor::hdl32e();
+        for r in 0..s.rows() {
+            let d = s.beam_dir(r, 100);
+            assert!((d.length() - 1.0).abs() < 1e-12);
+            assert!((d.z.asin().to_degrees() - s.elevation_deg[r]).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn impossible_sensors_are_rejected_with_the_input_named() {
+        let bad = SensorFile {
+            name: None,
+            elevation_deg: vec![10.0, 50.0],
+            columns: 1024,
+            rate_hz: None,
+            min_range_m: None,
+            max_range_m: None,
+        };
+        let e = Sensor::from_file(bad, "x".into(), "my.toml").unwrap_err();
+        assert!(e.is_input());
+        assert!(e.to_string().contains("my.toml"), "{e}");
+        let bad_cols = SensorFile {
+            name: None,
+            elevation_deg: vec![1.0],
+            columns: 0,
+            rate_hz: Some(10.0),
+            min_range_m: None,
+            max_range_m: None,
+        };
+        assert!(Sensor::from_file(bad_cols, "x".into(), "c.toml").is_err());
+    }
+}
