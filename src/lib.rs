@@ -6,11 +6,15 @@
 //! `resample` (beam grid) -> `post` (composite, labels, velocity) -> `output` (HDF5, XML, PNG).
 //! `raycast` is the independent CPU reference over the same triangles.
 
+pub mod config;
 pub mod error;
 pub mod geometry;
+pub mod human;
 pub mod output;
 pub mod projection;
+pub mod scene;
 pub mod sensor;
+pub mod sequence;
 
 pub use error::{Error, Result};
 

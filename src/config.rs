@@ -1,0 +1,316 @@
+//! The run configuration: a TOML file (every key optional, unknown keys rejected) merged with
+//! command-line flags, then checked once into values the pipeline can use without re-checking.
+//! The resolved configuration is written into every output file as TOML text.
+
+use crate::error::{Error, Result};
+use crate::human::MotionMode;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Where the bundled data (humans, default scene) lives: `$PEDSCAN_DATA`, else the `data/`
+/// folder of the source tree pedscan was built from.
+pub fn data_dir() -> PathBuf {
+    match std::env::var_os("PEDSCAN_DATA") {
+        Some(p) => PathBuf::from(p),
+        None => PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/data")),
+    }
+}
+
+/// How the raster result is refined per beam.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Refine {
+    /// The nearest texel's range as rendered.
+    None,
+    /// Intersect the beam with the plane of the nearest texel's triangle.
+    Plane,
+    /// Intersect the beam exactly with the triangles of the 3x3 texels around it (nearest hit);
+    /// the plane of the centre triangle where none is hit.
+    Exact,
+}
+
+/// Which velocity definition is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum VelocityModel {
+    /// The paper's eq. 1: human `V_h - V_s`, background `-V_s`, rotated into the sensor frame.
+    Paper,
+    /// Rigid-body motion relative to the rotating sensor: adds `-w x p` for the sensor's yaw
+    /// rate w and the point p (sensor frame).
+    Rigid,
+}
+
+/// HDF5 compression of the per-frame chunks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum CompressionChoice {
+    None,
+    /// Deflate level 1 with the shuffle filter (every HDF5 reader opens it).
+    Deflate,
+}
+
+/// The whole configuration (TOML form; every field has a default).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub seed: u64,
+    pub sequences: usize,
+    /// Frames per sequence.
+    pub frames: usize,
+    pub out: PathBuf,
+    pub png: bool,
+    /// `auto`, a device index, or a substring of the device name.
+    pub device: String,
+    /// A preset (`hdl32e`, `vlp16`) or a sensor TOML file.
+    pub sensor: String,
+    pub humans: HumansConfig,
+    pub scene: SceneConfig,
+    pub render: RenderConfig,
+    pub output: OutputConfig,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct HumansConfig {
+    /// Number of people per sequence, uniform in [min, max].
+    pub count: [usize; 2],
+    /// A folder of `.glb` / `.gltf` humans, or a list of files.
+    pub models: Vec<PathBuf>,
+    pub motion: MotionMode,
+    /// Walking speed, uniform in [min, max], m/s.
+    pub speed_mps: [f64; 2],
+    /// Yaw rate of the walked arc, uniform in [min, max], rad/s.
+    pub yaw_rate_rps: [f64; 2],
+    /// People start within this distance of the sensor's start, m.
+    pub spawn_radius_m: f64,
+    /// People keep at least this distance from each other and from the sensor, m.
+    pub min_separation_m: f64,
+    /// People keep at least this clearance from obstacles, m.
+    pub clearance_m: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SceneConfig {
+    /// The static environment glTF rendered as background; empty = none (no background).
+    pub environment: PathBuf,
+    pub sensor_height_m: f64,
+    pub sensor_speed_mps: [f64; 2],
+    pub sensor_yaw_rate_rps: [f64; 2],
+    /// The sensor keeps at least this clearance from obstacles, m.
+    pub sensor_clearance_m: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderConfig {
+    /// Texels per beam spacing at a face centre.
+    pub oversample: f64,
+    pub refine: Refine,
+    /// Level of detail: the coarsest level whose geometric error, seen from the sensor, stays
+    /// under this angle (milliradians). 0 = always the full mesh.
+    pub lod_max_error_mrad: f64,
+    /// Keep background holes (no return) even where a person stands in front (the paper's
+    /// choice); by default the person is measured.
+    pub keep_holes: bool,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputConfig {
+    pub compression: CompressionChoice,
+    pub velocity: VelocityModel,
+    pub xyz: bool,
+    pub velocity_field: bool,
+    pub background: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            seed: 0,
+            sequences: 1,
+            frames: 32,
+            out: PathBuf::from("out"),
+            png: false,
+            device: "auto".into(),
+            sensor: "hdl32e".into(),
+            humans: HumansConfig::default(),
+            scene: SceneConfig::default(),
+            render: RenderConfig::default(),
+            output: OutputConfig::default(),
+        }
+    }
+}
+
+impl Default for HumansConfig {
+    fn default() -> Self {
+        HumansConfig {
+            count: [1, 30],
+            models: vec![data_dir().join("humans")],
+            motion: MotionMode::Full,
+            speed_mps: [0.8, 1.6],
+            yaw_rate_rps: [-0.3, 0.3],
+            spawn_radius_m: 12.0,
+            min_separation_m: 0.7,
+            clearance_m: 0.35,
+        }
+    }
+}
+
+impl Default for SceneConfig {
+    fn default() -> Self {
+        SceneConfig {
+            environment: data_dir().join("scene").join("hall.glb"),
+            sensor_height_m: 0.8,
+            sensor_speed_mps: [0.3, 1.0],
+            sensor_yaw_rate_rps: [-0.15, 0.15],
+            sensor_clearance_m: 0.8,
+        }
+    }
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        RenderConfig { oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
+    }
+}
+
+impl Default for OutputConfig {
+    fn default() -> Self {
+        OutputConfig {
+            compression: CompressionChoice::Deflate,
+            velocity: VelocityModel::Paper,
+            xyz: true,
+            velocity_field: true,
+            background: true,
+        }
+    }
+}
+
+impl Config {
+    /// Reads a TOML config; relative paths inside it are taken relative to the file's folder.
+    pub fn from_file(path: &Path) -> Result<Config> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let mut cfg: Config = toml::from_str(&text).map_err(|e| Error::input(path.display(), e))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let fix = |p: &mut PathBuf| {
+            if p.is_relative() && !p.as_os_str().is_empty() {
+                *p = dir.join(&*p);
+            }
+        };
+        // Only paths the file itself set are relative to it; defaults are absolute already.
+        for m in &mut cfg.humans.models {
+            fix(m);
+        }
+        fix(&mut cfg.scene.environment);
+        fix(&mut cfg.out);
+        if cfg.sensor.ends_with(".toml") {
+            let mut p = PathBuf::from(&cfg.sensor);
+            fix(&mut p);
+            cfg.sensor = p.display().to_string();
+        }
+        Ok(cfg)
+    }
+
+    /// The resolved configuration as TOML text (recorded in every output).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}\n"))
+    }
+
+    /// Rejects impossible values with a message naming the key.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |key: &str, msg: String| Err(Error::input(format!("config key `{key}`"), msg));
+        if self.sequences == 0 {
+            return bad("sequences", "must be at least 1".into());
+        }
+        if self.frames == 0 {
+            return bad("frames", "must be at least 1".into());
+        }
+        if self.frames > 1_000_000 {
+            return bad("frames", format!("{} frames in one sequence is more than the supported 1,000,000", self.frames));
+        }
+        let [lo, hi] = self.humans.count;
+        if lo > hi {
+            return bad("humans.count", format!("min {lo} is greater than max {hi}"));
+        }
+        if hi > 1000 {
+            return bad("humans.count", format!("max {hi} is more than the supported 1000"));
+        }
+        range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
+        range_ok("humans.yaw_rate_rps", self.humans.yaw_rate_rps, -10.0, 10.0)?;
+        range_ok("scene.sensor_speed_mps", self.scene.sensor_speed_mps, 0.0, 100.0)?;
+        range_ok("scene.sensor_yaw_rate_rps", self.scene.sensor_yaw_rate_rps, -10.0, 10.0)?;
+        positive("humans.spawn_radius_m", self.humans.spawn_radius_m)?;
+        non_negative("humans.min_separation_m", self.humans.min_separation_m)?;
+        non_negative("humans.clearance_m", self.humans.clearance_m)?;
+        non_negative("scene.sensor_clearance_m", self.scene.sensor_clearance_m)?;
+        if !(self.scene.sensor_height_m.is_finite() && self.scene.sensor_height_m.abs() < 1000.0) {
+            return bad("scene.sensor_height_m", format!("{} is not a usable height", self.scene.sensor_height_m));
+        }
+        if !(self.render.oversample.is_finite() && self.render.oversample >= 0.25 && self.render.oversample <= 16.0) {
+            return bad("render.oversample", format!("{} must be in [0.25, 16]", self.render.oversample));
+        }
+        non_negative("render.lod_max_error_mrad", self.render.lod_max_error_mrad)?;
+        if self.humans.models.is_empty() && hi > 0 {
+            return bad("humans.models", "no model given but people are requested".into());
+        }
+        Ok(())
+    }
+}
+
+fn range_ok(key: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<()> {
+    if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1] && r[0] >= lo && r[1] <= hi) {
+        return Err(Error::input(
+            format!("config key `{key}`"),
+            format!("[{}, {}] must be finite, ordered and within [{lo}, {hi}]", r[0], r[1]),
+        ));
+    }
+    Ok(())
+}
+
+fn positive(key: &str, v: f64) -> Result<()> {
+    if !(v.is_finite() && v > 0.0) {
+        return Err(Error::input(format!("config key `{key}`"), format!("{v} must be a positive number")));
+    }
+    Ok(())
+}
+
+fn non_negative(key: &str, v: f64) -> Result<()> {
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(Error::input(format!("config key `{key}`"), format!("{v} must be a non-negative number")));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_validate_and_round_trip_through_toml() {
+        let c = Config::default();
+        c.validate().unwrap();
+        let back: Config = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn unknown_keys_and_impossible_values_are_rejected() {
+        let e = toml::from_str::<Config>("frames = 3\nfrmaes = 4\n").unwrap_err();
+        assert!(e.to_string().contains("frmaes"), "{e}");
+        let mut c = Config::default();
+        c.humans.count = [5, 2];
+        let e = c.validate().unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("humans.count"), "{e}");
+        let mut c = Config::default();
+        c.frames = 0;
+        assert!(c.validate().unwrap_err().to_string().contains("frames"));
+        let mut c = Config::default();
+        c.scene.sensor_speed_mps = [-1.0, 1.0];
+        assert!(c.validate().unwrap_err().to_string().contains("sensor_speed_mps"));
+        let mut c = Config::default();
+        c.humans.speed_mps = [f64::NAN, 1.0];
+        assert!(c.validate().is_err());
+    }
+}

@@ -1,0 +1,678 @@
+//! Stage 1b: people. Loads glTF 2.0 skinned humans with a walk animation, samples the walk at
+//! a gait phase and skins the mesh (linear-blend skinning, 4 influences) on the CPU.
+//!
+//! Model frame: the glTF's own (y up, metres). A model is expected to face glTF +Z (the glTF
+//! convention for an asset's front) with its feet on y = 0; [`MODEL_TO_BODY`] turns that into
+//! pedscan's body frame (x forward, y left, z up, feet on z = 0) so a person with heading 0
+//! walks along world +x.
+//!
+//! Gait: the phase advances by distance walked / stride length; the stride length comes from
+//! Alexander's relation between relative stride and Froude number (see [`stride_length_m`]).
+
+use crate::error::{Error, Result};
+use glam::{Mat4, Quat, Vec3, Vec4};
+use rayon::prelude::*;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// glTF model frame (y up, facing +Z) -> body frame (z up, facing +x):
+/// a +90 deg turn about x (y up -> z up) followed by +90 deg about z (facing -y -> +x).
+pub const MODEL_TO_BODY: Mat4 = Mat4::from_cols(
+    Vec4::new(0.0, 1.0, 0.0, 0.0),
+    Vec4::new(0.0, 0.0, 1.0, 0.0),
+    Vec4::new(1.0, 0.0, 0.0, 0.0),
+    Vec4::new(0.0, 0.0, 0.0, 1.0),
+);
+
+/// How people move (the paper's Table 5 ablations).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum MotionMode {
+    /// Walk along the trajectory, gait phase tied to distance walked.
+    Full,
+    /// Follow the trajectory in a fixed pose.
+    Sliding,
+    /// Walk (gait advances) without moving.
+    InPlace,
+    /// Fixed pose, fixed place.
+    Static,
+}
+
+impl MotionMode {
+    /// Does this mode animate the gait (needs a skin and a walk animation)?
+    pub fn animates(self) -> bool {
+        matches!(self, MotionMode::Full | MotionMode::InPlace)
+    }
+    /// Does this mode move the person along the trajectory?
+    pub fn moves(self) -> bool {
+        matches!(self, MotionMode::Full | MotionMode::Sliding)
+    }
+}
+
+/// pedscan's metadata in a bundled model (`scenes[0].extras.pedscan`).
+#[derive(Clone, Debug, Default, Deserialize)]
+struct PedscanExtras {
+    height_m: Option<f32>,
+    weight_kg: Option<f32>,
+    stride_length_m: Option<f32>,
+    cycle_s: Option<f32>,
+    #[serde(default)]
+    lods: Vec<LodExtras>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+struct LodExtras {
+    mesh: usize,
+    error_m: f32,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+struct ExtrasRoot {
+    pedscan: Option<PedscanExtras>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct NodeRest {
+    parent: Option<usize>,
+    translation: Vec3,
+    rotation: Quat,
+    scale: Vec3,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Property {
+    Translation,
+    Rotation,
+    Scale,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Interp {
+    Step,
+    Linear,
+    CubicSpline,
+}
+
+#[derive(Clone, Debug)]
+struct Channel {
+    node: usize,
+    property: Property,
+    interp: Interp,
+    times: Vec<f32>,
+    /// xyz(w) values; for CUBICSPLINE three per key (in-tangent, value, out-tangent).
+    values: Vec<Vec4>,
+}
+
+/// One level of detail: a compact skinned mesh (only the vertices its triangles use).
+#[derive(Clone, Debug)]
+pub struct Lod {
+    /// Bind-pose positions, model frame.
+    pub positions: Vec<Vec3>,
+    pub joints: Vec<[u16; 4]>,
+    pub weights: Vec<[f32; 4]>,
+    pub indices: Vec<u32>,
+    /// Recorded geometric error against LOD 0, metres (0 for LOD 0).
+    pub error_m: f32,
+}
+
+impl Lod {
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+}
+
+/// A loaded human model: skeleton, walk animation, skinned levels of detail.
+#[derive(Clone, Debug)]
+pub struct HumanModel {
+    /// File stem, e.g. `h1700_w60`.
+    pub name: String,
+    pub path: PathBuf,
+    /// Standing height of the rest mesh (max y - min y of LOD 0), metres.
+    pub height_m: f32,
+    /// Weight from the model's metadata, if it has any.
+    pub weight_kg: Option<f32>,
+    /// Stride length recorded in the model (distance of one animation cycle), if any.
+    pub stride_length_m: Option<f32>,
+    /// Duration of one gait cycle of the walk animation, seconds (0 without animation).
+    pub cycle_s: f32,
+    /// Levels of detail, LOD 0 first, coarser after, sorted by recorded error.
+    pub lods: Vec<Lod>,
+    nodes: Vec<NodeRest>,
+    /// Node index of each skin joint; empty without a skin.
+    joint_nodes: Vec<usize>,
+    inverse_bind: Vec<Mat4>,
+    channels: Vec<Channel>,
+}
+
+fn gltf_err(path: &Path, msg: impl std::fmt::Display) -> Error {
+    Error::input(path.display(), msg)
+}
+
+impl HumanModel {
+    /// Loads a glTF/GLB human. `needs_animation`: the motion mode animates the gait, so a skin
+    /// and an animation are required.
+    pub fn load(path: &Path, needs_animation: bool) -> Result<HumanModel> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_err(path, format!("not a valid glTF: {e}")))?;
+        let base = path.parent().map(Path::to_path_buf);
+        let buffers = gltf::import_buffers(&gltf.document, base.as_deref(), gltf.blob.clone())
+            .map_err(|e| gltf_err(path, format!("cannot read buffers: {e}")))?;
+        let doc = &gltf.document;
+        let name = path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+
+        let extras: PedscanExtras = doc
+            .scenes()
+            .next()
+            .and_then(|s| s.extras().as_ref().map(|raw| raw.get().to_string()))
+            .map(|text| serde_json::from_str::<ExtrasRoot>(&text))
+            .transpose()
+            .map_err(|e| gltf_err(path, format!("scenes[0].extras.pedscan is malformed: {e}")))?
+            .and_then(|r| r.pedscan)
+            .unwrap_or_default();
+
+        // Node hierarchy at rest.
+        let mut nodes: Vec<NodeRest> = doc
+            .nodes()
+            .map(|n| {
+                let (t, r, s) = n.transform().decomposed();
+                NodeRest {
+                    parent: None,
+                    translation: Vec3::from(t),
+                    rotation: Quat::from_array(r).normalize(),
+                    scale: Vec3::from(s),
+                }
+            })
+            .collect();
+        for n in doc.nodes() {
+            for c in n.children() {
+                nodes[c.index()].parent = Some(n.index());
+            }
+        }
+
+        // Skin.
+        let skin = doc.skins().next();
+        let (joint_nodes, inverse_bind) = match &skin {
+            Some(skin) => {
+                let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+                let reader = skin.reader(|b| Some(&buffers[b.index()]));
+                let ibm: Vec<Mat4> = match reader.read_inverse_bind_matrices() {
+                    Some(it) => it.map(|m| Mat4::from_cols_array_2d(&m)).collect(),
+                    None => vec![Mat4::IDENTITY; joints.len()],
+                };
+                if ibm.len() != joints.len() {
+                    return Err(gltf_err(path, "skin has a different number of inverse bind matrices and joints"));
+                }
+                (joints, ibm)
+            }
+            None => (Vec::new(), Vec::new()),
+        };
+
+        // Walk animation: the one named "walk", else the first.
+        let anim = doc
+            .animations()
+            .find(|a| a.name().map(|n| n.eq_ignore_ascii_case("walk")).unwrap_or(false))
+            .or_else(|| doc.animations().next());
+        let mut channels = Vec::new();
+        if let Some(anim) = &anim {
+            for ch in anim.channels() {
+                let property = match ch.target().property() {
+                    gltf::animation::Property::Translation => Property::Translation,
+                    gltf::animation::Property::Rotation => Property::Rotation,
+                    gltf::animation::Property::Scale => Property::Scale,
+                    gltf::animation::Property::MorphTargetWeights => continue,
+                };
+                let interp = match ch.sampler().interpolation() {
+                    gltf::animation::Interpolation::Step => Interp::Step,
+                    gltf::animation::Interpolation::Linear => Interp::Linear,
+                    gltf::animation::Interpolation::CubicSpline => Interp::CubicSpline,
+                };
+                let reader = ch.reader(|b| Some(&buffers[b.index()]));
+                let times: Vec<f32> = reader
+                    .read_inputs()
+                    .ok_or_else(|| gltf_err(path, "animation channel without input times"))?
+                    .collect();
+                let values: Vec<Vec4> = match reader.read_outputs() {
+                    Some(gltf::animation::util::ReadOutputs::Translations(it)) => {
+                        it.map(|v| Vec3::from(v).extend(0.0)).collect()
+                    }
+                    Some(gltf::animation::util::ReadOutputs::Scales(it)) => it.map(|v| Vec3::from(v).extend(0.0)).collect(),
+                    Some(gltf::animation::util::ReadOutputs::Rotations(it)) => it.into_f32().map(Vec4::from).collect(),
+                    _ => return Err(gltf_err(path, "animation channel without readable outputs")),
+                };
+                let per_key = if interp == Interp::CubicSpline { 3 } else { 1 };
+                if times.is_empty() || values.len() != times.len() * per_key {
+                    return Err(gltf_err(path, "animation channel has mismatched input/output counts"));
+                }
+                if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+                    return Err(gltf_err(path, "animation input times are not strictly increasing"));
+                }
+                channels.push(Channel { node: ch.target().node().index(), property, interp, times, values });
+            }
+        }
+        let anim_duration = channels.iter().map(|c| *c.times.last().unwrap()).fold(0.0f32, f32::max);
+
+        if needs_animation {
+            if skin.is_none() {
+                return Err(gltf_err(path, "has no skin; the motion mode animates the walk (use `static` or `sliding` for rigid models)"));
+            }
+            if channels.is_empty() || anim_duration <= 0.0 {
+                return Err(gltf_err(path, "has no walk animation; the motion mode animates the walk (use `static` or `sliding`)"));
+            }
+        }
+
+        // Levels of detail: listed in extras, else every skinned mesh node's mesh (first = LOD 0).
+        let mut lod_meshes: Vec<(usize, f32)> = extras.lods.iter().map(|l| (l.mesh, l.error_m)).collect();
+        if lod_meshes.is_empty() {
+            let mesh = doc
+                .nodes()
+                .find(|n| n.mesh().is_some() && (n.skin().is_some() || skin.is_none()))
+                .and_then(|n| n.mesh())
+                .ok_or_else(|| gltf_err(path, "has no mesh"))?;
+            lod_meshes.push((mesh.index(), 0.0));
+        }
+        lod_meshes.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let mut lods = Vec::new();
+        for (mesh_index, error_m) in lod_meshes {
+            let mesh = doc
+                .meshes()
+                .nth(mesh_index)
+                .ok_or_else(|| gltf_err(path, format!("LOD mesh {mesh_index} does not exist")))?;
+            lods.push(read_lod(path, &mesh, &buffers, error_m, joint_nodes.len())?);
+        }
+        // Meshes without a skin: put the mesh node's own transform into the vertices.
+        if skin.is_none() {
+            if let Some(node) = doc.nodes().find(|n| n.mesh().is_some()) {
+                let m = global_rest(&nodes, node.index());
+                for lod in &mut lods {
+                    for p in &mut lod.positions {
+                        *p = m.transform_point3(*p);
+                    }
+                }
+            }
+        }
+
+        let (lo, hi) = lods[0].positions.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p.y), hi.max(p.y)));
+        let height_m = hi - lo;
+        if !(height_m.is_finite() && height_m > 0.1 && height_m < 5.0) {
+            return Err(gltf_err(path, format!("rest mesh height {height_m} m is not that of a person (0.1..5 m); is it in metres with y up?")));
+        }
+
+        // Re-check the node tree has no cycles (a hostile file could make one).
+        for i in 0..nodes.len() {
+            let mut k = i;
+            let mut steps = 0;
+            while let Some(p) = nodes[k].parent {
+                k = p;
+                steps += 1;
+                if steps > nodes.len() {
+                    return Err(gltf_err(path, "node hierarchy has a cycle"));
+                }
+            }
+        }
+        if nodes.iter().any(|n| !n.translation.is_finite() || !n.rotation.is_finite() || !n.scale.is_finite()) {
+            return Err(gltf_err(path, "a node transform is not finite"));
+        }
+        nodes.shrink_to_fit();
+
+        Ok(HumanModel {
+            name,
+            path: path.to_path_buf(),
+            height_m,
+            weight_kg: extras.weight_kg,
+            stride_length_m: extras.stride_length_m,
+            cycle_s: extras.cycle_s.filter(|c| *c > 0.0).unwrap_or(anim_duration),
+            lods,
+            nodes,
+            joint_nodes,
+            inverse_bind,
+            channels,
+        })
+    }
+
+    /// Nominal height label: the metadata's when present, else the measured rest height.
+    pub fn label_height_m(&self, extras_height: Option<f32>) -> f32 {
+        extras_height.unwrap_or(self.height_m)
+    }
+
+    /// The coarsest LOD whose recorded error is at most `max_error_m` (LOD 0 if none is).
+    pub fn lod_for_error(&self, max_error_m: f32) -> usize {
+        let mut best = 0;
+        for (i, l) in self.lods.iter().enumerate() {
+            if l.error_m <= max_error_m {
+                best = i;
+            }
+        }
+        best
+    }
+
+    /// Joint matrices (model frame) of the walk sampled at `phase` in [0, 1).
+    pub fn joint_matrices(&self, phase: f32, out: &mut Vec<Mat4>) {
+        out.clear();
+        if self.joint_nodes.is_empty() {
+            return;
+        }
+        let t = phase.rem_euclid(1.0) * self.cycle_s;
+        let mut local: Vec<(Vec3, Quat, Vec3)> =
+            self.nodes.iter().map(|n| (n.translation, n.rotation, n.scale)).collect();
+        for ch in &self.channels {
+            let v = sample(ch, t);
+            let l = &mut local[ch.node];
+            match ch.property {
+                Property::Translation => l.0 = v.truncate(),
+                Property::Rotation => l.1 = Quat::from_vec4(v).normalize(),
+                Property::Scale => l.2 = v.truncate(),
+            }
+        }
+        let mut global: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
+        for (j, &node) in self.joint_nodes.iter().enumerate() {
+            let g = global_of(&self.nodes, &local, &mut global, node);
+            out.push(g * self.inverse_bind[j]);
+        }
+    }
+
+    /// Skins LOD `lod` with `joints` and maps it through `transform` (model -> target frame),
+    /// writing f32 positions into `out` (resized). Without a skin the bind pose is used.
+    pub fn skin_into(&self, lod: usize, joints: &[Mat4], transform: &Mat4, out: &mut Vec<[f32; 3]>) {
+        let l = &self.lods[lod];
+        out.resize(l.positions.len(), [0.0; 3]);
+        if joints.is_empty() {
+            out.par_iter_mut().zip(l.positions.par_iter()).for_each(|(o, p)| *o = transform.transform_point3(*p).into());
+            return;
+        }
+        out.par_iter_mut().enumerate().with_min_len(1024).for_each(|(i, o)| {
+            let p = l.positions[i].extend(1.0);
+            let j = l.joints[i];
+            let w = l.weights[i];
+            let mut acc = Vec4::ZERO;
+            for k in 0..4 {
+                if w[k] != 0.0 {
+                    acc += w[k] * (joints[j[k] as usize] * p);
+                }
+            }
+            *o = transform.transform_point3(acc.truncate()).into();
+        });
+    }
+}
+
+fn global_rest(nodes: &[NodeRest], i: usize) -> Mat4 {
+    let n = &nodes[i];
+    let m = Mat4::from_scale_rotation_translation(n.scale, n.rotation, n.translation);
+    match n.parent {
+        Some(p) => global_rest(nodes, p) * m,
+        None => m,
+    }
+}
+
+fn global_of(nodes: &[NodeRest], local: &[(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], i: usize) -> Mat4 {
+    if let Some(m) = cache[i] {
+        return m;
+    }
+    let (t, r, s) = local[i];
+    let m = Mat4::from_scale_rotation_translation(s, r, t);
+    let g = match nodes[i].parent {
+        Some(p) => global_of(nodes, local, cache, p) * m,
+        None => m,
+    };
+    cache[i] = Some(g);
+    g
+}
+
+/// Samples a channel at time `t` (clamped to its key range), glTF interpolation rules.
+fn sample(ch: &Channel, t: f32) -> Vec4 {
+    let times = &ch.times;
+    let n = times.len();
+    let value = |k: usize| if ch.interp == Interp::CubicSpline { ch.values[3 * k + 1] } else { ch.values[k] };
+    if n == 1 || t <= times[0] {
+        return value(0);
+    }
+    if t >= times[n - 1] {
+        return value(n - 1);
+    }
+    let k = times.partition_point(|&x| x <= t) - 1;
+    let (t0, t1) = (times[k], times[k + 1]);
+    let dt = t1 - t0;
+    let u = (t - t0) / dt;
+    match ch.interp {
+        Interp::Step => value(k),
+        Interp::Linear => {
+            if ch.property == Property::Rotation {
+                let a = Quat::from_vec4(value(k)).normalize();
+                let b = Quat::from_vec4(value(k + 1)).normalize();
+                Vec4::from(a.slerp(b, u))
+            } else {
+                value(k).lerp(value(k + 1), u)
+            }
+        }
+        Interp::CubicSpline => {
+            let p0 = ch.values[3 * k + 1];
+            let m0 = ch.values[3 * k + 2] * dt;
+            let p1 = ch.values[3 * (k + 1) + 1];
+            let m1 = ch.values[3 * (k + 1)] * dt;
+            let (u2, u3) = (u * u, u * u * u);
+            let v = (2.0 * u3 - 3.0 * u2 + 1.0) * p0
+                + (u3 - 2.0 * u2 + u) * m0
+                + (-2.0 * u3 + 3.0 * u2) * p1
+                + (u3 - u2) * m1;
+            if ch.property == Property::Rotation {
+                Vec4::from(Quat::from_vec4(v).normalize())
+            } else {
+                v
+            }
+        }
+    }
+}
+
+fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], error_m: f32, joint_count: usize) -> Result<Lod> {
+    let mut positions = Vec::new();
+    let mut joints = Vec::new();
+    let mut weights = Vec::new();
+    let mut indices = Vec::new();
+    for prim in mesh.primitives() {
+        if prim.mode() != gltf::mesh::Mode::Triangles {
+            continue;
+        }
+        let reader = prim.reader(|b| Some(&buffers[b.index()]));
+        let base = positions.len() as u32;
+        let pos: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| gltf_err(path, format!("mesh {} has no POSITION", mesh.index())))?
+            .map(Vec3::from)
+            .collect();
+        let n = pos.len();
+        positions.extend(pos);
+        match (reader.read_joints(0), reader.read_weights(0)) {
+            (Some(j), Some(w)) if joint_count > 0 => {
+                let j: Vec<[u16; 4]> = j.into_u16().collect();
+                let w: Vec<[f32; 4]> = w.into_f32().collect();
+                if j.len() != n || w.len() != n {
+                    return Err(gltf_err(path, "JOINTS_0/WEIGHTS_0 count differs from POSITION"));
+                }
+                for (jj, ww) in j.iter().zip(&w) {
+                    let sum: f32 = ww.iter().sum();
+                    if !(sum > 0.0) || jj.iter().zip(ww).any(|(ji, wi)| *wi != 0.0 && *ji as usize >= joint_count) {
+                        return Err(gltf_err(path, "a vertex has invalid skin weights or joint indices"));
+                    }
+                    joints.push(*jj);
+                    weights.push(ww.map(|x| x / sum));
+                }
+            }
+            _ => {
+                joints.extend(std::iter::repeat([0u16; 4]).take(n));
+                weights.extend(std::iter::repeat([0.0f32; 4]).take(n));
+            }
+        }
+        match reader.read_indices() {
+            Some(idx) => {
+                for i in idx.into_u32() {
+                    if i as usize >= n {
+                        return Err(gltf_err(path, "an index points past the vertex array"));
+                    }
+                    indices.push(base + i);
+                }
+            }
+            None => indices.extend(base..base + n as u32),
+        }
+    }
+    if indices.len() < 3 || indices.len() % 3 != 0 {
+        return Err(gltf_err(path, format!("mesh {} has no triangles", mesh.index())));
+    }
+    if positions.iter().any(|p| !p.is_finite()) {
+        return Err(gltf_err(path, "a vertex position is not finite"));
+    }
+    // Compact: keep only the vertices this LOD's triangles use, in first-use order.
+    let mut remap = vec![u32::MAX; positions.len()];
+    let mut lod = Lod { positions: Vec::new(), joints: Vec::new(), weights: Vec::new(), indices: Vec::with_capacity(indices.len()), error_m };
+    for i in indices {
+        let r = &mut remap[i as usize];
+        if *r == u32::MAX {
+            *r = lod.positions.len() as u32;
+            lod.positions.push(positions[i as usize]);
+            lod.joints.push(joints[i as usize]);
+            lod.weights.push(weights[i as usize]);
+        }
+        lod.indices.push(*r);
+    }
+    Ok(lod)
+}
+
+/// Hip (leg) height as a fraction of stature (Winter, Biomechanics and Motor Control of Human
+/// Movement, anthropometric segment lengths: greater trochanter at 0.530 H).
+pub const LEG_LENGTH_FRACTION: f64 = 0.530;
+
+/// Stride length (heel strike to heel strike of the same foot) of a person of `height_m`
+/// walking at `speed_mps`, from Alexander's relation between relative stride length and the
+/// Froude number (R. McN. Alexander, "Estimates of speeds of dinosaurs", Nature 261:129-130,
+/// 1976): `stride / h = 2.3 * (v^2 / (g h))^0.3`, with h the leg length. At 1.3 m/s a 1.70 m
+/// person strides 1.26 m, a 1.20 m child 0.99 m. Speeds near 0 give a floor of 0.2 h.
+pub fn stride_length_m(height_m: f64, speed_mps: f64) -> f64 {
+    let h = LEG_LENGTH_FRACTION * height_m;
+    let froude = speed_mps * speed_mps / (9.81 * h);
+    (2.3 * h * froude.powf(0.3)).max(0.2 * h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn model_to_body_turns_gltf_front_up_left_into_x_z_y() {
+        let f = MODEL_TO_BODY.transform_vector3(Vec3::Z);
+        let u = MODEL_TO_BODY.transform_vector3(Vec3::Y);
+        let l = MODEL_TO_BODY.transform_vector3(Vec3::X);
+        assert_eq!(f, Vec3::X);
+        assert_eq!(u, Vec3::Z);
+        assert_eq!(l, Vec3::Y);
+        assert!((MODEL_TO_BODY.determinant() - 1.0).abs() < 1e-6, "a rotation, not a mirror");
+    }
+
+    #[test]
+    fn stride_grows_with_speed_and_height() {
+        let adult = stride_length_m(1.7, 1.3);
+        assert!((adult - 1.2617).abs() < 1e-3, "{adult}");
+        assert!((stride_length_m(1.2, 1.3) - 0.9887).abs() < 1e-3);
+        assert!(stride_length_m(1.7, 1.6) > adult);
+        assert!(stride_length_m(1.2, 1.3) < adult);
+        assert!(stride_length_m(1.7, 0.0) > 0.0);
+    }
+
+    /// Two bones along +y: the root at the origin, the child 1 m up; a vertex at y = 1.5 half
+    /// bound to each. Rotating the child by 90 deg about z moves its half by hand-computable
+    /// amounts.
+    #[test]
+    fn two_bone_linear_blend_skinning_matches_hand_computation() {
+        let nodes = vec![
+            NodeRest { parent: None, translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE },
+            NodeRest { parent: Some(0), translation: Vec3::Y, rotation: Quat::IDENTITY, scale: Vec3::ONE },
+        ];
+        let model = HumanModel {
+            name: "t".into(),
+            path: PathBuf::new(),
+            height_m: 2.0,
+            weight_kg: None,
+            stride_length_m: None,
+            cycle_s: 1.0,
+            lods: vec![Lod {
+                positions: vec![Vec3::new(0.0, 1.5, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::new(0.0, 2.0, 0.0)],
+                joints: vec![[0, 1, 0, 0], [0, 0, 0, 0], [1, 0, 0, 0]],
+                weights: vec![[0.5, 0.5, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]],
+                indices: vec![0, 1, 2],
+                error_m: 0.0,
+            }],
+            nodes,
+            joint_nodes: vec![0, 1],
+            inverse_bind: vec![Mat4::IDENTITY, Mat4::from_translation(-Vec3::Y)],
+            channels: vec![Channel {
+                node: 1,
+                property: Property::Rotation,
+                interp: Interp::Linear,
+                times: vec![0.0, 1.0],
+                values: vec![
+                    Vec4::from(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+                    Vec4::from(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+                ],
+            }],
+        };
+        let mut joints = Vec::new();
+        model.joint_matrices(0.25, &mut joints);
+        let mut out = Vec::new();
+        model.skin_into(0, &joints, &Mat4::IDENTITY, &mut out);
+        // Child rotated 90 deg about z at (0,1,0): (0,1.5,0) -> (-0.5,1,0) for the child;
+        // blended half/half with the unmoved root: (-0.25, 1.25, 0).
+        let close = |a: [f32; 3], b: [f32; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6);
+        assert!(close(out[0], [-0.25, 1.25, 0.0]), "{:?}", out[0]);
+        assert!(close(out[1], [0.0, 0.5, 0.0]), "{:?}", out[1]);
+        assert!(close(out[2], [-1.0, 1.0, 0.0]), "{:?}", out[2]);
+    }
+
+    #[test]
+    fn linear_rotation_sampling_slerps_and_clamps() {
+        let ch = Channel {
+            node: 0,
+            property: Property::Rotation,
+            interp: Interp::Linear,
+            times: vec![0.0, 2.0],
+            values: vec![Vec4::from(Quat::IDENTITY), Vec4::from(Quat::from_rotation_x(1.0))],
+        };
+        let q = Quat::from_vec4(sample(&ch, 1.0));
+        assert!(q.angle_between(Quat::from_rotation_x(0.5)) < 1e-5);
+        assert_eq!(sample(&ch, -1.0), Vec4::from(Quat::IDENTITY));
+        let end = Quat::from_vec4(sample(&ch, 5.0));
+        assert!(end.angle_between(Quat::from_rotation_x(1.0)) < 1e-6);
+    }
+}
+
+/// Small hand-built models for tests elsewhere in the crate.
+#[cfg(test)]
+pub(crate) mod tests_support {
+    use super::*;
+
+    /// A rigid 0.4 x 0.3 x 1.7 m box "person" (glTF frame: y up, facing +Z), one joint, no
+    /// animation.
+    pub fn tiny_model() -> HumanModel {
+        let (x, y, z) = (0.2f32, 1.7f32, 0.15f32);
+        let positions = vec![
+            Vec3::new(-x, 0.0, -z),
+            Vec3::new(x, 0.0, -z),
+            Vec3::new(x, y, -z),
+            Vec3::new(-x, y, -z),
+            Vec3::new(-x, 0.0, z),
+            Vec3::new(x, 0.0, z),
+            Vec3::new(x, y, z),
+            Vec3::new(-x, y, z),
+        ];
+        let indices = vec![0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7];
+        HumanModel {
+            name: "box".into(),
+            path: PathBuf::from("box.glb"),
+            height_m: 1.7,
+            weight_kg: Some(60.0),
+            stride_length_m: None,
+            cycle_s: 1.0,
+            lods: vec![Lod { joints: vec![[0; 4]; 8], weights: vec![[1.0, 0.0, 0.0, 0.0]; 8], positions, indices, error_m: 0.0 }],
+            nodes: vec![NodeRest { parent: None, translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE }],
+            joint_nodes: vec![0],
+            inverse_bind: vec![Mat4::IDENTITY],
+            channels: Vec::new(),
+        }
+    }
+}

@@ -1,0 +1,428 @@
+//! Stage 1a: the scene of a sequence. A static environment (glTF, rendered as background),
+//! its walkable area (floor minus obstacles, as a clearance grid), the sensor's trajectory and
+//! the people's trajectories, all in the world frame (right-handed, metres, z up, floor z = 0).
+//!
+//! Trajectories are circular arcs at constant speed and yaw rate (a straight line when the yaw
+//! rate is 0): smooth, with exact positions, velocities and headings at any time, so the
+//! velocity labels need no numerical differentiation.
+
+use crate::error::{Error, Result};
+use glam::{DMat4, DVec2, DVec3};
+use rand::RngExt;
+use std::path::Path;
+
+/// A static environment in the world frame (f64).
+#[derive(Clone, Debug, Default)]
+pub struct Environment {
+    pub positions: Vec<DVec3>,
+    /// Per mesh: local indices (3 per triangle) into `positions`, and whether it is double-sided.
+    pub meshes: Vec<EnvMesh>,
+}
+
+/// One mesh of an environment.
+#[derive(Clone, Debug, Default)]
+pub struct EnvMesh {
+    pub name: String,
+    pub indices: Vec<u32>,
+    pub double_sided: bool,
+}
+
+/// glTF (y up) -> world (z up): `(x, y, z)_world = (x, -z, y)_gltf`, as Blender exports.
+pub fn world_from_gltf() -> DMat4 {
+    DMat4::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+}
+
+impl Environment {
+    /// Loads every mesh of the default scene of a glTF/GLB file, with node transforms applied.
+    pub fn load(path: &Path) -> Result<Environment> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let gltf = gltf::Gltf::from_slice(&bytes)
+            .map_err(|e| Error::input(path.display(), format!("not a valid glTF: {e}")))?;
+        let base = path.parent().map(Path::to_path_buf);
+        let buffers = gltf::import_buffers(&gltf.document, base.as_deref(), gltf.blob.clone())
+            .map_err(|e| Error::input(path.display(), format!("cannot read buffers: {e}")))?;
+        let doc = &gltf.document;
+        let scene = doc
+            .default_scene()
+            .or_else(|| doc.scenes().next())
+            .ok_or_else(|| Error::input(path.display(), "has no scene"))?;
+        let mut env = Environment::default();
+        let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, world_from_gltf())).collect();
+        let mut visited = 0usize;
+        while let Some((node, parent)) = stack.pop() {
+            visited += 1;
+            if visited > 1_000_000 {
+                return Err(Error::input(path.display(), "node hierarchy too deep or cyclic"));
+            }
+            let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(|v| v as f64)));
+            let m = parent * local;
+            if let Some(mesh) = node.mesh() {
+                for prim in mesh.primitives() {
+                    if prim.mode() != gltf::mesh::Mode::Triangles {
+                        continue;
+                    }
+                    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+                    let Some(pos) = reader.read_positions() else { continue };
+                    let base = env.positions.len() as u32;
+                    let before = env.positions.len();
+                    env.positions.extend(pos.map(|p| m.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))));
+                    let n = (env.positions.len() - before) as u32;
+                    let indices: Vec<u32> = match reader.read_indices() {
+                        Some(idx) => idx.into_u32().collect(),
+                        None => (0..n).collect(),
+                    };
+                    if indices.iter().any(|&i| i >= n) || indices.len() % 3 != 0 {
+                        return Err(Error::input(path.display(), format!("mesh '{}' has bad indices", mesh.name().unwrap_or("?"))));
+                    }
+                    // A mirroring transform flips the winding; keep triangles front-facing.
+                    let flip = m.determinant() < 0.0;
+                    let mut local: Vec<u32> = indices.iter().map(|i| i + base).collect();
+                    if flip {
+                        for t in local.chunks_exact_mut(3) {
+                            t.swap(1, 2);
+                        }
+                    }
+                    env.meshes.push(EnvMesh {
+                        name: mesh.name().unwrap_or("").to_string(),
+                        indices: local,
+                        double_sided: prim.material().double_sided(),
+                    });
+                }
+            }
+            for c in node.children() {
+                stack.push((c, m));
+            }
+        }
+        if env.meshes.is_empty() {
+            return Err(Error::input(path.display(), "environment has no triangles"));
+        }
+        if env.positions.iter().any(|p| !p.is_finite()) {
+            return Err(Error::input(path.display(), "a vertex position is not finite"));
+        }
+        Ok(env)
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(|m| m.indices.len() / 3).sum()
+    }
+
+    /// Triangles as world-frame vertex triples.
+    pub fn triangles(&self) -> impl Iterator<Item = [DVec3; 3]> + '_ {
+        self.meshes.iter().flat_map(move |m| {
+            m.indices.chunks_exact(3).map(move |t| [0, 1, 2].map(|k| self.positions[t[k] as usize]))
+        })
+    }
+}
+
+/// Heights (m) between which a triangle counts as an obstacle for walking people.
+const OBSTACLE_Z: (f64, f64) = (0.05, 2.0);
+/// A triangle whose vertices are all within this of z = 0 is floor.
+const FLOOR_Z_TOLERANCE: f64 = 0.05;
+
+/// The walkable area as a grid of clearances: distance (m) from each cell centre to the nearest
+/// obstacle or non-floor cell; 0 where one cannot stand.
+#[derive(Clone, Debug)]
+pub struct WalkableGrid {
+    pub origin: DVec2,
+    pub cell_m: f64,
+    pub nx: usize,
+    pub ny: usize,
+    pub clearance_m: Vec<f32>,
+}
+
+impl WalkableGrid {
+    /// Derives the walkable area of an environment: cells covered by floor triangles (z ~ 0)
+    /// and not touched by any triangle between 5 cm and 2 m height.
+    pub fn from_environment(env: &Environment, cell_m: f64) -> Result<WalkableGrid> {
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for p in &env.positions {
+            lo = lo.min(p.truncate());
+            hi = hi.max(p.truncate());
+        }
+        // One ring of cells beyond the environment: never floor, so the edge of the floor is
+        // an obstacle for the clearance.
+        let lo = lo - DVec2::splat(cell_m);
+        let hi = hi + DVec2::splat(cell_m);
+        let nx = (((hi.x - lo.x) / cell_m).ceil() as usize).max(1);
+        let ny = (((hi.y - lo.y) / cell_m).ceil() as usize).max(1);
+        if nx * ny > 50_000_000 {
+            return Err(Error::input("environment", format!("floor area too large for a {cell_m} m grid ({nx} x {ny})")));
+        }
+        let mut floor = vec![false; nx * ny];
+        let mut blocked = vec![false; nx * ny];
+        let centre = |i: usize, j: usize| lo + DVec2::new((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
+        for t in env.triangles() {
+            let zmin = t.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+            let zmax = t.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+            let is_floor = zmax.abs() <= FLOOR_Z_TOLERANCE && zmin.abs() <= FLOOR_Z_TOLERANCE;
+            let is_obstacle = !is_floor && zmax > OBSTACLE_Z.0 && zmin < OBSTACLE_Z.1;
+            if !is_floor && !is_obstacle {
+                continue;
+            }
+            let tri = t.map(|p| p.truncate());
+            let tlo = tri[0].min(tri[1]).min(tri[2]);
+            let thi = tri[0].max(tri[1]).max(tri[2]);
+            let half_diag = cell_m * std::f64::consts::FRAC_1_SQRT_2;
+            let pad = if is_obstacle { half_diag } else { 0.0 };
+            let i0 = (((tlo.x - pad - lo.x) / cell_m).floor().max(0.0)) as usize;
+            let j0 = (((tlo.y - pad - lo.y) / cell_m).floor().max(0.0)) as usize;
+            let i1 = ((((thi.x + pad - lo.x) / cell_m).ceil()) as usize).min(nx);
+            let j1 = ((((thi.y + pad - lo.y) / cell_m).ceil()) as usize).min(ny);
+            for j in j0..j1 {
+                for i in i0..i1 {
+                    let c = centre(i, j);
+                    let d = dist_point_triangle_2d(c, &tri);
+                    if is_floor && d <= 1e-9 {
+                        floor[j * nx + i] = true;
+                    } else if is_obstacle && d <= half_diag {
+                        blocked[j * nx + i] = true;
+                    }
+                }
+            }
+        }
+        // Only the largest connected walkable region counts: the hollow inside of a closed
+        // obstacle (a box, a pillar) is floor but nobody can get there.
+        let open: Vec<bool> = (0..nx * ny).map(|k| floor[k] && !blocked[k]).collect();
+        let mut component = vec![u32::MAX; nx * ny];
+        let mut sizes: Vec<usize> = Vec::new();
+        for start in 0..nx * ny {
+            if !open[start] || component[start] != u32::MAX {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            let mut size = 0;
+            let mut queue = vec![start];
+            component[start] = id;
+            while let Some(k) = queue.pop() {
+                size += 1;
+                let (i, j) = (k % nx, k / nx);
+                let mut visit = |n: usize| {
+                    if open[n] && component[n] == u32::MAX {
+                        component[n] = id;
+                        queue.push(n);
+                    }
+                };
+                if i > 0 { visit(k - 1); }
+                if i + 1 < nx { visit(k + 1); }
+                if j > 0 { visit(k - nx); }
+                if j + 1 < ny { visit(k + nx); }
+            }
+            sizes.push(size);
+        }
+        let largest = (0..sizes.len()).max_by_key(|&c| (sizes[c], std::cmp::Reverse(c))).map(|c| c as u32);
+        for k in 0..nx * ny {
+            if open[k] && Some(component[k]) != largest {
+                blocked[k] = true;
+            }
+        }
+        // Clearance: exact Euclidean distance to the nearest blocked cell centre, by a
+        // brute-force-free two-pass sweep of nearest-seed propagation (8-neighbour).
+        let inf = f64::INFINITY;
+        let mut seed: Vec<Option<(usize, usize)>> = vec![None; nx * ny];
+        for j in 0..ny {
+            for i in 0..nx {
+                if blocked[j * nx + i] || !floor[j * nx + i] {
+                    seed[j * nx + i] = Some((i, j));
+                }
+            }
+        }
+        let dist = |i: usize, j: usize, s: Option<(usize, usize)>| match s {
+            Some((si, sj)) => {
+                let dx = i as f64 - si as f64;
+                let dy = j as f64 - sj as f64;
+                (dx * dx + dy * dy).sqrt()
+            }
+            None => inf,
+        };
+        for pass in 0..2 {
+            let order: Box<dyn Iterator<Item = usize>> =
+                if pass == 0 { Box::new(0..nx * ny) } else { Box::new((0..nx * ny).rev()) };
+            for k in order {
+                let (i, j) = (k % nx, k / nx);
+                let mut best = seed[k];
+                let mut bd = dist(i, j, best);
+                for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (1, -1), (-1, 1), (1, 1)] {
+                    let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                    if ni < 0 || nj < 0 || ni >= nx as i64 || nj >= ny as i64 {
+                        continue;
+                    }
+                    let s = seed[nj as usize * nx + ni as usize];
+                    let d = dist(i, j, s);
+                    if d < bd {
+                        bd = d;
+                        best = s;
+                    }
+                }
+                seed[k] = best;
+            }
+        }
+        let clearance_m = (0..nx * ny)
+            .map(|k| {
+                let (i, j) = (k % nx, k / nx);
+                let d = dist(i, j, seed[k]);
+                // The nearest blocked cell is itself half a cell wide; distances at the grid
+                // edge (outside = not floor) are measured to the first outside cell.
+                if d.is_finite() { ((d - 0.5).max(0.0) * cell_m) as f32 } else { f32::INFINITY }
+            })
+            .collect();
+        Ok(WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m })
+    }
+
+    /// Clearance at a world xy point (0 outside the grid).
+    pub fn clearance(&self, p: DVec2) -> f64 {
+        let q = (p - self.origin) / self.cell_m;
+        if q.x < 0.0 || q.y < 0.0 {
+            return 0.0;
+        }
+        let (i, j) = (q.x as usize, q.y as usize);
+        if i >= self.nx || j >= self.ny {
+            return 0.0;
+        }
+        self.clearance_m[j * self.nx + i] as f64
+    }
+
+    /// Fraction of cells with at least `r` clearance.
+    pub fn free_fraction(&self, r: f64) -> f64 {
+        self.clearance_m.iter().filter(|c| **c as f64 >= r).count() as f64 / self.clearance_m.len() as f64
+    }
+
+    /// A uniformly random point with at least `r` clearance (rejection sampling).
+    pub fn sample_free(&self, rng: &mut impl rand::Rng, r: f64) -> Option<DVec2> {
+        for _ in 0..10_000 {
+            let p = self.origin
+                + DVec2::new(
+                    rng.random_range(0.0..self.nx as f64 * self.cell_m),
+                    rng.random_range(0.0..self.ny as f64 * self.cell_m),
+                );
+            if self.clearance(p) >= r {
+                return Some(p);
+            }
+        }
+        None
+    }
+}
+
+fn dist_point_segment_2d(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let l2 = ab.length_squared();
+    let t = if l2 > 0.0 { ((p - a).dot(ab) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    (a + t * ab).distance(p)
+}
+
+/// Distance from a point to a 2D triangle (0 inside); degenerate triangles are segments.
+fn dist_point_triangle_2d(p: DVec2, t: &[DVec2; 3]) -> f64 {
+    let cross = |a: DVec2, b: DVec2, c: DVec2| (b - a).perp_dot(c - a);
+    let area = cross(t[0], t[1], t[2]);
+    if area.abs() > 1e-12 {
+        let s = area.signum();
+        let inside = (0..3).all(|k| s * cross(t[k], t[(k + 1) % 3], p) >= 0.0);
+        if inside {
+            return 0.0;
+        }
+    }
+    (0..3).map(|k| dist_point_segment_2d(p, t[k], t[(k + 1) % 3])).fold(f64::INFINITY, f64::min)
+}
+
+/// A planar trajectory at constant speed and yaw rate (a circular arc or a line), starting at
+/// time 0. Height `z_m` is constant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trajectory {
+    pub start_m: DVec2,
+    pub z_m: f64,
+    pub heading0_rad: f64,
+    pub speed_mps: f64,
+    pub yaw_rate_rps: f64,
+}
+
+impl Trajectory {
+    /// A trajectory that stays at `p` facing `heading`.
+    pub fn fixed(p: DVec2, z_m: f64, heading: f64) -> Trajectory {
+        Trajectory { start_m: p, z_m, heading0_rad: heading, speed_mps: 0.0, yaw_rate_rps: 0.0 }
+    }
+
+    pub fn heading_rad(&self, t_s: f64) -> f64 {
+        self.heading0_rad + self.yaw_rate_rps * t_s
+    }
+
+    /// World position at time `t_s` (exact, closed form).
+    pub fn position(&self, t_s: f64) -> DVec3 {
+        let (h0, w, v) = (self.heading0_rad, self.yaw_rate_rps, self.speed_mps);
+        let d = if (w * t_s).abs() < 1e-9 {
+            // Straight line (or the limit of a very gentle arc): second-order Taylor term.
+            let s = v * t_s;
+            let h = h0 + 0.5 * w * t_s;
+            DVec2::new(s * h.cos(), s * h.sin())
+        } else {
+            let h1 = h0 + w * t_s;
+            DVec2::new(v / w * (h1.sin() - h0.sin()), -v / w * (h1.cos() - h0.cos()))
+        };
+        (self.start_m + d).extend(self.z_m)
+    }
+
+    /// World velocity at time `t_s`, m/s (exact).
+    pub fn velocity(&self, t_s: f64) -> DVec3 {
+        let h = self.heading_rad(t_s);
+        DVec3::new(self.speed_mps * h.cos(), self.speed_mps * h.sin(), 0.0)
+    }
+
+    /// Distance travelled since time 0.
+    pub fn distance(&self, t_s: f64) -> f64 {
+        self.speed_mps * t_s
+    }
+
+    /// `world_from_local` pose at time `t_s`: translation to the position, yaw to the heading.
+    pub fn pose(&self, t_s: f64) -> DMat4 {
+        DMat4::from_translation(self.position(t_s)) * DMat4::from_rotation_z(self.heading_rad(t_s))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn arc_velocity_is_the_derivative_of_position() {
+        for w in [0.0, 1e-12, 0.2, -0.7] {
+            let tr = Trajectory { start_m: DVec2::new(3.0, -2.0), z_m: 0.8, heading0_rad: 0.4, speed_mps: 1.3, yaw_rate_rps: w };
+            for t in [0.0, 0.5, 3.1] {
+                let h = 1e-5;
+                let num = (tr.position(t + h) - tr.position(t - h)) / (2.0 * h);
+                assert!((num - tr.velocity(t)).length() < 1e-7, "w {w} t {t}: {num} vs {}", tr.velocity(t));
+                assert!((tr.velocity(t).length() - 1.3).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn walkable_grid_excludes_a_box_and_the_outside() {
+        // A 10 x 10 m floor (two triangles) with a 1 x 1 m box in the middle.
+        let mut env = Environment::default();
+        env.positions = vec![
+            DVec3::new(-5.0, -5.0, 0.0),
+            DVec3::new(5.0, -5.0, 0.0),
+            DVec3::new(5.0, 5.0, 0.0),
+            DVec3::new(-5.0, 5.0, 0.0),
+        ];
+        env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true });
+        let b = env.positions.len() as u32;
+        for z in [0.0, 1.0] {
+            for (x, y) in [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)] {
+                env.positions.push(DVec3::new(x, y, z));
+            }
+        }
+        let side = |a: u32, c: u32, d: u32, e: u32| vec![b + a, b + c, b + d, b + a, b + d, b + e];
+        let mut idx = Vec::new();
+        for (a, c) in [(0, 1), (1, 2), (2, 3), (3, 0)] {
+            idx.extend(side(a, c, c + 4, a + 4));
+        }
+        env.meshes.push(EnvMesh { name: "box".into(), indices: idx, double_sided: false });
+        let g = WalkableGrid::from_environment(&env, 0.1).unwrap();
+        assert_eq!(g.clearance(DVec2::new(0.0, 0.0)), 0.0, "inside the box");
+        assert!(g.clearance(DVec2::new(0.55, 0.0)) < 0.1);
+        let c = g.clearance(DVec2::new(2.0, 0.0));
+        assert!((c - 1.5).abs() < 0.15, "{c}");
+        assert!(g.clearance(DVec2::new(4.8, 0.0)) < 0.3, "near the floor's edge");
+        assert_eq!(g.clearance(DVec2::new(7.0, 0.0)), 0.0, "off the floor");
+    }
+}
