@@ -534,3 +534,13 @@ fn bench_write_hdl32e() {
         );
     }
 }
+
+/// Writes a sample sequence into `$PEDSCAN_SAMPLE_DIR` for manual checks (h5dump, h5py).
+#[test]
+#[ignore]
+fn write_sample_sequence() {
+    let Some(dir) = std::env::var_os("PEDSCAN_SAMPLE_DIR") else { return };
+    let m = meta(3, 3, 2, OutputSet::default());
+    let paths = write_seq(Path::new(&dir), &m, &WriterOptions { png: true, ..Default::default() });
+    println!("{paths:?}");
+}
