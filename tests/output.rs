@@ -2,8 +2,8 @@
 //! XML consistency, PNGs and `info`.
 
 use pedscan::output::{
-    info, Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta,
-    SequenceWriter, WriterOptions,
+    info, Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter,
+    WriterOptions,
 };
 use pedscan::sensor::Sensor;
 use std::path::{Path, PathBuf};
@@ -81,7 +81,8 @@ fn frame(m: &SequenceMeta, t: usize) -> FrameOutput {
         f.velocity = (0..n).map(|i| [0.5, (i % 5) as f32 - 2.0, 0.0]).collect();
     }
     if m.outputs.background {
-        f.background_range = (0..n).map(|i| if i % 7 != 3 { 20.0 + i as f32 } else { 0.0 }).collect();
+        f.background_range =
+            (0..n).map(|i| if i % 7 != 3 { 20.0 + i as f32 } else { 0.0 }).collect();
     }
     f.humans = (0..m.humans.len())
         .map(|k| HumanState {
@@ -125,7 +126,8 @@ fn check_roundtrip(compression: Compression, humans: usize) {
     let f = hdf5::File::open(&paths[0]).unwrap();
     let (t, h, w, n) = (3, 4, 16, humans);
     let frames: Vec<FrameOutput> = (0..t).map(|i| frame(&m, i)).collect();
-    let cat = |g: &dyn Fn(&FrameOutput) -> Vec<f32>| frames.iter().flat_map(g).collect::<Vec<f32>>();
+    let cat =
+        |g: &dyn Fn(&FrameOutput) -> Vec<f32>| frames.iter().flat_map(g).collect::<Vec<f32>>();
 
     let range = f.dataset("range").unwrap();
     assert_eq!(range.shape(), vec![t, h, w]);
@@ -136,7 +138,10 @@ fn check_roundtrip(compression: Compression, humans: usize) {
     assert_eq!(xyz.read_raw::<f32>().unwrap(), cat(&|f| f.xyz.iter().flatten().copied().collect()));
     let vel = f.dataset("velocity").unwrap();
     assert_eq!(vel.shape(), vec![t, h, w, 3]);
-    assert_eq!(vel.read_raw::<f32>().unwrap(), cat(&|f| f.velocity.iter().flatten().copied().collect()));
+    assert_eq!(
+        vel.read_raw::<f32>().unwrap(),
+        cat(&|f| f.velocity.iter().flatten().copied().collect())
+    );
     let bg = f.dataset("background/range").unwrap();
     assert_eq!(bg.shape(), vec![t, h, w]);
     assert_eq!(bg.read_raw::<f32>().unwrap(), cat(&|f| f.background_range.clone()));
@@ -177,8 +182,10 @@ fn check_roundtrip(compression: Compression, humans: usize) {
 
     let hg = f.group("humans").unwrap();
     assert_eq!(hg.dataset("height_m").unwrap().shape(), vec![n]);
-    assert_eq!(hg.dataset("weight_kg").unwrap().read_raw::<f32>().unwrap(),
-        m.humans.iter().map(|h| h.weight_kg).collect::<Vec<_>>());
+    assert_eq!(
+        hg.dataset("weight_kg").unwrap().read_raw::<f32>().unwrap(),
+        m.humans.iter().map(|h| h.weight_kg).collect::<Vec<_>>()
+    );
     let models = hg.dataset("model").unwrap();
     assert_eq!(models.shape(), vec![n]);
     if n > 0 {
@@ -190,10 +197,12 @@ fn check_roundtrip(compression: Compression, humans: usize) {
     assert_eq!(hg.dataset("heading_rad").unwrap().shape(), vec![t, n]);
     assert_eq!(hg.dataset("gait_phase").unwrap().shape(), vec![t, n]);
     let pos = hg.dataset("position_m").unwrap().read_raw::<f64>().unwrap();
-    let want: Vec<f64> = frames.iter().flat_map(|f| f.humans.iter().flat_map(|h| h.position_m)).collect();
+    let want: Vec<f64> =
+        frames.iter().flat_map(|f| f.humans.iter().flat_map(|h| h.position_m)).collect();
     assert_eq!(pos, want);
     let phase = hg.dataset("gait_phase").unwrap().read_raw::<f32>().unwrap();
-    let want: Vec<f32> = frames.iter().flat_map(|f| f.humans.iter().map(|h| h.gait_phase)).collect();
+    let want: Vec<f32> =
+        frames.iter().flat_map(|f| f.humans.iter().map(|h| h.gait_phase)).collect();
     assert_eq!(phase, want);
 
     assert_eq!(read_str_attr(&f, "sensor"), "tiny");
@@ -267,9 +276,14 @@ fn pngs_exist_decode_and_have_the_scaled_size() {
 fn temp_files_exist_during_and_vanish_after_finish() {
     let dir = tempfile::tempdir().unwrap();
     let m = meta(1, 2, 1, OutputSet::default());
-    let mut w = SequenceWriter::create(dir.path(), &m, &WriterOptions { png: true, ..Default::default() }).unwrap();
+    let mut w =
+        SequenceWriter::create(dir.path(), &m, &WriterOptions { png: true, ..Default::default() })
+            .unwrap();
     w.write_frame(&frame(&m, 0)).unwrap();
-    assert_eq!(dir_names(dir.path()), vec!["seq_000001.h5.tmp", "seq_000001.xml.tmp", "seq_000001_png.tmp"]);
+    assert_eq!(
+        dir_names(dir.path()),
+        vec!["seq_000001.h5.tmp", "seq_000001.xml.tmp", "seq_000001_png.tmp"]
+    );
     w.write_frame(&frame(&m, 1)).unwrap();
     w.finish().unwrap();
     assert_eq!(dir_names(dir.path()), vec!["seq_000001.h5", "seq_000001.xml", "seq_000001_png"]);
@@ -280,7 +294,12 @@ fn dropped_writer_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let m = meta(2, 4, 2, OutputSet::default());
     {
-        let mut w = SequenceWriter::create(dir.path(), &m, &WriterOptions { png: true, ..Default::default() }).unwrap();
+        let mut w = SequenceWriter::create(
+            dir.path(),
+            &m,
+            &WriterOptions { png: true, ..Default::default() },
+        )
+        .unwrap();
         w.write_frame(&frame(&m, 0)).unwrap();
         w.write_frame(&frame(&m, 1)).unwrap();
         // An error mid-sequence: the caller bails out with `?` and the writer is dropped.
@@ -358,7 +377,9 @@ fn xml_is_well_formed_and_matches_the_frames() {
                 if e.name().into_inner() == "frame" {
                     let t = in_frame.take().unwrap();
                     let f = frame(&m, t);
-                    let want: Vec<u32> = (1..=2u16).map(|k| f.instance.iter().filter(|&&i| i == k).count() as u32).collect();
+                    let want: Vec<u32> = (1..=2u16)
+                        .map(|k| f.instance.iter().filter(|&&i| i == k).count() as u32)
+                        .collect();
                     assert_eq!(beams_in_frame, want, "frame {t}");
                     beams_in_frame.clear();
                 }
@@ -414,7 +435,16 @@ fn info_summarises_a_sequence() {
     let m = meta(3, 3, 2, OutputSet::default());
     let paths = write_seq(dir.path(), &m, &WriterOptions::default());
     let s = info(&paths[0]).unwrap();
-    for want in ["frames:    3", "4 rows x 16 columns", "tiny", "h1700_w60", "/xyz", "Deflate(1)", "median", "human:"] {
+    for want in [
+        "frames:    3",
+        "4 rows x 16 columns",
+        "tiny",
+        "h1700_w60",
+        "/xyz",
+        "Deflate(1)",
+        "median",
+        "human:",
+    ] {
         assert!(s.contains(want), "missing {want:?} in\n{s}");
     }
 }
@@ -464,7 +494,9 @@ fn bench_write_hdl32e() {
         sensor: sensor.clone(),
         config_toml: String::new(),
         frames,
-        humans: (0..humans).map(|k| HumanMeta { height_m: 1.7, weight_kg: 70.0, model: format!("h{k}") }).collect(),
+        humans: (0..humans)
+            .map(|k| HumanMeta { height_m: 1.7, weight_kg: 70.0, model: format!("h{k}") })
+            .collect(),
         outputs: OutputSet::default(),
     };
     // Ground plane at -1.8 m, a ring of walls 15..35 m away, humans as blobs.
@@ -482,12 +514,19 @@ fn bench_write_hdl32e() {
             let d = dirs[i];
             let (r, c) = (i / cols, i % cols);
             let wall = 15.0 + 20.0 * (0.5 + 0.5 * ((c as f64) * 0.013 + t as f64 * 0.01).sin());
-            let mut range = if d.z < -0.01 { (-1.8 / d.z).min(wall) } else if r > 2 { wall } else { 0.0 };
+            let mut range = if d.z < -0.01 {
+                (-1.8 / d.z).min(wall)
+            } else if r > 2 {
+                wall
+            } else {
+                0.0
+            };
             if range > 100.0 {
                 range = 0.0;
             }
             // Small deterministic "noise" like real geometry.
-            let range = if range > 0.0 { range + ((i * 2654435761) % 1000) as f64 * 1e-5 } else { 0.0 };
+            let range =
+                if range > 0.0 { range + ((i * 2654435761) % 1000) as f64 * 1e-5 } else { 0.0 };
             f.background_range[i] = range as f32;
             f.range[i] = range as f32;
             let k = (c + t) / 100;
@@ -502,8 +541,21 @@ fn bench_write_hdl32e() {
             let p = d * f.range[i] as f64;
             f.xyz[i] = [p.x as f32, p.y as f32, p.z as f32];
         }
-        f.world_from_sensor = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
-        f.humans = vec![HumanState { position_m: [1.0, 2.0, 0.0], heading_rad: 0.0, velocity_mps: [1.0, 0.0, 0.0], gait_phase: 0.5 }; humans];
+        f.world_from_sensor = [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        f.humans = vec![
+            HumanState {
+                position_m: [1.0, 2.0, 0.0],
+                heading_rad: 0.0,
+                velocity_mps: [1.0, 0.0, 0.0],
+                gait_phase: 0.5
+            };
+            humans
+        ];
         f
     };
     let all: Vec<FrameOutput> = (0..frames).map(mk_frame).collect();
@@ -519,7 +571,8 @@ fn bench_write_hdl32e() {
         let mut size = 0;
         for _rep in 0..3 {
             let t0 = std::time::Instant::now();
-            let mut w = SequenceWriter::create(dir.path(), &m, &WriterOptions { png, compression }).unwrap();
+            let mut w = SequenceWriter::create(dir.path(), &m, &WriterOptions { png, compression })
+                .unwrap();
             for f in &all {
                 w.write_frame(f).unwrap();
             }

@@ -75,7 +75,10 @@ fn h5err(name: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
 fn vlu(name: &Path, s: &str) -> Result<VarLenUnicode> {
     VarLenUnicode::from_str(s).map_err(|e| Error::Hdf5 {
         path: name.to_path_buf(),
-        message: format!("string {:?} cannot be stored: {e}", s.chars().take(40).collect::<String>()),
+        message: format!(
+            "string {:?} cannot be stored: {e}",
+            s.chars().take(40).collect::<String>()
+        ),
     })
 }
 
@@ -96,7 +99,12 @@ fn group(parent: &Group, key: &str) -> hdf5::Result<Group> {
 }
 
 /// A small contiguous dataset written in one go (`data.len()` = product of `shape`).
-fn small<T: H5Type>(parent: &Group, key: &str, shape: &[usize], data: &[T]) -> hdf5::Result<Dataset> {
+fn small<T: H5Type>(
+    parent: &Group,
+    key: &str,
+    shape: &[usize],
+    data: &[T],
+) -> hdf5::Result<Dataset> {
     let ds = parent.new_dataset::<T>().shape(shape.to_vec()).obj_track_times(false).create(key)?;
     if !data.is_empty() {
         ds.write_raw(data)?;
@@ -106,7 +114,12 @@ fn small<T: H5Type>(parent: &Group, key: &str, shape: &[usize], data: &[T]) -> h
 
 impl H5Writer {
     /// Creates the file at `tmp` (truncating), all groups, attributes and the per-beam datasets.
-    pub(crate) fn create(tmp: &Path, name: &Path, meta: &SequenceMeta, compression: Compression) -> Result<H5Writer> {
+    pub(crate) fn create(
+        tmp: &Path,
+        name: &Path,
+        meta: &SequenceMeta,
+        compression: Compression,
+    ) -> Result<H5Writer> {
         let e = h5err(name);
         let (t, h, w) = (meta.frames, meta.sensor.rows(), meta.sensor.columns);
         let file = hdf5::File::with_options()
@@ -123,21 +136,47 @@ impl H5Writer {
         attr_u64(&file, "columns", w as u64, name)?;
         attr_u64(&file, "index", meta.index as u64, name)?;
 
-        let mut specs: Vec<(Grid, &str, usize, &str, &str)> = vec![
-            (Grid::Range, "range", 0, "m", "Euclidean range of the first return per beam, 0 = no return"),
-        ];
+        let mut specs: Vec<(Grid, &str, usize, &str, &str)> = vec![(
+            Grid::Range,
+            "range",
+            0,
+            "m",
+            "Euclidean range of the first return per beam, 0 = no return",
+        )];
         if meta.outputs.xyz {
-            specs.push((Grid::Xyz, "xyz", 3, "m", "Return point in the sensor frame (x forward, y left, z up), 0 = no return"));
+            specs.push((
+                Grid::Xyz,
+                "xyz",
+                3,
+                "m",
+                "Return point in the sensor frame (x forward, y left, z up), 0 = no return",
+            ));
         }
         specs.push((Grid::Label, "label", 0, "1", "0 = background or no return, 1 = human"));
         specs.push((Grid::Instance, "instance", 0, "1", "0 = none, k = k-th human of /humans"));
         if meta.outputs.velocity {
-            specs.push((Grid::Velocity, "velocity", 3, "m/s", "Velocity of the hit surface point relative to the sensor, sensor frame"));
+            specs.push((
+                Grid::Velocity,
+                "velocity",
+                3,
+                "m/s",
+                "Velocity of the hit surface point relative to the sensor, sensor frame",
+            ));
         }
         if meta.outputs.background {
-            specs.push((Grid::Background, "background/range", 0, "m", "Range of the background alone (no humans), 0 = no return"));
+            specs.push((
+                Grid::Background,
+                "background/range",
+                0,
+                "m",
+                "Range of the background alone (no humans), 0 = no return",
+            ));
         }
-        let bg = if meta.outputs.background { Some(group(&file, "background").map_err(&e)?) } else { None };
+        let bg = if meta.outputs.background {
+            Some(group(&file, "background").map_err(&e)?)
+        } else {
+            None
+        };
 
         let mut beams = Vec::with_capacity(specs.len());
         for (grid, key, comps, units, desc) in specs {
@@ -165,20 +204,31 @@ impl H5Writer {
                     Some(flate2::Compress::new(flate2::Compression::new(level as u32), true))
                 }
             };
-            beams.push(BeamDataset { grid, ds, elem, shuffled: Vec::new(), packed: Vec::new(), zip });
+            beams.push(BeamDataset {
+                grid,
+                ds,
+                elem,
+                shuffled: Vec::new(),
+                packed: Vec::new(),
+                zip,
+            });
         }
 
         // The beam table is known up front.
         let sensor = group(&file, "sensor").map_err(&e)?;
         let el: Vec<f32> = meta.sensor.elevation_deg.iter().map(|&d| d as f32).collect();
-        let az: Vec<f32> =
-            (0..w).map(|c| meta.sensor.azimuth_rad(c).to_degrees() as f32).collect();
+        let az: Vec<f32> = (0..w).map(|c| meta.sensor.azimuth_rad(c).to_degrees() as f32).collect();
         let ds = small(&sensor, "elevation_deg", &[h], &el).map_err(&e)?;
         attr_str(&ds, "units", "deg", name)?;
         attr_str(&ds, "description", "Elevation of each row's beam, row 0 = highest", name)?;
         let ds = small(&sensor, "azimuth_deg", &[w], &az).map_err(&e)?;
         attr_str(&ds, "units", "deg", name)?;
-        attr_str(&ds, "description", "Azimuth of each column's centre, counter-clockwise from +x", name)?;
+        attr_str(
+            &ds,
+            "description",
+            "Azimuth of each column's centre, counter-clockwise from +x",
+            name,
+        )?;
 
         let n = meta.humans.len();
         Ok(H5Writer {
@@ -255,7 +305,12 @@ impl H5Writer {
             let sensor = file.group("sensor").map_err(&e)?;
             let ds = small(&sensor, "time_s", &[t], &self.time_s).map_err(&e)?;
             attr_str(&ds, "units", "s", &name)?;
-            attr_str(&ds, "description", "Time of each frame since the start of the sequence", &name)?;
+            attr_str(
+                &ds,
+                "description",
+                "Time of each frame since the start of the sequence",
+                &name,
+            )?;
             let ds = small(&sensor, "world_from_sensor", &[t, 4, 4], &self.world_from_sensor)
                 .map_err(&e)?;
             attr_str(&ds, "units", "m", &name)?;
@@ -264,19 +319,51 @@ impl H5Writer {
             let hg = group(&file, "humans").map_err(&e)?;
             let height: Vec<f32> = meta.humans.iter().map(|h| h.height_m).collect();
             let weight: Vec<f32> = meta.humans.iter().map(|h| h.weight_kg).collect();
-            let model = meta.humans.iter().map(|h| vlu(&name, &h.model)).collect::<Result<Vec<_>>>()?;
+            let model =
+                meta.humans.iter().map(|h| vlu(&name, &h.model)).collect::<Result<Vec<_>>>()?;
             let recs: [(&str, &str, &str, Dataset); 7] = [
-                ("height_m", "m", "Body height", small(&hg, "height_m", &[n], &height).map_err(&e)?),
-                ("weight_kg", "kg", "Body weight", small(&hg, "weight_kg", &[n], &weight).map_err(&e)?),
-                ("model", "", "Model name (glTF file stem)", small(&hg, "model", &[n], &model).map_err(&e)?),
-                ("position_m", "m", "Position in the world frame",
-                    small(&hg, "position_m", &[t, n, 3], &self.position_m).map_err(&e)?),
-                ("heading_rad", "rad", "Heading in the world frame",
-                    small(&hg, "heading_rad", &[t, n], &self.heading_rad).map_err(&e)?),
-                ("velocity_mps", "m/s", "Velocity in the world frame",
-                    small(&hg, "velocity_mps", &[t, n, 3], &self.velocity_mps).map_err(&e)?),
-                ("gait_phase", "1", "Gait phase in [0, 1)",
-                    small(&hg, "gait_phase", &[t, n], &self.gait_phase).map_err(&e)?),
+                (
+                    "height_m",
+                    "m",
+                    "Body height",
+                    small(&hg, "height_m", &[n], &height).map_err(&e)?,
+                ),
+                (
+                    "weight_kg",
+                    "kg",
+                    "Body weight",
+                    small(&hg, "weight_kg", &[n], &weight).map_err(&e)?,
+                ),
+                (
+                    "model",
+                    "",
+                    "Model name (glTF file stem)",
+                    small(&hg, "model", &[n], &model).map_err(&e)?,
+                ),
+                (
+                    "position_m",
+                    "m",
+                    "Position in the world frame",
+                    small(&hg, "position_m", &[t, n, 3], &self.position_m).map_err(&e)?,
+                ),
+                (
+                    "heading_rad",
+                    "rad",
+                    "Heading in the world frame",
+                    small(&hg, "heading_rad", &[t, n], &self.heading_rad).map_err(&e)?,
+                ),
+                (
+                    "velocity_mps",
+                    "m/s",
+                    "Velocity in the world frame",
+                    small(&hg, "velocity_mps", &[t, n, 3], &self.velocity_mps).map_err(&e)?,
+                ),
+                (
+                    "gait_phase",
+                    "1",
+                    "Gait phase in [0, 1)",
+                    small(&hg, "gait_phase", &[t, n], &self.gait_phase).map_err(&e)?,
+                ),
             ];
             for (_, units, desc, ds) in &recs {
                 if !units.is_empty() {
@@ -351,7 +438,11 @@ fn shuffle(src: &[u8], elem: usize, dst: &mut Vec<u8>) {
 }
 
 /// One zlib stream (what HDF5's deflate filter stores) of `src` into `dst`.
-fn deflate(zip: &mut flate2::Compress, src: &[u8], dst: &mut Vec<u8>) -> std::result::Result<(), String> {
+fn deflate(
+    zip: &mut flate2::Compress,
+    src: &[u8],
+    dst: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
     zip.reset();
     dst.clear();
     dst.reserve(src.len() + src.len() / 16 + 1024);

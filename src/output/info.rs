@@ -42,7 +42,10 @@ pub fn info(path: &Path) -> Result<String> {
             .unwrap_or_else(|_| "?".into())
     };
     let u64_attr = |k: &str| -> String {
-        file.attr(k).and_then(|a| a.read_scalar::<u64>()).map(|v| v.to_string()).unwrap_or_else(|_| "?".into())
+        file.attr(k)
+            .and_then(|a| a.read_scalar::<u64>())
+            .map(|v| v.to_string())
+            .unwrap_or_else(|_| "?".into())
     };
     let _ = writeln!(s, "file:      {shown}");
     let _ = writeln!(s, "pedscan:   {}", str_attr("pedscan_version"));
@@ -61,7 +64,8 @@ pub fn info(path: &Path) -> Result<String> {
     if let Ok(g) = file.group("humans") {
         let height = g.dataset("height_m").and_then(|d| d.read_raw::<f32>()).unwrap_or_default();
         let weight = g.dataset("weight_kg").and_then(|d| d.read_raw::<f32>()).unwrap_or_default();
-        let model = g.dataset("model").and_then(|d| d.read_raw::<VarLenUnicode>()).unwrap_or_default();
+        let model =
+            g.dataset("model").and_then(|d| d.read_raw::<VarLenUnicode>()).unwrap_or_default();
         let _ = writeln!(s, "humans:    {}", height.len());
         for (k, hm) in height.iter().enumerate() {
             let m = model.get(k).map(|m| m.as_str()).unwrap_or("?");
@@ -87,7 +91,8 @@ pub fn info(path: &Path) -> Result<String> {
         let comp = if filters.is_empty() { "none".to_string() } else { filters.join(" + ") };
         let stored = ds.storage_size();
         let raw = ds.size() * ds.dtype().map(|d| d.size()).unwrap_or(0);
-        let ratio = if stored > 0 { format!("{:.2}x", raw as f64 / stored as f64) } else { "-".into() };
+        let ratio =
+            if stored > 0 { format!("{:.2}x", raw as f64 / stored as f64) } else { "-".into() };
         let _ = writeln!(
             s,
             "  /{name:<28} {dtype:<10} {:<22} {comp}  ({} stored, {ratio})",

@@ -22,14 +22,12 @@ pub fn turbo(t: f32) -> [u8; 3] {
     let t3 = t2 * t;
     let t4 = t3 * t;
     let t5 = t4 * t;
-    let r = 0.13572138 + 4.61539260 * t - 42.66032258 * t2 + 132.13108234 * t3
-        - 152.94239396 * t4
+    let r = 0.13572138 + 4.61539260 * t - 42.66032258 * t2 + 132.13108234 * t3 - 152.94239396 * t4
         + 59.28637943 * t5;
     let g = 0.09140261 + 2.19418839 * t + 4.84296658 * t2 - 14.18503333 * t3
         + 4.27729857 * t4
         + 2.82956604 * t5;
-    let b = 0.10667330 + 12.64194608 * t - 60.58204836 * t2 + 110.36276771 * t3
-        - 89.90310912 * t4
+    let b = 0.10667330 + 12.64194608 * t - 60.58204836 * t2 + 110.36276771 * t3 - 89.90310912 * t4
         + 27.34824973 * t5;
     [to_u8(r), to_u8(g), to_u8(b)]
 }
@@ -70,7 +68,12 @@ fn check(len: usize, rows: usize, columns: usize, what: &str) {
 }
 
 /// Builds the image by evaluating `colour(index)` once per beam and repeating each row.
-fn grid_image(rows: usize, columns: usize, row_scale: u32, colour: impl Fn(usize) -> [u8; 3]) -> RgbImage {
+fn grid_image(
+    rows: usize,
+    columns: usize,
+    row_scale: u32,
+    colour: impl Fn(usize) -> [u8; 3],
+) -> RgbImage {
     let scale = row_scale.max(1) as usize;
     let mut buf = vec![0u8; rows * scale * columns * 3];
     let line = columns * 3;
@@ -93,7 +96,13 @@ fn grid_image(rows: usize, columns: usize, row_scale: u32, colour: impl Fn(usize
 /// Range image: Turbo over `0..max_range_m` (blue near, red far), black = no return.
 ///
 /// Panics if `range.len() != rows * columns`.
-pub fn range_png(range: &[f32], rows: usize, columns: usize, max_range_m: f32, row_scale: u32) -> RgbImage {
+pub fn range_png(
+    range: &[f32],
+    rows: usize,
+    columns: usize,
+    max_range_m: f32,
+    row_scale: u32,
+) -> RgbImage {
     check(range.len(), rows, columns, "range");
     let inv = if max_range_m > 0.0 { 1.0 / max_range_m } else { 0.0 };
     grid_image(rows, columns, row_scale, |i| {

@@ -62,10 +62,17 @@ fn tmp_name(p: &Path) -> PathBuf {
 
 impl SequenceWriter {
     /// Creates the temporary files of sequence `meta.index` in `out_dir` (created if missing).
-    pub fn create(out_dir: &Path, meta: &SequenceMeta, opts: &WriterOptions) -> Result<SequenceWriter> {
+    pub fn create(
+        out_dir: &Path,
+        meta: &SequenceMeta,
+        opts: &WriterOptions,
+    ) -> Result<SequenceWriter> {
         if let Compression::Deflate(level) = opts.compression {
             if level > 9 {
-                return Err(Error::input("compression", format!("deflate level {level} is not in 0..=9")));
+                return Err(Error::input(
+                    "compression",
+                    format!("deflate level {level} is not in 0..=9"),
+                ));
             }
         }
         if meta.frames == 0 {
@@ -75,7 +82,10 @@ impl SequenceWriter {
             return Err(Error::Internal("sensor grid has no beams".into()));
         }
         if meta.humans.len() > u16::MAX as usize {
-            return Err(Error::Internal(format!("{} humans do not fit u16 instance ids", meta.humans.len())));
+            return Err(Error::Internal(format!(
+                "{} humans do not fit u16 instance ids",
+                meta.humans.len()
+            )));
         }
         std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
         let stem = sequence_stem(meta.index);
@@ -192,7 +202,12 @@ impl SequenceWriter {
         let (rows, cols) = (self.meta.sensor.rows(), self.meta.sensor.columns);
         let max_r = self.meta.sensor.max_range_m as f32;
         let velocity = self.meta.outputs.velocity;
-        let range = || save_png(&range_png(&f.range, rows, cols, max_r, PNG_ROW_SCALE), &dir.join(format!("range_{index:04}.png")));
+        let range = || {
+            save_png(
+                &range_png(&f.range, rows, cols, max_r, PNG_ROW_SCALE),
+                &dir.join(format!("range_{index:04}.png")),
+            )
+        };
         let label = || {
             save_png(
                 &label_png(&f.range, &f.instance, rows, cols, max_r, PNG_ROW_SCALE),
