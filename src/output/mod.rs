@@ -7,6 +7,16 @@
 
 use crate::sensor::Sensor;
 
+mod h5;
+mod info;
+pub mod png;
+mod writer;
+mod xml;
+
+pub use info::info;
+pub use png::{label_png, range_png, velocity_png};
+pub use writer::{sequence_stem, Compression, SequenceWriter, WriterOptions};
+
 /// What a sequence is about; written once per sequence.
 #[derive(Clone, Debug)]
 pub struct SequenceMeta {

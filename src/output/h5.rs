@@ -1,0 +1,493 @@
+//! The HDF5 sequence file (stage 5). Layout (T frames, H rows, W columns, N humans):
+//!
+//! ```text
+//! /range f32[T,H,W]  /xyz f32[T,H,W,3]  /label u8[T,H,W]  /instance u16[T,H,W]
+//! /velocity f32[T,H,W,3]  /background/range f32[T,H,W]
+//! /sensor/time_s f64[T]  /sensor/world_from_sensor f64[T,4,4]
+//! /sensor/elevation_deg f32[H]  /sensor/azimuth_deg f32[W]
+//! /humans/height_m f32[N]  /humans/weight_kg f32[N]  /humans/model str[N]
+//! /humans/position_m f64[T,N,3]  /humans/heading_rad f32[T,N]
+//! /humans/velocity_mps f32[T,N,3]  /humans/gait_phase f32[T,N]
+//! ```
+//!
+//! Per-beam datasets are chunked one frame per chunk. Each frame's chunks are shuffled and
+//! deflated here (in parallel, one task per dataset) and stored with HDF5's direct chunk write,
+//! so the file is an ordinary shuffle+deflate file that every reader opens, but compression is
+//! not serialised inside libhdf5. Small per-frame records (times, poses, human states) are
+//! kept in memory (a few dozen bytes per frame and person) and written at the end.
+//!
+//! Reproducibility: object modification times are switched off on the file (root group),
+//! every group and every dataset, and the compressor is deterministic, so identical inputs
+//! give byte-identical files.
+
+use super::{Compression, FrameOutput, SequenceMeta};
+use crate::error::{Error, Result};
+use hdf5::types::VarLenUnicode;
+use hdf5::{Dataset, Group, H5Type, Location};
+use hdf5_sys::h5::hsize_t;
+use hdf5_sys::h5d::H5Dwrite_chunk;
+use hdf5_sys::h5p::H5P_DEFAULT;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+/// Which per-beam grid a dataset stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Grid {
+    Range,
+    Xyz,
+    Label,
+    Instance,
+    Velocity,
+    Background,
+}
+
+struct BeamDataset {
+    grid: Grid,
+    ds: Dataset,
+    /// Element size in bytes (the shuffle filter's byte stride).
+    elem: usize,
+    shuffled: Vec<u8>,
+    packed: Vec<u8>,
+    zip: Option<flate2::Compress>,
+}
+
+pub(crate) struct H5Writer {
+    file: Option<hdf5::File>,
+    /// The final name, for messages.
+    name: PathBuf,
+    compression: Compression,
+    beams: Vec<BeamDataset>,
+    frames: usize,
+    humans: usize,
+    time_s: Vec<f64>,
+    world_from_sensor: Vec<f64>,
+    position_m: Vec<f64>,
+    heading_rad: Vec<f32>,
+    velocity_mps: Vec<f32>,
+    gait_phase: Vec<f32>,
+}
+
+fn h5err(name: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
+    move |e| Error::Hdf5 { path: name.to_path_buf(), message: e.to_string() }
+}
+
+fn vlu(name: &Path, s: &str) -> Result<VarLenUnicode> {
+    VarLenUnicode::from_str(s).map_err(|e| Error::Hdf5 {
+        path: name.to_path_buf(),
+        message: format!(
+            "string {:?} cannot be stored: {e}",
+            s.chars().take(40).collect::<String>()
+        ),
+    })
+}
+
+fn attr_str(loc: &Location, key: &str, value: &str, name: &Path) -> Result<()> {
+    let v = vlu(name, value)?;
+    loc.new_attr::<VarLenUnicode>()
+        .create(key)
+        .and_then(|a| a.write_scalar(&v))
+        .map_err(h5err(name))
+}
+
+fn attr_u64(loc: &Location, key: &str, value: u64, name: &Path) -> Result<()> {
+    loc.new_attr::<u64>().create(key).and_then(|a| a.write_scalar(&value)).map_err(h5err(name))
+}
+
+fn group(parent: &Group, key: &str) -> hdf5::Result<Group> {
+    parent.create_group_builder().obj_track_times(false).create(key)
+}
+
+/// A small contiguous dataset written in one go (`data.len()` = product of `shape`).
+fn small<T: H5Type>(
+    parent: &Group,
+    key: &str,
+    shape: &[usize],
+    data: &[T],
+) -> hdf5::Result<Dataset> {
+    let ds = parent.new_dataset::<T>().shape(shape.to_vec()).obj_track_times(false).create(key)?;
+    if !data.is_empty() {
+        ds.write_raw(data)?;
+    }
+    Ok(ds)
+}
+
+impl H5Writer {
+    /// Creates the file at `tmp` (truncating), all groups, attributes and the per-beam datasets.
+    pub(crate) fn create(
+        tmp: &Path,
+        name: &Path,
+        meta: &SequenceMeta,
+        compression: Compression,
+    ) -> Result<H5Writer> {
+        let e = h5err(name);
+        let (t, h, w) = (meta.frames, meta.sensor.rows(), meta.sensor.columns);
+        let file = hdf5::File::with_options()
+            .with_fcpl(|p| p.obj_track_times(false))
+            .create(tmp)
+            .map_err(&e)?;
+
+        attr_str(&file, "pedscan_version", crate::version(), name)?;
+        attr_u64(&file, "seed", meta.seed, name)?;
+        attr_str(&file, "sensor", &meta.sensor.name, name)?;
+        attr_str(&file, "config", &meta.config_toml, name)?;
+        attr_u64(&file, "frames", t as u64, name)?;
+        attr_u64(&file, "rows", h as u64, name)?;
+        attr_u64(&file, "columns", w as u64, name)?;
+        attr_u64(&file, "index", meta.index as u64, name)?;
+
+        let mut specs: Vec<(Grid, &str, usize, &str, &str)> = vec![(
+            Grid::Range,
+            "range",
+            0,
+            "m",
+            "Euclidean range of the first return per beam, 0 = no return",
+        )];
+        if meta.outputs.xyz {
+            specs.push((
+                Grid::Xyz,
+                "xyz",
+                3,
+                "m",
+                "Return point in the sensor frame (x forward, y left, z up), 0 = no return",
+            ));
+        }
+        specs.push((Grid::Label, "label", 0, "1", "0 = background or no return, 1 = human"));
+        specs.push((Grid::Instance, "instance", 0, "1", "0 = none, k = k-th human of /humans"));
+        if meta.outputs.velocity {
+            specs.push((
+                Grid::Velocity,
+                "velocity",
+                3,
+                "m/s",
+                "Velocity of the hit surface point relative to the sensor, sensor frame",
+            ));
+        }
+        if meta.outputs.background {
+            specs.push((
+                Grid::Background,
+                "background/range",
+                0,
+                "m",
+                "Range of the background alone (no humans), 0 = no return",
+            ));
+        }
+        let bg = if meta.outputs.background {
+            Some(group(&file, "background").map_err(&e)?)
+        } else {
+            None
+        };
+
+        let mut beams = Vec::with_capacity(specs.len());
+        for (grid, key, comps, units, desc) in specs {
+            let mut shape = vec![t, h, w];
+            if comps > 0 {
+                shape.push(comps);
+            }
+            let mut chunk = shape.clone();
+            chunk[0] = 1;
+            let (parent, leaf): (&Group, &str) = match key.split_once('/') {
+                Some((_, leaf)) => (bg.as_ref().expect("background group exists"), leaf),
+                None => (&file, key),
+            };
+            let (ds, elem) = match grid {
+                Grid::Label => (beam_dataset::<u8>(parent, leaf, shape, chunk, compression), 1),
+                Grid::Instance => (beam_dataset::<u16>(parent, leaf, shape, chunk, compression), 2),
+                _ => (beam_dataset::<f32>(parent, leaf, shape, chunk, compression), 4),
+            };
+            let ds = ds.map_err(&e)?;
+            attr_str(&ds, "units", units, name)?;
+            attr_str(&ds, "description", desc, name)?;
+            let zip = match compression {
+                Compression::None => None,
+                Compression::Deflate(level) => {
+                    Some(flate2::Compress::new(flate2::Compression::new(level as u32), true))
+                }
+            };
+            beams.push(BeamDataset {
+                grid,
+                ds,
+                elem,
+                shuffled: Vec::new(),
+                packed: Vec::new(),
+                zip,
+            });
+        }
+
+        // The beam table is known up front.
+        let sensor = group(&file, "sensor").map_err(&e)?;
+        let el: Vec<f32> = meta.sensor.elevation_deg.iter().map(|&d| d as f32).collect();
+        let az: Vec<f32> = (0..w).map(|c| meta.sensor.azimuth_rad(c).to_degrees() as f32).collect();
+        let ds = small(&sensor, "elevation_deg", &[h], &el).map_err(&e)?;
+        attr_str(&ds, "units", "deg", name)?;
+        attr_str(&ds, "description", "Elevation of each row's beam, row 0 = highest", name)?;
+        let ds = small(&sensor, "azimuth_deg", &[w], &az).map_err(&e)?;
+        attr_str(&ds, "units", "deg", name)?;
+        attr_str(
+            &ds,
+            "description",
+            "Azimuth of each column's centre, counter-clockwise from +x",
+            name,
+        )?;
+
+        let n = meta.humans.len();
+        Ok(H5Writer {
+            file: Some(file),
+            name: name.to_path_buf(),
+            compression,
+            beams,
+            frames: t,
+            humans: n,
+            time_s: Vec::with_capacity(t),
+            world_from_sensor: Vec::with_capacity(t * 16),
+            position_m: Vec::with_capacity(t * n * 3),
+            heading_rad: Vec::with_capacity(t * n),
+            velocity_mps: Vec::with_capacity(t * n * 3),
+            gait_phase: Vec::with_capacity(t * n),
+        })
+    }
+
+    /// Writes frame `index` (already validated by the caller).
+    pub(crate) fn write_frame(&mut self, index: usize, f: &FrameOutput) -> Result<()> {
+        let sources: Vec<&[u8]> = self
+            .beams
+            .iter()
+            .map(|b| -> &[u8] {
+                match b.grid {
+                    Grid::Range => bytemuck::cast_slice(&f.range),
+                    Grid::Xyz => bytemuck::cast_slice(&f.xyz),
+                    Grid::Label => &f.label,
+                    Grid::Instance => bytemuck::cast_slice(&f.instance),
+                    Grid::Velocity => bytemuck::cast_slice(&f.velocity),
+                    Grid::Background => bytemuck::cast_slice(&f.background_range),
+                }
+            })
+            .collect();
+        if let Compression::Deflate(_) = self.compression {
+            let name = &self.name;
+            self.beams.par_iter_mut().zip(sources.par_iter()).try_for_each(|(b, src)| {
+                shuffle(src, b.elem, &mut b.shuffled);
+                let zip = b.zip.as_mut().expect("deflate writer has a compressor");
+                deflate(zip, &b.shuffled, &mut b.packed).map_err(|m| Error::Hdf5 {
+                    path: name.clone(),
+                    message: format!("deflate of frame {index} failed: {m}"),
+                })
+            })?;
+        }
+        for (b, src) in self.beams.iter().zip(&sources) {
+            let data: &[u8] = match self.compression {
+                Compression::None => src,
+                Compression::Deflate(_) => &b.packed,
+            };
+            write_chunk(&b.ds, index, data).map_err(|m| Error::Hdf5 {
+                path: self.name.clone(),
+                message: format!("writing frame {index} of {}: {m}", b.ds.name()),
+            })?;
+        }
+        self.time_s.push(f.time_s);
+        self.world_from_sensor.extend(f.world_from_sensor.iter().flatten());
+        for hs in &f.humans {
+            self.position_m.extend_from_slice(&hs.position_m);
+            self.heading_rad.push(hs.heading_rad);
+            self.velocity_mps.extend_from_slice(&hs.velocity_mps);
+            self.gait_phase.push(hs.gait_phase);
+        }
+        Ok(())
+    }
+
+    /// Writes the per-frame records and the human table, then closes the file.
+    pub(crate) fn finish(mut self, meta: &SequenceMeta) -> Result<()> {
+        let name = self.name.clone();
+        let e = h5err(&name);
+        let file = self.file.take().expect("file is open until finish");
+        let (t, n) = (self.frames, self.humans);
+        {
+            let sensor = file.group("sensor").map_err(&e)?;
+            let ds = small(&sensor, "time_s", &[t], &self.time_s).map_err(&e)?;
+            attr_str(&ds, "units", "s", &name)?;
+            attr_str(
+                &ds,
+                "description",
+                "Time of each frame since the start of the sequence",
+                &name,
+            )?;
+            let ds = small(&sensor, "world_from_sensor", &[t, 4, 4], &self.world_from_sensor)
+                .map_err(&e)?;
+            attr_str(&ds, "units", "m", &name)?;
+            attr_str(&ds, "description", "Row-major 4x4 pose of the sensor in the world", &name)?;
+
+            let hg = group(&file, "humans").map_err(&e)?;
+            let height: Vec<f32> = meta.humans.iter().map(|h| h.height_m).collect();
+            let weight: Vec<f32> = meta.humans.iter().map(|h| h.weight_kg).collect();
+            let model =
+                meta.humans.iter().map(|h| vlu(&name, &h.model)).collect::<Result<Vec<_>>>()?;
+            let recs: [(&str, &str, &str, Dataset); 7] = [
+                (
+                    "height_m",
+                    "m",
+                    "Body height",
+                    small(&hg, "height_m", &[n], &height).map_err(&e)?,
+                ),
+                (
+                    "weight_kg",
+                    "kg",
+                    "Body weight",
+                    small(&hg, "weight_kg", &[n], &weight).map_err(&e)?,
+                ),
+                (
+                    "model",
+                    "",
+                    "Model name (glTF file stem)",
+                    small(&hg, "model", &[n], &model).map_err(&e)?,
+                ),
+                (
+                    "position_m",
+                    "m",
+                    "Position in the world frame",
+                    small(&hg, "position_m", &[t, n, 3], &self.position_m).map_err(&e)?,
+                ),
+                (
+                    "heading_rad",
+                    "rad",
+                    "Heading in the world frame",
+                    small(&hg, "heading_rad", &[t, n], &self.heading_rad).map_err(&e)?,
+                ),
+                (
+                    "velocity_mps",
+                    "m/s",
+                    "Velocity in the world frame",
+                    small(&hg, "velocity_mps", &[t, n, 3], &self.velocity_mps).map_err(&e)?,
+                ),
+                (
+                    "gait_phase",
+                    "1",
+                    "Gait phase in [0, 1)",
+                    small(&hg, "gait_phase", &[t, n], &self.gait_phase).map_err(&e)?,
+                ),
+            ];
+            for (_, units, desc, ds) in &recs {
+                if !units.is_empty() {
+                    attr_str(ds, "units", units, &name)?;
+                }
+                attr_str(ds, "description", desc, &name)?;
+            }
+        }
+        // Every handle into the file must be gone before the close, or libhdf5 defers it.
+        self.beams.clear();
+        file.close().map_err(&e)?;
+        Ok(())
+    }
+}
+
+fn beam_dataset<T: H5Type>(
+    parent: &Group,
+    key: &str,
+    shape: Vec<usize>,
+    chunk: Vec<usize>,
+    compression: Compression,
+) -> hdf5::Result<Dataset> {
+    let b = parent.new_dataset::<T>().shape(shape).chunk(chunk).obj_track_times(false);
+    let b = match compression {
+        Compression::None => b,
+        // Order matters: the pipeline is shuffle, then deflate, exactly as done in `shuffle`
+        // and `deflate` below before the direct chunk write.
+        Compression::Deflate(level) => b.shuffle().deflate(level),
+    };
+    b.create(key)
+}
+
+/// HDF5's shuffle filter: byte `j` of element `i` goes to `j * n + i`.
+fn shuffle(src: &[u8], elem: usize, dst: &mut Vec<u8>) {
+    dst.clear();
+    dst.resize(src.len(), 0);
+    if elem <= 1 {
+        dst.copy_from_slice(src);
+        return;
+    }
+    let n = src.len() / elem;
+    match elem {
+        2 => {
+            let (a, b) = dst.split_at_mut(n);
+            for (i, e) in src.chunks_exact(2).enumerate() {
+                a[i] = e[0];
+                b[i] = e[1];
+            }
+        }
+        4 => {
+            let (a, rest) = dst.split_at_mut(n);
+            let (b, rest) = rest.split_at_mut(n);
+            let (c, d) = rest.split_at_mut(n);
+            for (i, e) in src.chunks_exact(4).enumerate() {
+                a[i] = e[0];
+                b[i] = e[1];
+                c[i] = e[2];
+                d[i] = e[3];
+            }
+        }
+        _ => {
+            for (i, e) in src.chunks_exact(elem).enumerate() {
+                for (j, &byte) in e.iter().enumerate() {
+                    dst[j * n + i] = byte;
+                }
+            }
+        }
+    }
+    // Trailing bytes that do not fill an element stay in place (as in libhdf5).
+    let tail = n * elem;
+    dst[tail..].copy_from_slice(&src[tail..]);
+}
+
+/// One zlib stream (what HDF5's deflate filter stores) of `src` into `dst`.
+fn deflate(
+    zip: &mut flate2::Compress,
+    src: &[u8],
+    dst: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
+    zip.reset();
+    dst.clear();
+    dst.reserve(src.len() + src.len() / 16 + 1024);
+    loop {
+        let done = zip.total_in() as usize;
+        let status = zip
+            .compress_vec(&src[done..], dst, flate2::FlushCompress::Finish)
+            .map_err(|e| e.to_string())?;
+        match status {
+            flate2::Status::StreamEnd => return Ok(()),
+            _ => dst.reserve(dst.capacity().max(4096)),
+        }
+    }
+}
+
+/// Stores `data` (already filtered) as the chunk of frame `frame`.
+fn write_chunk(ds: &Dataset, frame: usize, data: &[u8]) -> std::result::Result<(), String> {
+    let offset: [hsize_t; 4] = [frame as hsize_t, 0, 0, 0];
+    let id = ds.id();
+    // SAFETY: `id` is a live dataset of rank <= 4 (the offset array covers every dimension),
+    // `data` is a valid byte buffer of `data.len()` bytes for the duration of the call, and the
+    // call is made under hdf5-metno's global lock like every other libhdf5 call.
+    let rc = hdf5::sync::sync(|| unsafe {
+        H5Dwrite_chunk(id, H5P_DEFAULT, 0, offset.as_ptr(), data.len(), data.as_ptr().cast())
+    });
+    if rc < 0 {
+        Err(format!("H5Dwrite_chunk failed ({} bytes)", data.len()))
+    } else {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shuffle_matches_hdf5_layout() {
+        let src: Vec<u8> = (0..12).collect();
+        let mut dst = Vec::new();
+        shuffle(&src, 4, &mut dst);
+        assert_eq!(dst, vec![0, 4, 8, 1, 5, 9, 2, 6, 10, 3, 7, 11]);
+        shuffle(&src, 2, &mut dst);
+        assert_eq!(dst, vec![0, 2, 4, 6, 8, 10, 1, 3, 5, 7, 9, 11]);
+        shuffle(&src[..7], 3, &mut dst);
+        assert_eq!(dst, vec![0, 3, 1, 4, 2, 5, 6]);
+    }
+}

@@ -1,0 +1,599 @@
+//! Integration tests of the output writers: HDF5 round trip, atomicity, reproducibility,
+//! XML consistency, PNGs and `info`.
+
+use pedscan::output::{
+    info, Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter,
+    WriterOptions,
+};
+use pedscan::sensor::Sensor;
+use std::path::{Path, PathBuf};
+
+fn tiny_sensor() -> Sensor {
+    Sensor {
+        name: "tiny".into(),
+        elevation_deg: vec![3.0, 1.0, -1.0, -3.0],
+        columns: 16,
+        rate_hz: 10.0,
+        min_range_m: 0.5,
+        max_range_m: 100.0,
+    }
+}
+
+fn meta(index: usize, frames: usize, humans: usize, outputs: OutputSet) -> SequenceMeta {
+    SequenceMeta {
+        index,
+        seed: 0xDEAD_BEEF_1234,
+        sensor: tiny_sensor(),
+        config_toml: "[scene]\nname = \"t<e>st & \\\"x\\\"\"\n".into(),
+        frames,
+        humans: (0..humans)
+            .map(|k| HumanMeta {
+                height_m: 1.6 + 0.1 * k as f32,
+                weight_kg: 60.0 + 5.0 * k as f32,
+                model: if k == 0 { "h1700_w60".into() } else { format!("odd<&\"'>{k}") },
+            })
+            .collect(),
+        outputs,
+    }
+}
+
+/// A deterministic frame: instance k occupies columns 2k..2k+2 of rows 1..3 when visible;
+/// human 2 (if any) is hidden in odd frames.
+fn frame(m: &SequenceMeta, t: usize) -> FrameOutput {
+    let (rows, cols) = (m.sensor.rows(), m.sensor.columns);
+    let n = rows * cols;
+    let mut f = FrameOutput {
+        range: vec![0.0; n],
+        label: vec![0; n],
+        instance: vec![0; n],
+        time_s: t as f64 * 0.1,
+        world_from_sensor: [
+            [1.0, 0.0, 0.0, t as f64],
+            [0.0, 1.0, 0.0, 2.0],
+            [0.0, 0.0, 1.0, 1.8],
+            [0.0, 0.0, 0.0, 1.0],
+        ],
+        ..Default::default()
+    };
+    for i in 0..n {
+        // Leave a few no-returns.
+        if i % 7 != 3 {
+            f.range[i] = 5.0 + i as f32 * 0.25 + t as f32;
+        }
+    }
+    for k in 1..=m.humans.len() {
+        if k == 2 && t % 2 == 1 {
+            continue;
+        }
+        for r in 1..3 {
+            for c in 2 * k..2 * k + 2 {
+                let i = r * cols + c;
+                f.range[i] = 3.0 + k as f32;
+                f.label[i] = 1;
+                f.instance[i] = k as u16;
+            }
+        }
+    }
+    if m.outputs.xyz {
+        f.xyz = (0..n).map(|i| [f.range[i], i as f32, -(t as f32)]).collect();
+    }
+    if m.outputs.velocity {
+        f.velocity = (0..n).map(|i| [0.5, (i % 5) as f32 - 2.0, 0.0]).collect();
+    }
+    if m.outputs.background {
+        f.background_range =
+            (0..n).map(|i| if i % 7 != 3 { 20.0 + i as f32 } else { 0.0 }).collect();
+    }
+    f.humans = (0..m.humans.len())
+        .map(|k| HumanState {
+            position_m: [k as f64, t as f64 * 0.13, 0.0],
+            heading_rad: 0.5 * k as f32,
+            velocity_mps: [1.2, 0.1 * k as f32, 0.0],
+            gait_phase: (t as f32 * 0.1 + 0.25 * k as f32).fract(),
+        })
+        .collect();
+    f
+}
+
+fn write_seq(dir: &Path, m: &SequenceMeta, opts: &WriterOptions) -> Vec<PathBuf> {
+    let mut w = SequenceWriter::create(dir, m, opts).unwrap();
+    for t in 0..m.frames {
+        w.write_frame(&frame(m, t)).unwrap();
+    }
+    w.finish().unwrap()
+}
+
+fn dir_names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+fn read_str_attr(f: &hdf5::File, k: &str) -> String {
+    f.attr(k).unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap().as_str().to_string()
+}
+
+fn check_roundtrip(compression: Compression, humans: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(3, 3, humans, OutputSet::default());
+    let paths = write_seq(dir.path(), &m, &WriterOptions { png: false, compression });
+    assert_eq!(paths, vec![dir.path().join("seq_000003.h5"), dir.path().join("seq_000003.xml")]);
+    assert_eq!(dir_names(dir.path()), vec!["seq_000003.h5", "seq_000003.xml"]);
+
+    let f = hdf5::File::open(&paths[0]).unwrap();
+    let (t, h, w, n) = (3, 4, 16, humans);
+    let frames: Vec<FrameOutput> = (0..t).map(|i| frame(&m, i)).collect();
+    let cat =
+        |g: &dyn Fn(&FrameOutput) -> Vec<f32>| frames.iter().flat_map(g).collect::<Vec<f32>>();
+
+    let range = f.dataset("range").unwrap();
+    assert_eq!(range.shape(), vec![t, h, w]);
+    assert_eq!(range.chunk(), Some(vec![1, h, w]));
+    assert_eq!(range.read_raw::<f32>().unwrap(), cat(&|f| f.range.clone()));
+    let xyz = f.dataset("xyz").unwrap();
+    assert_eq!(xyz.shape(), vec![t, h, w, 3]);
+    assert_eq!(xyz.read_raw::<f32>().unwrap(), cat(&|f| f.xyz.iter().flatten().copied().collect()));
+    let vel = f.dataset("velocity").unwrap();
+    assert_eq!(vel.shape(), vec![t, h, w, 3]);
+    assert_eq!(
+        vel.read_raw::<f32>().unwrap(),
+        cat(&|f| f.velocity.iter().flatten().copied().collect())
+    );
+    let bg = f.dataset("background/range").unwrap();
+    assert_eq!(bg.shape(), vec![t, h, w]);
+    assert_eq!(bg.read_raw::<f32>().unwrap(), cat(&|f| f.background_range.clone()));
+    let label = f.dataset("label").unwrap();
+    assert_eq!(label.shape(), vec![t, h, w]);
+    let lab: Vec<u8> = frames.iter().flat_map(|f| f.label.clone()).collect();
+    assert_eq!(label.read_raw::<u8>().unwrap(), lab);
+    let inst: Vec<u16> = frames.iter().flat_map(|f| f.instance.clone()).collect();
+    assert_eq!(f.dataset("instance").unwrap().read_raw::<u16>().unwrap(), inst);
+    for name in ["range", "xyz", "label", "instance", "velocity", "background/range"] {
+        let ds = f.dataset(name).unwrap();
+        let units = read_str_attr_ds(&ds, "units");
+        assert!(!units.is_empty(), "{name}");
+        assert!(!read_str_attr_ds(&ds, "description").is_empty(), "{name}");
+        let filters = ds.filters();
+        match compression {
+            Compression::None => assert!(filters.is_empty(), "{name}: {filters:?}"),
+            Compression::Deflate(l) => {
+                assert_eq!(filters.len(), 2, "{name}: {filters:?}");
+                assert_eq!(filters[0], hdf5::filters::Filter::Shuffle);
+                assert_eq!(filters[1], hdf5::filters::Filter::Deflate(l));
+            }
+        }
+    }
+
+    let ts = f.dataset("sensor/time_s").unwrap().read_raw::<f64>().unwrap();
+    assert_eq!(ts, vec![0.0, 0.1, 0.2]);
+    let pose = f.dataset("sensor/world_from_sensor").unwrap();
+    assert_eq!(pose.shape(), vec![t, 4, 4]);
+    let pose = pose.read_raw::<f64>().unwrap();
+    assert_eq!(pose[16 * 2 + 3], 2.0);
+    assert_eq!(pose[16 + 7], 2.0);
+    let el = f.dataset("sensor/elevation_deg").unwrap().read_raw::<f32>().unwrap();
+    assert_eq!(el, vec![3.0, 1.0, -1.0, -3.0]);
+    let az = f.dataset("sensor/azimuth_deg").unwrap().read_raw::<f32>().unwrap();
+    assert_eq!(az.len(), w);
+    assert!((az[0] - (180.0 - 180.0 / 16.0)).abs() < 1e-4, "{}", az[0]);
+
+    let hg = f.group("humans").unwrap();
+    assert_eq!(hg.dataset("height_m").unwrap().shape(), vec![n]);
+    assert_eq!(
+        hg.dataset("weight_kg").unwrap().read_raw::<f32>().unwrap(),
+        m.humans.iter().map(|h| h.weight_kg).collect::<Vec<_>>()
+    );
+    let models = hg.dataset("model").unwrap();
+    assert_eq!(models.shape(), vec![n]);
+    if n > 0 {
+        let models = models.read_raw::<hdf5::types::VarLenUnicode>().unwrap();
+        assert_eq!(models[1].as_str(), m.humans[1].model);
+    }
+    assert_eq!(hg.dataset("position_m").unwrap().shape(), vec![t, n, 3]);
+    assert_eq!(hg.dataset("velocity_mps").unwrap().shape(), vec![t, n, 3]);
+    assert_eq!(hg.dataset("heading_rad").unwrap().shape(), vec![t, n]);
+    assert_eq!(hg.dataset("gait_phase").unwrap().shape(), vec![t, n]);
+    let pos = hg.dataset("position_m").unwrap().read_raw::<f64>().unwrap();
+    let want: Vec<f64> =
+        frames.iter().flat_map(|f| f.humans.iter().flat_map(|h| h.position_m)).collect();
+    assert_eq!(pos, want);
+    let phase = hg.dataset("gait_phase").unwrap().read_raw::<f32>().unwrap();
+    let want: Vec<f32> =
+        frames.iter().flat_map(|f| f.humans.iter().map(|h| h.gait_phase)).collect();
+    assert_eq!(phase, want);
+
+    assert_eq!(read_str_attr(&f, "sensor"), "tiny");
+    assert_eq!(read_str_attr(&f, "config"), m.config_toml);
+    assert_eq!(read_str_attr(&f, "pedscan_version"), pedscan::version());
+    assert_eq!(f.attr("seed").unwrap().read_scalar::<u64>().unwrap(), m.seed);
+    assert_eq!(f.attr("frames").unwrap().read_scalar::<u64>().unwrap(), 3);
+    assert_eq!(f.attr("rows").unwrap().read_scalar::<u64>().unwrap(), 4);
+    assert_eq!(f.attr("columns").unwrap().read_scalar::<u64>().unwrap(), 16);
+}
+
+fn read_str_attr_ds(ds: &hdf5::Dataset, k: &str) -> String {
+    ds.attr(k).unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap().as_str().to_string()
+}
+
+#[test]
+fn roundtrip_deflate_two_humans() {
+    check_roundtrip(Compression::Deflate(1), 2);
+}
+
+#[test]
+fn roundtrip_uncompressed_two_humans() {
+    check_roundtrip(Compression::None, 2);
+}
+
+#[test]
+fn roundtrip_no_humans() {
+    check_roundtrip(Compression::Deflate(6), 0);
+}
+
+#[test]
+fn optional_outputs_absent_when_disabled() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(0, 2, 1, OutputSet { xyz: false, velocity: false, background: false });
+    let paths = write_seq(dir.path(), &m, &WriterOptions { png: true, ..Default::default() });
+    let f = hdf5::File::open(&paths[0]).unwrap();
+    assert!(f.dataset("range").is_ok());
+    assert!(f.dataset("label").is_ok());
+    assert!(f.dataset("instance").is_ok());
+    assert!(f.dataset("xyz").is_err());
+    assert!(f.dataset("velocity").is_err());
+    assert!(f.group("background").is_err());
+    // No velocity PNGs without velocity.
+    let pngs = dir_names(&paths[2]);
+    assert_eq!(pngs, vec!["label_0000.png", "label_0001.png", "range_0000.png", "range_0001.png"]);
+}
+
+#[test]
+fn pngs_exist_decode_and_have_the_scaled_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(7, 2, 2, OutputSet::default());
+    let paths = write_seq(dir.path(), &m, &WriterOptions { png: true, ..Default::default() });
+    assert_eq!(paths[2], dir.path().join("seq_000007_png"));
+    assert_eq!(dir_names(dir.path()), vec!["seq_000007.h5", "seq_000007.xml", "seq_000007_png"]);
+    let names = dir_names(&paths[2]);
+    assert_eq!(names.len(), 6, "{names:?}");
+    for kind in ["range", "label", "velocity"] {
+        for t in 0..2 {
+            let p = paths[2].join(format!("{kind}_{t:04}.png"));
+            let img = image::open(&p).unwrap().to_rgb8();
+            assert_eq!(img.dimensions(), (16, 4 * 4), "{}", p.display());
+        }
+    }
+    // Rerun into the same directory replaces the set cleanly.
+    let paths2 = write_seq(dir.path(), &m, &WriterOptions { png: true, ..Default::default() });
+    assert_eq!(paths, paths2);
+    assert_eq!(dir_names(dir.path()), vec!["seq_000007.h5", "seq_000007.xml", "seq_000007_png"]);
+}
+
+#[test]
+fn temp_files_exist_during_and_vanish_after_finish() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(1, 2, 1, OutputSet::default());
+    let mut w =
+        SequenceWriter::create(dir.path(), &m, &WriterOptions { png: true, ..Default::default() })
+            .unwrap();
+    w.write_frame(&frame(&m, 0)).unwrap();
+    assert_eq!(
+        dir_names(dir.path()),
+        vec!["seq_000001.h5.tmp", "seq_000001.xml.tmp", "seq_000001_png.tmp"]
+    );
+    w.write_frame(&frame(&m, 1)).unwrap();
+    w.finish().unwrap();
+    assert_eq!(dir_names(dir.path()), vec!["seq_000001.h5", "seq_000001.xml", "seq_000001_png"]);
+}
+
+#[test]
+fn dropped_writer_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(2, 4, 2, OutputSet::default());
+    {
+        let mut w = SequenceWriter::create(
+            dir.path(),
+            &m,
+            &WriterOptions { png: true, ..Default::default() },
+        )
+        .unwrap();
+        w.write_frame(&frame(&m, 0)).unwrap();
+        w.write_frame(&frame(&m, 1)).unwrap();
+        // An error mid-sequence: the caller bails out with `?` and the writer is dropped.
+    }
+    assert!(dir_names(dir.path()).is_empty(), "{:?}", dir_names(dir.path()));
+}
+
+#[test]
+fn bad_frames_are_internal_errors_and_early_finish_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(4, 3, 2, OutputSet::default());
+    let mut w = SequenceWriter::create(dir.path(), &m, &WriterOptions::default()).unwrap();
+    let mut f = frame(&m, 0);
+    f.range.pop();
+    let e = w.write_frame(&f).unwrap_err();
+    assert!(matches!(e, pedscan::Error::Internal(_)), "{e}");
+    let mut f = frame(&m, 0);
+    f.humans.pop();
+    assert!(matches!(w.write_frame(&f).unwrap_err(), pedscan::Error::Internal(_)));
+    let mut f = frame(&m, 0);
+    f.instance[0] = 3;
+    assert!(matches!(w.write_frame(&f).unwrap_err(), pedscan::Error::Internal(_)));
+    w.write_frame(&frame(&m, 0)).unwrap();
+    let e = w.finish().unwrap_err();
+    assert!(matches!(e, pedscan::Error::Internal(_)), "{e}");
+    assert!(dir_names(dir.path()).is_empty(), "{:?}", dir_names(dir.path()));
+}
+
+#[test]
+fn reruns_are_bit_identical() {
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    let m = meta(5, 3, 2, OutputSet::default());
+    let opts = WriterOptions { png: true, compression: Compression::Deflate(1) };
+    let pa = write_seq(a.path(), &m, &opts);
+    // HDF5 timestamps have one-second resolution: make sure a clock tick separates the runs.
+    std::thread::sleep(std::time::Duration::from_millis(1100));
+    let pb = write_seq(b.path(), &m, &opts);
+    for (x, y) in pa.iter().zip(&pb).take(2) {
+        assert_eq!(std::fs::read(x).unwrap(), std::fs::read(y).unwrap(), "{}", x.display());
+    }
+    for name in dir_names(&pa[2]) {
+        assert_eq!(
+            std::fs::read(pa[2].join(&name)).unwrap(),
+            std::fs::read(pb[2].join(&name)).unwrap(),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn xml_is_well_formed_and_matches_the_frames() {
+    use quick_xml::events::Event;
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(9, 3, 2, OutputSet::default());
+    let paths = write_seq(dir.path(), &m, &WriterOptions::default());
+    let text = std::fs::read_to_string(&paths[1]).unwrap();
+    let mut r = quick_xml::Reader::from_str(&text);
+    let attr = |e: &quick_xml::events::BytesStart, k: &str| -> String {
+        let a = e.try_get_attribute(k).unwrap().unwrap_or_else(|| panic!("attribute {k}"));
+        a.normalized_value(quick_xml::XmlVersion::Explicit1_0).unwrap().into_owned()
+    };
+    let mut frames_seen = 0;
+    let mut in_frame: Option<usize> = None;
+    let mut beams_in_frame: Vec<u32> = Vec::new();
+    let mut models = Vec::new();
+    let mut depth = 0;
+    loop {
+        let ev = r.read_event().unwrap();
+        let (e, empty) = match &ev {
+            Event::Start(e) => (e.clone(), false),
+            Event::Empty(e) => (e.clone(), true),
+            Event::End(e) => {
+                depth -= 1;
+                if e.name().into_inner() == "frame" {
+                    let t = in_frame.take().unwrap();
+                    let f = frame(&m, t);
+                    let want: Vec<u32> = (1..=2u16)
+                        .map(|k| f.instance.iter().filter(|&&i| i == k).count() as u32)
+                        .collect();
+                    assert_eq!(beams_in_frame, want, "frame {t}");
+                    beams_in_frame.clear();
+                }
+                continue;
+            }
+            Event::Eof => break,
+            _ => continue,
+        };
+        if !empty {
+            depth += 1;
+        }
+        match e.name().into_inner() {
+            "sequence" => {
+                assert_eq!(attr(&e, "index"), "9");
+                assert_eq!(attr(&e, "frames"), "3");
+                assert_eq!(attr(&e, "sensor"), "tiny");
+                assert_eq!(attr(&e, "seed"), m.seed.to_string());
+            }
+            "frame" => {
+                let t: usize = attr(&e, "index").parse().unwrap();
+                assert_eq!(t, frames_seen);
+                frames_seen += 1;
+                let f = frame(&m, t);
+                assert_eq!(attr(&e, "humans"), "2");
+                let visible = (1..=2u16).filter(|k| f.instance.contains(k)).count();
+                assert_eq!(attr(&e, "visible_humans"), visible.to_string(), "frame {t}");
+                assert_eq!(attr(&e, "time_s"), format!("{:.6}", f.time_s));
+                in_frame = Some(t);
+            }
+            "human" => {
+                if let Some(t) = in_frame {
+                    let k: usize = attr(&e, "id").parse().unwrap();
+                    let f = frame(&m, t);
+                    let x: f64 = attr(&e, "y").parse().unwrap();
+                    assert!((x - f.humans[k - 1].position_m[1]).abs() < 1e-3);
+                    assert_eq!(attr(&e, "height_m"), format!("{:.3}", m.humans[k - 1].height_m));
+                    beams_in_frame.push(attr(&e, "beams").parse().unwrap());
+                } else {
+                    models.push(attr(&e, "model"));
+                }
+            }
+            other => panic!("unexpected element {:?}", other),
+        }
+    }
+    assert_eq!(depth, 0);
+    assert_eq!(frames_seen, 3);
+    assert_eq!(models, m.humans.iter().map(|h| h.model.clone()).collect::<Vec<_>>());
+}
+
+#[test]
+fn info_summarises_a_sequence() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(3, 3, 2, OutputSet::default());
+    let paths = write_seq(dir.path(), &m, &WriterOptions::default());
+    let s = info(&paths[0]).unwrap();
+    for want in [
+        "frames:    3",
+        "4 rows x 16 columns",
+        "tiny",
+        "h1700_w60",
+        "/xyz",
+        "Deflate(1)",
+        "median",
+        "human:",
+    ] {
+        assert!(s.contains(want), "missing {want:?} in\n{s}");
+    }
+}
+
+#[test]
+fn info_rejects_missing_garbage_and_foreign_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope.h5");
+    let e = info(&missing).unwrap_err();
+    assert!(e.is_input() && e.to_string().contains("nope.h5"), "{e}");
+
+    let garbage = dir.path().join("garbage.h5");
+    std::fs::write(&garbage, b"this is not an HDF5 file at all, just some bytes\n").unwrap();
+    let e = info(&garbage).unwrap_err();
+    assert!(e.is_input() && e.to_string().contains("garbage.h5"), "{e}");
+
+    let foreign = dir.path().join("foreign.h5");
+    {
+        let f = hdf5::File::create(&foreign).unwrap();
+        f.new_dataset::<f32>().shape([3]).create("other").unwrap();
+    }
+    let e = info(&foreign).unwrap_err();
+    assert!(e.is_input() && e.to_string().contains("/range"), "{e}");
+
+    // A truncated real file.
+    let m = meta(0, 2, 1, OutputSet::default());
+    let paths = write_seq(dir.path(), &m, &WriterOptions::default());
+    let bytes = std::fs::read(&paths[0]).unwrap();
+    let cut = dir.path().join("cut.h5");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let e = info(&cut).unwrap_err();
+    assert!(e.to_string().contains("cut.h5"), "{e}");
+}
+
+/// Per-frame write time for an HDL-32E frame of all outputs (synthetic scene).
+/// `cargo test --release --test output -- --ignored --nocapture bench_write`
+#[test]
+#[ignore]
+fn bench_write_hdl32e() {
+    let sensor = Sensor::hdl32e();
+    let (rows, cols) = (sensor.rows(), sensor.columns);
+    let frames = 32;
+    let humans = 10;
+    let mk_meta = || SequenceMeta {
+        index: 0,
+        seed: 1,
+        sensor: sensor.clone(),
+        config_toml: String::new(),
+        frames,
+        humans: (0..humans)
+            .map(|k| HumanMeta { height_m: 1.7, weight_kg: 70.0, model: format!("h{k}") })
+            .collect(),
+        outputs: OutputSet::default(),
+    };
+    // Ground plane at -1.8 m, a ring of walls 15..35 m away, humans as blobs.
+    let dirs = sensor.beam_dirs();
+    let mk_frame = |t: usize| {
+        let n = rows * cols;
+        let mut f = FrameOutput { time_s: t as f64 * 0.1, ..Default::default() };
+        f.range = vec![0.0; n];
+        f.label = vec![0; n];
+        f.instance = vec![0; n];
+        f.xyz = vec![[0.0; 3]; n];
+        f.velocity = vec![[0.0; 3]; n];
+        f.background_range = vec![0.0; n];
+        for i in 0..n {
+            let d = dirs[i];
+            let (r, c) = (i / cols, i % cols);
+            let wall = 15.0 + 20.0 * (0.5 + 0.5 * ((c as f64) * 0.013 + t as f64 * 0.01).sin());
+            let mut range = if d.z < -0.01 {
+                (-1.8 / d.z).min(wall)
+            } else if r > 2 {
+                wall
+            } else {
+                0.0
+            };
+            if range > 100.0 {
+                range = 0.0;
+            }
+            // Small deterministic "noise" like real geometry.
+            let range =
+                if range > 0.0 { range + ((i * 2654435761) % 1000) as f64 * 1e-5 } else { 0.0 };
+            f.background_range[i] = range as f32;
+            f.range[i] = range as f32;
+            let k = (c + t) / 100;
+            if k >= 1 && k <= humans && (c + t) % 100 < 6 && r > 6 && r < 16 {
+                f.range[i] = (4.0 + k as f64) as f32;
+                f.label[i] = 1;
+                f.instance[i] = k as u16;
+                f.velocity[i] = [1.2, 0.3, 0.0];
+            } else if range > 0.0 {
+                f.velocity[i] = [-0.5, 0.0, 0.0];
+            }
+            let p = d * f.range[i] as f64;
+            f.xyz[i] = [p.x as f32, p.y as f32, p.z as f32];
+        }
+        f.world_from_sensor = [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        f.humans = vec![
+            HumanState {
+                position_m: [1.0, 2.0, 0.0],
+                heading_rad: 0.0,
+                velocity_mps: [1.0, 0.0, 0.0],
+                gait_phase: 0.5
+            };
+            humans
+        ];
+        f
+    };
+    let all: Vec<FrameOutput> = (0..frames).map(mk_frame).collect();
+    for (label, compression, png) in [
+        ("none", Compression::None, false),
+        ("deflate(1)", Compression::Deflate(1), false),
+        ("deflate(6)", Compression::Deflate(6), false),
+        ("deflate(1)+png", Compression::Deflate(1), true),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let m = mk_meta();
+        let mut best = f64::INFINITY;
+        let mut size = 0;
+        for _rep in 0..3 {
+            let t0 = std::time::Instant::now();
+            let mut w = SequenceWriter::create(dir.path(), &m, &WriterOptions { png, compression })
+                .unwrap();
+            for f in &all {
+                w.write_frame(f).unwrap();
+            }
+            let paths = w.finish().unwrap();
+            let ms = t0.elapsed().as_secs_f64() * 1e3 / frames as f64;
+            best = best.min(ms);
+            size = std::fs::metadata(&paths[0]).unwrap().len();
+        }
+        println!(
+            "{label:>16}: {best:6.2} ms/frame (best of 3, create+finish included), {:7.1} KiB/frame",
+            size as f64 / 1024.0 / frames as f64
+        );
+    }
+}
+
+/// Writes a sample sequence into `$PEDSCAN_SAMPLE_DIR` for manual checks (h5dump, h5py).
+#[test]
+#[ignore]
+fn write_sample_sequence() {
+    let Some(dir) = std::env::var_os("PEDSCAN_SAMPLE_DIR") else { return };
+    let m = meta(3, 3, 2, OutputSet::default());
+    let paths = write_seq(Path::new(&dir), &m, &WriterOptions { png: true, ..Default::default() });
+    println!("{paths:?}");
+}
