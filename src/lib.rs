@@ -8,8 +8,10 @@
 
 pub mod error;
 pub mod geometry;
+pub mod gpu;
 pub mod output;
 pub mod projection;
+pub mod raster;
 pub mod sensor;
 
 pub use error::{Error, Result};
