@@ -9,9 +9,11 @@
 pub mod config;
 pub mod error;
 pub mod geometry;
+pub mod gpu;
 pub mod human;
 pub mod output;
 pub mod projection;
+pub mod raster;
 pub mod scene;
 pub mod sensor;
 pub mod sequence;

@@ -1,0 +1,434 @@
+//! GPU raster golden tests on lavapipe (or any Vulkan device) with the Khronos validation
+//! layer ON: every test asserts zero validation errors after dropping renderer and context
+//! (leaks are reported at vkDestroyDevice).
+//!
+//! Tolerances: range relative error <= 1e-4 per texel against the closed-form ray/box
+//! distance along `Face::texel_dir(u, v)`; at most 0.5 % of a face's texels may differ
+//! (texel centres lying on a box edge / silhouette, where the rasteriser's tie rule and the
+//! f64 reference may disagree). On failure actual / expected PNGs are written to
+//! `$TMPDIR/pedscan-gpu-raster/`.
+
+use glam::{DVec3, Vec3};
+use pedscan::geometry::FrameGeometry;
+use pedscan::gpu::{Context, ContextOptions, DeviceChoice};
+use pedscan::projection::{CubeFaces, Face};
+use pedscan::raster::{FaceImage, Renderer};
+use pedscan::sensor::Sensor;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+const REL_TOL: f64 = 1e-4;
+const MAX_BAD_FRACTION: f64 = 0.005;
+
+fn context() -> Arc<Context> {
+    let ctx = Context::new(&ContextOptions { validation: true, device: DeviceChoice::Auto })
+        .expect("Vulkan context with validation (install vulkan-validationlayers, mesa-vulkan-drivers)");
+    assert!(ctx.validation_enabled());
+    Arc::new(ctx)
+}
+
+fn cube() -> CubeFaces {
+    CubeFaces::new(&Sensor::hdl32e(), 1.0)
+}
+
+/// Drops renderer and context, then asserts the validation layer reported no error at all.
+fn finish(renderer: Renderer, ctx: Arc<Context>) {
+    let errors = ctx.validation_counter();
+    drop(renderer);
+    assert_eq!(Arc::strong_count(&ctx), 1, "the context outlives everything else");
+    drop(ctx);
+    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
+}
+
+/// An axis-aligned box [lo, hi] as 12 triangles, wound so that normals point outward
+/// (`outward`) or inward. Each side has its own 4 vertices.
+fn box_mesh(lo: DVec3, hi: DVec3, outward: bool) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let centre = 0.5 * (lo + hi);
+    let mut pos = Vec::new();
+    let mut idx = Vec::new();
+    for axis in 0..3 {
+        for side in [lo, hi] {
+            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+            let corner = |s1: bool, s2: bool| {
+                let mut p = side;
+                p[a1] = if s1 { hi[a1] } else { lo[a1] };
+                p[a2] = if s2 { hi[a2] } else { lo[a2] };
+                p
+            };
+            let quad = [corner(false, false), corner(true, false), corner(true, true), corner(false, true)];
+            let n = (quad[1] - quad[0]).cross(quad[2] - quad[0]);
+            let mut face_centre = centre;
+            face_centre[axis] = side[axis];
+            let out = n.dot(face_centre - centre) > 0.0;
+            let base = pos.len() as u32;
+            pos.extend(quad.iter().map(|p| p.as_vec3().to_array()));
+            let tris: [u32; 6] = if out == outward { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
+            idx.extend(tris.iter().map(|i| base + i));
+        }
+    }
+    (pos, idx)
+}
+
+/// A rectangle x = const facing the sensor (front-facing by the geometry convention).
+fn quad_x(x: f64, y: (f64, f64), z: (f64, f64)) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let p = [[x, y.0, z.0], [x, y.1, z.0], [x, y.1, z.1], [x, y.0, z.1]]
+        .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]);
+    // Normal must point at the origin: dot((b - a) x (c - a), a) < 0.
+    let [a, b, c] = [Vec3::from(p[0]), Vec3::from(p[1]), Vec3::from(p[2])];
+    let idx = if (b - a).cross(c - a).dot(a) < 0.0 { vec![0, 1, 2, 0, 2, 3] } else { vec![0, 2, 1, 0, 3, 2] };
+    (p.to_vec(), idx)
+}
+
+/// Slab test: (t_enter, t_exit) of the ray t * d with the box, if it hits for some t > 0.
+fn ray_box(d: DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+    for i in 0..3 {
+        if d[i] == 0.0 {
+            if lo[i] > 0.0 || hi[i] < 0.0 {
+                return None;
+            }
+            continue;
+        }
+        let (a, b) = (lo[i] / d[i], hi[i] / d[i]);
+        t0 = t0.max(a.min(b));
+        t1 = t1.min(a.max(b));
+    }
+    (t1 >= t0 && t1 > 0.0).then_some((t0, t1))
+}
+
+/// Compares a face against an expected range per texel (0 = nothing). Returns the number of
+/// texels that differ; writes PNGs when more than the allowed fraction differ.
+fn compare(name: &str, face: &Face, img: &FaceImage, expected: impl Fn(DVec3) -> f64) -> usize {
+    assert!(img.rendered, "{name}: face {} not rendered", face.index);
+    let mut bad = 0;
+    let mut exp = vec![0f32; img.range_m.len()];
+    for v in 0..img.height {
+        for u in 0..img.width {
+            let want = expected(face.texel_dir(u, v));
+            exp[(v * img.width + u) as usize] = want as f32;
+            let got = img.range_at(u, v) as f64;
+            let ok = if want == 0.0 { got == 0.0 } else { ((got - want) / want).abs() <= REL_TOL };
+            if !ok {
+                bad += 1;
+            }
+        }
+    }
+    let allowed = (MAX_BAD_FRACTION * img.range_m.len() as f64) as usize;
+    eprintln!("{name} face {}: {bad} of {} texels differ (allowed {allowed})", face.index, img.range_m.len());
+    if bad > allowed {
+        write_pngs(name, img, &exp);
+    }
+    assert!(bad <= allowed, "{name} face {}: {bad} texels differ (allowed {allowed})", face.index);
+    bad
+}
+
+fn write_pngs(name: &str, img: &FaceImage, expected: &[f32]) {
+    let dir = std::env::temp_dir().join("pedscan-gpu-raster");
+    let _ = std::fs::create_dir_all(&dir);
+    let max = img.range_m.iter().chain(expected).cloned().fold(1e-6f32, f32::max);
+    let save = |tag: &str, data: &[f32]| {
+        let pixels: Vec<u8> = data.iter().map(|r| (r / max * 255.0).round() as u8).collect();
+        let path = dir.join(format!("{name}_face{}_{tag}.png", img.index));
+        if let Some(buf) = image::GrayImage::from_raw(img.width, img.height, pixels) {
+            let _ = buf.save(&path);
+            eprintln!("wrote {}", path.display());
+        }
+    };
+    save("actual", &img.range_m);
+    save("expected", expected);
+    let diff: Vec<f32> = img.range_m.iter().zip(expected).map(|(a, b)| (a - b).abs()).collect();
+    save("diff", &diff);
+}
+
+#[test]
+fn room_box_ranges_and_ids_match_closed_form() {
+    let ctx = context();
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    let (lo, hi) = (DVec3::new(-6.0, -4.0, -1.5), DVec3::new(6.0, 4.0, 2.5));
+    let mut geom = FrameGeometry::default();
+    let (p, i) = box_mesh(lo, hi, false);
+    geom.push_mesh(&p, &i, 3, true);
+    let frame = renderer.render(&geom).unwrap().clone();
+    assert_eq!(renderer.stats().faces_rendered, 4);
+    for (face, img) in faces.faces.iter().zip(&frame.faces) {
+        compare("room", face, img, |d| ray_box(d, lo, hi).map_or(0.0, |(_, t1)| t1 * d.length()));
+        // Every texel hits the room; its triangle lies in the plane of the hit point.
+        let mut bad_id = 0;
+        for v in 0..img.height {
+            for u in 0..img.width {
+                let id = img.id_at(u, v);
+                assert_ne!(id, 0, "room texel ({u}, {v}) of face {} has no id", face.index);
+                assert_eq!(geom.mesh_of_triangle(id - 1).instance, 3);
+                let d = face.texel_dir(u, v);
+                let hit = d * ray_box(d, lo, hi).unwrap().1;
+                let [a, b, c] = geom.triangle_f64(id - 1);
+                let n = (b - a).cross(c - a).normalize();
+                if n.dot(hit - a).abs() > 1e-3 {
+                    bad_id += 1;
+                }
+            }
+        }
+        let allowed = (MAX_BAD_FRACTION * img.id.len() as f64) as usize;
+        assert!(bad_id <= allowed, "face {}: {bad_id} ids on the wrong wall", face.index);
+    }
+    // Steady state: a second render of the same frame gives the same images.
+    let again = renderer.render(&geom).unwrap();
+    for (a, b) in again.faces.iter().zip(&frame.faces) {
+        assert_eq!(a.range_m, b.range_m);
+        assert_eq!(a.id, b.id);
+    }
+    finish(renderer, ctx);
+}
+
+#[test]
+fn back_face_culling_keeps_the_near_side() {
+    let ctx = context();
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    let (lo, hi) = (DVec3::new(3.0, -0.5, -0.6), DVec3::new(4.0, 0.5, 0.4));
+    let near = |d: DVec3| ray_box(d, lo, hi).map_or(0.0, |(t0, _)| t0 * d.length());
+    let far = |d: DVec3| ray_box(d, lo, hi).map_or(0.0, |(_, t1)| t1 * d.length());
+    let f0 = &faces.faces[0];
+    // (outward winding, double-sided, expected): outward + culling shows the near side
+    // (the FrontFace convention); double-sided shows the near side by depth alone; inward
+    // winding + culling shows the far side (proves culling is actually on).
+    let cases: [(&str, bool, bool, &dyn Fn(DVec3) -> f64); 3] = [
+        ("outward_culled", true, false, &near),
+        ("outward_double", true, true, &near),
+        ("inward_culled", false, false, &far),
+    ];
+    for (name, outward, double_sided, expected) in cases {
+        let mut geom = FrameGeometry::default();
+        let (p, i) = box_mesh(lo, hi, outward);
+        geom.push_mesh(&p, &i, 1, double_sided);
+        let frame = renderer.render(&geom).unwrap();
+        let rendered: Vec<bool> = frame.faces.iter().map(|f| f.rendered).collect();
+        assert_eq!(rendered, [true, false, false, false], "{name}");
+        let hits = frame.faces[0].range_m.iter().filter(|r| **r > 0.0).count();
+        assert!(hits > 500, "{name}: only {hits} texels hit");
+        compare(name, f0, &frame.faces[0], expected);
+    }
+    finish(renderer, ctx);
+}
+
+#[test]
+fn nothing_visible_means_no_gpu_work() {
+    let ctx = context();
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    let frame = renderer.render(&FrameGeometry::default()).unwrap();
+    assert!(frame.faces.iter().all(|f| !f.rendered));
+    assert!(!renderer.stats().submitted);
+    let mut geom = FrameGeometry::default();
+    // Straight above the band, and a speck inside the near plane.
+    let (p, i) = box_mesh(DVec3::new(-0.5, -0.5, 10.0), DVec3::new(0.5, 0.5, 11.0), true);
+    geom.push_mesh(&p, &i, 1, false);
+    let (p, i) = box_mesh(DVec3::splat(-0.001), DVec3::splat(0.001), true);
+    geom.push_mesh(&p, &i, 2, false);
+    let frame = renderer.render(&geom).unwrap();
+    assert!(frame.faces.iter().all(|f| !f.rendered));
+    assert_eq!(renderer.stats(), Default::default());
+    assert_eq!(renderer.render_count(), 0);
+    finish(renderer, ctx);
+}
+
+#[test]
+fn only_faces_that_see_an_object_are_rendered() {
+    let ctx = context();
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    // In front of face 0 only.
+    let mut geom = FrameGeometry::default();
+    let (lo, hi) = (DVec3::new(5.0, -0.4, -0.8), DVec3::new(5.5, 0.4, 0.2));
+    let (p, i) = box_mesh(lo, hi, true);
+    geom.push_mesh(&p, &i, 1, false);
+    let frame = renderer.render(&geom).unwrap();
+    let rendered: Vec<bool> = frame.faces.iter().map(|f| f.rendered).collect();
+    assert_eq!(rendered, [true, false, false, false]);
+    assert_eq!(renderer.stats().draws, 1);
+    compare("face0_only", &faces.faces[0], &renderer.frame().faces[0], |d| {
+        ray_box(d, lo, hi).map_or(0.0, |(t0, _)| t0 * d.length())
+    });
+    // Straddling the seam between face 0 (+x) and face 1 (+y).
+    let mut geom = FrameGeometry::default();
+    let (lo, hi) = (DVec3::new(4.6, 4.6, -0.8), DVec3::new(5.4, 5.4, 0.2));
+    let (p, i) = box_mesh(lo, hi, true);
+    geom.push_mesh(&p, &i, 1, false);
+    renderer.render(&geom).unwrap();
+    let frame = renderer.frame();
+    let rendered: Vec<bool> = frame.faces.iter().map(|f| f.rendered).collect();
+    assert_eq!(rendered, [true, true, false, false]);
+    assert_eq!(renderer.stats().draws, 2);
+    for k in [0, 1] {
+        compare("seam", &faces.faces[k], &frame.faces[k], |d| {
+            ray_box(d, lo, hi).map_or(0.0, |(t0, _)| t0 * d.length())
+        });
+    }
+    // Face 0 sees it at its left edge (u = 0 looks towards +y), face 1 at its right edge.
+    let (f0, f1) = (&frame.faces[0], &frame.faces[1]);
+    let row = faces.faces[0].texel(DVec3::new(5.0, 5.0, -0.3)).unwrap().1;
+    assert!(f0.range_at(0, row) > 0.0 && f0.range_at(f0.width - 1, row) == 0.0);
+    assert!(f1.range_at(f1.width - 1, row) > 0.0 && f1.range_at(0, row) == 0.0);
+    finish(renderer, ctx);
+}
+
+#[test]
+fn nearer_mesh_wins_the_id() {
+    let ctx = context();
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    let mut geom = FrameGeometry::default();
+    // Far, large quad first (instance 1), near small quad second (instance 2), overlapping.
+    let (p, i) = quad_x(6.0, (-2.0, 2.0), (-2.0, 0.5));
+    geom.push_mesh(&p, &i, 1, false);
+    let (p, i) = quad_x(3.0, (-0.5, 0.5), (-0.5, 0.2));
+    geom.push_mesh(&p, &i, 2, false);
+    let frame = renderer.render(&geom).unwrap();
+    let face = &faces.faces[0];
+    let img = &frame.faces[0];
+    let (mut near, mut far, mut bad) = (0, 0, 0);
+    for v in 0..img.height {
+        for u in 0..img.width {
+            let d = face.texel_dir(u, v);
+            let inside = |x: f64, y: (f64, f64), z: (f64, f64)| {
+                let p = d * (x / d.x);
+                p.y > y.0 && p.y < y.1 && p.z > z.0 && p.z < z.1
+            };
+            let id = img.id_at(u, v);
+            let got = if id == 0 { 0 } else { geom.mesh_of_triangle(id - 1).instance };
+            let want = if inside(3.0, (-0.5, 0.5), (-0.5, 0.2)) {
+                near += 1;
+                2
+            } else if inside(6.0, (-2.0, 2.0), (-2.0, 0.5)) {
+                far += 1;
+                1
+            } else {
+                0
+            };
+            if got != want {
+                bad += 1;
+            }
+        }
+    }
+    assert!(near > 500 && far > 500, "near {near} far {far}");
+    let allowed = (MAX_BAD_FRACTION * img.id.len() as f64) as usize;
+    assert!(bad <= allowed, "{bad} ids wrong (allowed {allowed})");
+    finish(renderer, ctx);
+}
+
+/// An ellipsoid (a stand-in for a 25k-triangle human), outward-wound, as a UV sphere.
+fn ellipsoid(centre: DVec3, radii: DVec3, rings: u32, segments: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut pos = Vec::new();
+    for r in 0..=rings {
+        let theta = std::f64::consts::PI * r as f64 / rings as f64;
+        for s in 0..segments {
+            let phi = std::f64::consts::TAU * s as f64 / segments as f64;
+            let unit = DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            pos.push((centre + unit * radii).as_vec3().to_array());
+        }
+    }
+    let mut idx = Vec::new();
+    for r in 0..rings {
+        for s in 0..segments {
+            let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
+            let (c, d) = (a + segments, b + segments);
+            // Outward: seen from outside, counter-clockwise.
+            idx.extend([a, c, b, b, c, d]);
+        }
+    }
+    (pos, idx)
+}
+
+#[test]
+fn ellipsoid_is_outward_and_renders_its_near_side() {
+    let ctx = context();
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    let mut geom = FrameGeometry::default();
+    let (p, i) = ellipsoid(DVec3::new(5.0, 0.0, -0.6), DVec3::new(0.25, 0.25, 0.25), 64, 128);
+    geom.push_mesh(&p, &i, 1, false);
+    let frame = renderer.render(&geom).unwrap();
+    let img = &frame.faces[0];
+    let nearest = img.range_m.iter().cloned().filter(|r| *r > 0.0).fold(f32::MAX, f32::min) as f64;
+    let expect = DVec3::new(5.0, 0.0, -0.6).length() - 0.25;
+    assert!((nearest - expect).abs() < 0.01, "nearest {nearest} expected {expect}");
+    finish(renderer, ctx);
+}
+
+/// Benchmark, not a test: `cargo test --test gpu_raster bench -- --ignored --nocapture`.
+/// Validation follows `PEDSCAN_VALIDATION` (off by default, it slows lavapipe a lot).
+#[test]
+#[ignore]
+fn bench_25k_triangles() {
+    let ctx = Arc::new(Context::new(&ContextOptions::default()).unwrap());
+    let faces = cube();
+    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
+    let mut geom = FrameGeometry::default();
+    // 25,344 triangles, a human-sized ellipsoid 5 m ahead (one face).
+    let (p, i) = ellipsoid(DVec3::new(5.0, 0.5, -0.9), DVec3::new(0.25, 0.2, 0.85), 99, 128);
+    geom.push_mesh(&p, &i, 1, false);
+    let mut times = Vec::new();
+    for _ in 0..21 {
+        let t = std::time::Instant::now();
+        renderer.render(&geom).unwrap();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let stats = renderer.stats();
+    times.sort_by(f64::total_cmp);
+    println!(
+        "{}: {} triangles, {} faces, {} draws: median {:.2} ms (min {:.2}, max {:.2}) over {} renders",
+        ctx.device_name(),
+        geom.triangle_count(),
+        stats.faces_rendered,
+        stats.draws,
+        times[times.len() / 2],
+        times[0],
+        times[times.len() - 1],
+        times.len()
+    );
+    // Ten such humans around the sensor (all 4 faces).
+    let mut geom = FrameGeometry::default();
+    for k in 0..10 {
+        let az = k as f64 * std::f64::consts::TAU / 10.0;
+        let c = DVec3::new(6.0 * az.cos(), 6.0 * az.sin(), -0.9);
+        let (p, i) = ellipsoid(c, DVec3::new(0.25, 0.2, 0.85), 99, 128);
+        geom.push_mesh(&p, &i, k + 1, false);
+    }
+    let mut times = Vec::new();
+    for _ in 0..11 {
+        let t = std::time::Instant::now();
+        renderer.render(&geom).unwrap();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    let stats = renderer.stats();
+    println!(
+        "{} triangles (10 ellipsoids), {} faces, {} draws, {} triangles submitted: median {:.2} ms",
+        geom.triangle_count(),
+        stats.faces_rendered,
+        stats.draws,
+        stats.triangles_submitted,
+        times[times.len() / 2]
+    );
+    drop(renderer);
+    drop(ctx);
+}
+
+/// The canary's canary: an invalid call must be counted, or the zero counts above mean
+/// nothing.
+#[test]
+fn validation_layer_counts_an_invalid_call() {
+    let ctx = context();
+    let errors = ctx.validation_counter();
+    let info = ash::vk::BufferCreateInfo::default().size(0).usage(ash::vk::BufferUsageFlags::VERTEX_BUFFER);
+    // SAFETY: deliberately invalid (size 0) to trigger VUID-VkBufferCreateInfo-size-00912;
+    // lavapipe tolerates it, and any buffer created is destroyed right away.
+    unsafe {
+        if let Ok(b) = ctx.device().create_buffer(&info, None) {
+            ctx.device().destroy_buffer(b, None);
+        }
+    }
+    assert!(errors.load(Ordering::SeqCst) >= 1, "the validation layer did not report a size-0 buffer");
+    drop(ctx);
+}
