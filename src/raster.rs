@@ -1,7 +1,7 @@
 //! Stage 2b: rasterise one frame's triangles ([`FrameGeometry`], sensor frame, f32) into the
 //! cube side faces of [`CubeFaces`] on the GPU and read back, per face and texel, the
-//! Euclidean range (metres, of the nearest surface; 0 = nothing) and the global triangle id
-//! + 1 (0 = nothing). Texel layout and face frusta are those of `projection.rs`
+//! Euclidean range (metres, of the nearest surface; 0 = nothing) and the global triangle
+//! index plus one (0 = nothing). Texel layout and face frusta are those of `projection.rs`
 //! (row-major, row 0 = top).
 //!
 //! Per face only the meshes whose bounding sphere the face can see are drawn; a face with

@@ -193,7 +193,8 @@ fn back_face_culling_keeps_the_near_side() {
     // (outward winding, double-sided, expected): outward + culling shows the near side
     // (the FrontFace convention); double-sided shows the near side by depth alone; inward
     // winding + culling shows the far side (proves culling is actually on).
-    let cases: [(&str, bool, bool, &dyn Fn(DVec3) -> f64); 3] = [
+    type Expected<'a> = &'a dyn Fn(DVec3) -> f64;
+    let cases: [(&str, bool, bool, Expected); 3] = [
         ("outward_culled", true, false, &near),
         ("outward_double", true, true, &near),
         ("inward_culled", false, false, &far),
