@@ -10,6 +10,7 @@ pub mod error;
 pub mod geometry;
 pub mod output;
 pub mod projection;
+pub mod raycast;
 pub mod sensor;
 
 pub use error::{Error, Result};
