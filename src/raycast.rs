@@ -1025,6 +1025,36 @@ mod tests {
         Ok(())
     }
 
+    /// The edge function's sign is exact where plain f64 rounds to 0 or to the wrong sign,
+    /// checked against i128 arithmetic on random 40-bit integers times powers of two.
+    #[test]
+    fn diff_of_products_has_the_exact_sign() {
+        let e = 2f64.powi(-30);
+        // (1 + e)(1 - e) - 1 = -e^2: plain f64 says 0.
+        assert_eq!((1.0 + e) * (1.0 - e) - 1.0, 0.0);
+        assert!(diff_of_products(1.0 + e, 1.0 - e, 1.0, 1.0) < 0.0);
+        assert!(diff_of_products(1.0, 1.0, 1.0 + e, 1.0 - e) > 0.0);
+        assert_eq!(diff_of_products(3.0, 5.0, 5.0, 3.0), 0.0);
+        let mut rng = Rng(99);
+        let mut fallbacks = 0;
+        for _ in 0..200_000 {
+            let base = (rng.next_u64() >> 24) as i128; // 40 bits
+            let m = |rng: &mut Rng| base + (rng.next_u64() % 3) as i128 - 1;
+            let (p, q, r, s) = (m(&mut rng), m(&mut rng), m(&mut rng), m(&mut rng));
+            let want = (p * q - r * s).signum();
+            let k = 2f64.powi(rng.below(40) as i32 - 20);
+            let got = diff_of_products(p as f64 * k, q as f64, r as f64 * k, s as f64);
+            let plain = (p as f64 * k) * q as f64 - (r as f64 * k) * s as f64;
+            if plain.signum() as i128 != want || plain == 0.0 {
+                fallbacks += 1;
+            }
+            let sign = if got > 0.0 { 1 } else if got < 0.0 { -1 } else { 0 };
+            assert_eq!(sign, want, "{p} {q} {r} {s}");
+            assert_eq!(diff_of_products(r as f64 * k, s as f64, p as f64 * k, q as f64), -got);
+        }
+        assert!(fallbacks > 1000, "{fallbacks}");
+    }
+
     // ---- intersection: closed forms ------------------------------------------------------
 
     /// Plane x = 5 (two triangles, 2 km wide, facing the origin): range = 5 / dir.x within
