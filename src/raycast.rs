@@ -1,0 +1,1581 @@
+//! The CPU ray-cast reference: an independent path over the same posed triangles as the
+//! Vulkan raster path, used to check it frame by frame. Correctness first, then speed.
+//!
+//! * Rays start at the sensor origin (the geometry is already in the sensor frame).
+//! * Ray/triangle test: the watertight algorithm of Woop, Benthin and Wald (JCGT 2(1), 2013),
+//!   in f64 on the f32 vertices widened exactly to f64. The three 2D edge functions are
+//!   evaluated with an exact sign (FMA two-product + Shewchuk two-two-diff expansion when the
+//!   fast f64 value is within its rounding error bound), so a ray through a shared edge or
+//!   vertex of a closed mesh never slips between the triangles (it may hit both; the smaller
+//!   range, then the smaller triangle index, wins). Exactness of the sign holds while the
+//!   products of sheared coordinates stay in the normal f64 range (|coordinates| well inside
+//!   1e-140 .. 1e140, i.e. always for metres).
+//! * Front face (shared with the rasterizer): triangle (a, b, c) faces the sensor iff
+//!   `dot((b - a) x (c - a), a) < 0` (counter-clockwise seen from the sensor). Meshes with
+//!   `double_sided == false` cull back faces; `true` hits both sides.
+//! * Zero-area triangles (exactly collinear or repeated vertices) never hit; NaN/inf
+//!   vertices never hit and never produce NaN.
+//! * Precision: f32 in, f64 intersection (the only mode; widening is exact). `Hit::range_m`
+//!   is the f64 ray parameter `t`, which is the Euclidean range for unit directions (for a
+//!   non-unit `dir` the range is `t * |dir|`).
+//! * BVH: two levels. One bottom-level BVH per mesh (binned SAH, 16 bins on the widest
+//!   centroid axis, leaves of up to 8 triangles), built in parallel over meshes and, for big
+//!   meshes, over subtrees (rayon); one small top-level BVH over the meshes, rebuilt per cast
+//!   for a mesh filter (microseconds). Flat node arrays, f32 boxes padded outward (1e-6
+//!   relative + 1 um) so the conservative box test never culls a triangle the f64 test hits;
+//!   iterative traversal with a fixed stack, near child first, pruning by the current best
+//!   range (ties kept, so the result equals brute force bit for bit).
+//! * Determinism: each ray returns the lexicographic minimum of (range, triangle index) over
+//!   all hits with `range <= max_range_m`; it does not depend on thread count or traversal
+//!   order, and the BVH build itself is deterministic.
+
+use crate::geometry::{FrameGeometry, MeshRange};
+use glam::{DVec3, Vec3A, Vec4};
+use rayon::prelude::*;
+
+// ---------------------------------------------------------------------------------------------
+// Exact-sign arithmetic (Shewchuk's expansions, FMA two-product)
+// ---------------------------------------------------------------------------------------------
+
+#[inline(always)]
+fn two_prod(a: f64, b: f64) -> (f64, f64) {
+    let x = a * b;
+    (x, a.mul_add(b, -x))
+}
+
+#[inline(always)]
+fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let x = a + b;
+    let bv = x - a;
+    let av = x - bv;
+    (x, (a - av) + (b - bv))
+}
+
+#[inline(always)]
+fn two_diff(a: f64, b: f64) -> (f64, f64) {
+    let x = a - b;
+    let bv = a - x;
+    let av = x + bv;
+    (x, (a - av) + (bv - b))
+}
+
+/// `p * q - r * s` with the exact sign: the largest component of the exact four-term
+/// nonoverlapping expansion (0.0 exactly when the exact value is 0; NaN propagates).
+#[cold]
+#[inline(never)]
+fn diff_of_products_exact(p: f64, q: f64, r: f64, s: f64) -> f64 {
+    let (a1, a0) = two_prod(p, q);
+    let (b1, b0) = two_prod(r, s);
+    // Two_Two_Diff(a1, a0, b1, b0) -> (x3, x2, x1, x0), increasing magnitude.
+    let (i, x0) = two_diff(a0, b0);
+    let (j, r0) = two_sum(a1, i);
+    let (i2, x1) = two_diff(r0, b1);
+    let (x3, x2) = two_sum(j, i2);
+    for c in [x3, x2, x1, x0] {
+        if c != 0.0 {
+            return c; // also returns NaN
+        }
+    }
+    0.0
+}
+
+/// Relative bound under which the sign of the plain f64 `p*q - r*s` is not trusted.
+const DOP_ERR: f64 = 2.0 * f64::EPSILON;
+
+/// `p * q - r * s`: the plain f64 value when its sign is certain, else the exact-sign value.
+/// Antisymmetric: `diff_of_products(r, s, p, q) == -diff_of_products(p, q, r, s)`.
+#[inline(always)]
+fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
+    let pq = p * q;
+    let rs = r * s;
+    let d = pq - rs;
+    if d.abs() > DOP_ERR * (pq.abs() + rs.abs()) + f64::MIN_POSITIVE {
+        d
+    } else {
+        diff_of_products_exact(p, q, r, s)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Watertight ray/triangle intersection
+// ---------------------------------------------------------------------------------------------
+
+/// Per-ray constants of the watertight test (axis permutation and shear).
+#[derive(Clone, Copy, Debug)]
+struct RayPre {
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f64,
+    sy: f64,
+    sz: f64,
+}
+
+impl RayPre {
+    /// None for a zero or non-finite direction (such a ray hits nothing).
+    fn new(dir: DVec3) -> Option<RayPre> {
+        if !dir.is_finite() {
+            return None;
+        }
+        let d = dir.to_array();
+        let a = dir.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        if d[kz] == 0.0 {
+            return None;
+        }
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding: with this swap, det > 0 <=> dot(normal, dir) < 0 (front face).
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        Some(RayPre { kx, ky, kz, sx: d[kx] / d[kz], sy: d[ky] / d[kz], sz: 1.0 / d[kz] })
+    }
+}
+
+/// True when the triangle has exactly zero area (collinear or repeated vertices).
+#[inline]
+fn is_degenerate(tri: &[DVec3; 3]) -> bool {
+    let e1 = tri[1] - tri[0];
+    let e2 = tri[2] - tri[0];
+    diff_of_products(e1.y, e2.z, e1.z, e2.y) == 0.0
+        && diff_of_products(e1.z, e2.x, e1.x, e2.z) == 0.0
+        && diff_of_products(e1.x, e2.y, e1.y, e2.x) == 0.0
+}
+
+#[inline(always)]
+fn intersect_pre(r: &RayPre, tri: &[DVec3; 3], cull_back: bool) -> Option<f64> {
+    let a = tri[0].to_array();
+    let b = tri[1].to_array();
+    let c = tri[2].to_array();
+    let (kx, ky, kz) = (r.kx, r.ky, r.kz);
+    // Vertices relative to the origin (= the vertices), sheared into ray space.
+    let ax = a[kx] - r.sx * a[kz];
+    let ay = a[ky] - r.sy * a[kz];
+    let bx = b[kx] - r.sx * b[kz];
+    let by = b[ky] - r.sy * b[kz];
+    let cx = c[kx] - r.sx * c[kz];
+    let cy = c[ky] - r.sy * c[kz];
+    // Scaled barycentrics; exact signs, shared edges give exactly opposite values.
+    let u = diff_of_products(cx, by, cy, bx);
+    let v = diff_of_products(ax, cy, ay, cx);
+    let w = diff_of_products(bx, ay, by, ax);
+    let neg = u < 0.0 || v < 0.0 || w < 0.0;
+    if cull_back {
+        if neg {
+            return None;
+        }
+    } else if neg && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 || det.is_nan() {
+        return None; // edge-on (or degenerate) in ray space
+    }
+    let az = r.sz * a[kz];
+    let bz = r.sz * b[kz];
+    let cz = r.sz * c[kz];
+    let t = (u * az + v * bz + w * cz) / det;
+    if !(t > 0.0 && t.is_finite()) {
+        return None;
+    }
+    if is_degenerate(tri) {
+        return None;
+    }
+    Some(t)
+}
+
+/// Watertight ray/triangle intersection (Woop, Benthin, Wald 2013) for the ray from the
+/// origin along `dir`, in f64. Returns the ray parameter `t > 0` of the hit (the distance for
+/// a unit `dir`). A ray through a shared edge or vertex hits at least one of the triangles
+/// sharing it. With `cull_back`, triangles whose front face (`dot((b-a) x (c-a), a) < 0`,
+/// counter-clockwise seen from the origin) does not face the origin are ignored.
+/// Zero-area triangles, a zero or non-finite `dir` and non-finite vertices never hit.
+pub fn intersect_triangle(dir: DVec3, tri: &[DVec3; 3], cull_back: bool) -> Option<f64> {
+    RayPre::new(dir).and_then(|r| intersect_pre(&r, tri, cull_back))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Results
+// ---------------------------------------------------------------------------------------------
+
+/// The first hit of one ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Range along the ray in metres (f64 ray parameter; exact widening of f32 vertices);
+    /// 0 when there is no hit.
+    pub range_m: f64,
+    /// Global triangle index in the `FrameGeometry`; `u32::MAX` when there is no hit.
+    pub triangle: u32,
+}
+
+impl Hit {
+    /// No return.
+    pub const NONE: Hit = Hit { range_m: 0.0, triangle: u32::MAX };
+
+    /// True when the ray hit a triangle.
+    pub fn is_hit(&self) -> bool {
+        self.triangle != u32::MAX
+    }
+
+    /// Instance of the hit mesh (0 = background or no hit).
+    pub fn instance(&self, geom: &FrameGeometry) -> u32 {
+        if self.is_hit() {
+            geom.mesh_of_triangle(self.triangle).instance
+        } else {
+            0
+        }
+    }
+
+    fn from_best(t: f64, tri: u32) -> Hit {
+        if tri == u32::MAX {
+            Hit::NONE
+        } else {
+            Hit { range_m: t, triangle: tri }
+        }
+    }
+}
+
+/// The deterministic order of hits: smaller range, then smaller triangle index.
+#[inline(always)]
+fn better(t: f64, tri: u32, best_t: f64, best_tri: u32) -> bool {
+    t < best_t || (t == best_t && tri < best_tri)
+}
+
+// ---------------------------------------------------------------------------------------------
+// BVH
+// ---------------------------------------------------------------------------------------------
+
+/// Flat BVH node (32 bytes). Inner: `b == 0`, children at `a` and `a + 1`.
+/// Bottom-level leaf: `a` = first slot, `b` = count | `CULL_BIT`. Top-level leaf: `a` = index
+/// into `Bvh::meshes`, `b` = 1.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+struct Node {
+    lo: [f32; 3],
+    a: u32,
+    hi: [f32; 3],
+    b: u32,
+}
+
+const CULL_BIT: u32 = 1 << 31;
+const COUNT_MASK: u32 = !CULL_BIT;
+/// Marks a stack entry / node reference as bottom-level.
+const BLAS_BIT: u32 = 1 << 31;
+
+const BINS: usize = 16;
+const MAX_LEAF: usize = 8;
+/// Beyond this depth, splits halve by count (bounds the depth for any input).
+const MAX_SAH_DEPTH: u32 = 48;
+/// Subtrees bigger than this are built with `rayon::join`.
+const PAR_THRESHOLD: usize = 8192;
+/// Traversal stack: top + bottom depth is at most 2 * (48 + 32).
+const STACK_SIZE: usize = 192;
+/// Cost of a node visit relative to a triangle test (SAH).
+const C_TRAV: f32 = 1.0;
+
+const PAD_REL: f32 = 1e-6;
+const PAD_ABS: f32 = 1e-6;
+
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    lo: Vec3A,
+    hi: Vec3A,
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb { lo: Vec3A::splat(f32::INFINITY), hi: Vec3A::splat(f32::NEG_INFINITY) };
+
+    #[inline(always)]
+    fn grow(&mut self, lo: Vec3A, hi: Vec3A) {
+        self.lo = self.lo.min(lo);
+        self.hi = self.hi.max(hi);
+    }
+
+    #[inline(always)]
+    fn union(self, o: Aabb) -> Aabb {
+        Aabb { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+
+    /// Half the surface area.
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        let d = (self.hi - self.lo).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+}
+
+/// A primitive to build over: box corners; `lo.w` carries the id bits (never computed on).
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+struct Prim {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Prim {
+    fn new(lo: Vec3A, hi: Vec3A, id: u32) -> Prim {
+        Prim { lo: lo.extend(f32::from_bits(id)), hi: hi.extend(0.0) }
+    }
+    #[inline(always)]
+    fn id(&self) -> u32 {
+        self.lo.w.to_bits()
+    }
+    #[inline(always)]
+    fn lo3(&self) -> Vec3A {
+        Vec3A::from_vec4(self.lo)
+    }
+    #[inline(always)]
+    fn hi3(&self) -> Vec3A {
+        Vec3A::from_vec4(self.hi)
+    }
+    /// Twice the box centre.
+    #[inline(always)]
+    fn c2(&self) -> Vec3A {
+        self.lo3() + self.hi3()
+    }
+}
+
+fn pad_lo(v: Vec3A) -> [f32; 3] {
+    (v - (v.abs() * PAD_REL + Vec3A::splat(PAD_ABS))).to_array()
+}
+fn pad_hi(v: Vec3A) -> [f32; 3] {
+    (v + (v.abs() * PAD_REL + Vec3A::splat(PAD_ABS))).to_array()
+}
+
+fn leaf_node(b: &Aabb, a: u32, count: u32) -> Node {
+    Node { lo: pad_lo(b.lo), a, hi: pad_hi(b.hi), b: count }
+}
+fn inner_node(b: &Aabb, child: u32) -> Node {
+    Node { lo: pad_lo(b.lo), a: child, hi: pad_hi(b.hi), b: 0 }
+}
+
+/// Bounds and centroid bounds (of twice the centres) of a run of primitives.
+#[derive(Clone, Copy, Debug)]
+struct Extent {
+    b: Aabb,
+    cb: Aabb,
+}
+
+fn extent_of(prims: &[Prim]) -> Extent {
+    let mut b = Aabb::EMPTY;
+    let mut cb = Aabb::EMPTY;
+    for p in prims {
+        b.grow(p.lo3(), p.hi3());
+        let c = p.c2();
+        cb.grow(c, c);
+    }
+    Extent { b, cb }
+}
+
+/// Splits by count in the middle (for identical centroids or too deep trees).
+fn split_half(prims: &[Prim]) -> (usize, Extent, Extent) {
+    let mid = prims.len() / 2;
+    (mid, extent_of(&prims[..mid]), extent_of(&prims[mid..]))
+}
+
+/// Chooses a split of `prims` (binned SAH) and partitions them in place, or None for a leaf.
+fn split(prims: &mut [Prim], e: &Extent, depth: u32, max_leaf: usize) -> Option<(usize, Extent, Extent)> {
+    let n = prims.len();
+    if n <= 1 {
+        return None;
+    }
+    let ext = e.cb.hi - e.cb.lo;
+    let axis = if ext.x >= ext.y && ext.x >= ext.z {
+        0
+    } else if ext.y >= ext.z {
+        1
+    } else {
+        2
+    };
+    let w = ext[axis];
+    if !(w > 0.0) || depth >= MAX_SAH_DEPTH {
+        return if n <= max_leaf { None } else { Some(split_half(prims)) };
+    }
+    let cmin = e.cb.lo[axis];
+    let scale = BINS as f32 * (1.0 - 1e-6) / w;
+    let bin_of = |p: &Prim| -> usize {
+        let f = (p.c2()[axis] - cmin) * scale;
+        (f as usize).min(BINS - 1) // saturating cast: NaN -> 0
+    };
+    let mut bins = [Aabb::EMPTY; BINS];
+    let mut counts = [0u32; BINS];
+    for p in prims.iter() {
+        let i = bin_of(p);
+        bins[i].grow(p.lo3(), p.hi3());
+        counts[i] += 1;
+    }
+    // Sweep from the right: area and count of bins i+1.. for a split after bin i.
+    let mut right_area = [0f32; BINS];
+    let mut acc = Aabb::EMPTY;
+    let mut cnt = 0u32;
+    for i in (1..BINS).rev() {
+        acc = acc.union(bins[i]);
+        cnt += counts[i];
+        right_area[i - 1] = if cnt > 0 { acc.half_area() * cnt as f32 } else { 0.0 };
+    }
+    let mut best = f32::INFINITY;
+    let mut best_i = usize::MAX;
+    let mut acc = Aabb::EMPTY;
+    let mut cnt = 0u32;
+    for i in 0..BINS - 1 {
+        acc = acc.union(bins[i]);
+        cnt += counts[i];
+        if cnt == 0 || cnt as usize == n {
+            continue;
+        }
+        let cost = acc.half_area() * cnt as f32 + right_area[i];
+        if cost < best {
+            best = cost;
+            best_i = i;
+        }
+    }
+    if best_i == usize::MAX {
+        return if n <= max_leaf { None } else { Some(split_half(prims)) };
+    }
+    if n <= max_leaf {
+        let area = e.b.half_area();
+        let split_cost = C_TRAV + best / area;
+        if !(split_cost < n as f32) {
+            return None;
+        }
+    }
+    // Partition (left: bin <= best_i), collecting both sides' extents.
+    let mut l = Extent { b: Aabb::EMPTY, cb: Aabb::EMPTY };
+    let mut r = l;
+    let mut i = 0;
+    let mut j = n;
+    while i < j {
+        let p = prims[i];
+        let c = p.c2();
+        if bin_of(&p) <= best_i {
+            l.b.grow(p.lo3(), p.hi3());
+            l.cb.grow(c, c);
+            i += 1;
+        } else {
+            r.b.grow(p.lo3(), p.hi3());
+            r.cb.grow(c, c);
+            j -= 1;
+            prims.swap(i, j);
+        }
+    }
+    if i == 0 || i == n {
+        return Some(split_half(prims));
+    }
+    Some((i, l, r))
+}
+
+/// Builds the subtree of `prims` into `nodes[idx]` and appended nodes (absolute indices).
+fn build_seq(
+    nodes: &mut Vec<Node>,
+    idx: usize,
+    prims: &mut [Prim],
+    slot: u32,
+    e: &Extent,
+    depth: u32,
+    leaf_flags: u32,
+    max_leaf: usize,
+) {
+    match split(prims, e, depth, max_leaf) {
+        None => nodes[idx] = leaf_node(&e.b, slot, prims.len() as u32 | leaf_flags),
+        Some((mid, le, re)) => {
+            let c = nodes.len();
+            nodes.push(Node::default());
+            nodes.push(Node::default());
+            nodes[idx] = inner_node(&e.b, c as u32);
+            let (lp, rp) = prims.split_at_mut(mid);
+            build_seq(nodes, c, lp, slot, &le, depth + 1, leaf_flags, max_leaf);
+            build_seq(nodes, c + 1, rp, slot + mid as u32, &re, depth + 1, leaf_flags, max_leaf);
+        }
+    }
+}
+
+/// Builds the subtree of `prims`; the returned array has the subtree root at 0 and local
+/// child indices. Big subtrees are split with `rayon::join`.
+fn build_par(prims: &mut [Prim], slot: u32, e: &Extent, depth: u32, leaf_flags: u32, max_leaf: usize) -> Vec<Node> {
+    if prims.len() < PAR_THRESHOLD {
+        let mut nodes = Vec::with_capacity(prims.len() / 2 + 1);
+        nodes.push(Node::default());
+        build_seq(&mut nodes, 0, prims, slot, e, depth, leaf_flags, max_leaf);
+        return nodes;
+    }
+    match split(prims, e, depth, max_leaf) {
+        None => vec![leaf_node(&e.b, slot, prims.len() as u32 | leaf_flags)],
+        Some((mid, le, re)) => {
+            let (lp, rp) = prims.split_at_mut(mid);
+            let (lv, rv) = rayon::join(
+                || build_par(lp, slot, &le, depth + 1, leaf_flags, max_leaf),
+                || build_par(rp, slot + mid as u32, &re, depth + 1, leaf_flags, max_leaf),
+            );
+            // Layout: [root, left root, right root, left rest.., right rest..].
+            let mut out = Vec::with_capacity(1 + lv.len() + rv.len());
+            out.push(inner_node(&e.b, 1));
+            let fix = |n: &Node, off: u32| -> Node {
+                let mut n = *n;
+                if n.b == 0 {
+                    n.a += off; // local index k >= 1 of a side array
+                }
+                n
+            };
+            let lo = 2u32;
+            let ro = lv.len() as u32 + 1;
+            out.push(fix(&lv[0], lo));
+            out.push(fix(&rv[0], ro));
+            out.extend(lv[1..].iter().map(|n| fix(n, lo)));
+            out.extend(rv[1..].iter().map(|n| fix(n, ro)));
+            out
+        }
+    }
+}
+
+/// Builds a whole tree over `prims` (root at 0) or an empty array for no primitives.
+fn build_tree(prims: &mut [Prim], slot: u32, leaf_flags: u32, max_leaf: usize) -> Vec<Node> {
+    if prims.is_empty() {
+        return Vec::new();
+    }
+    let e = extent_of(prims);
+    build_par(prims, slot, &e, 0, leaf_flags, max_leaf)
+}
+
+/// One mesh of the BVH.
+#[derive(Clone, Copy, Debug)]
+struct MeshEntry {
+    /// Index into `FrameGeometry::meshes`.
+    mesh: u32,
+    /// Root node in `Bvh::nodes`.
+    root: u32,
+    /// Bounds (the padded root box).
+    bounds: Aabb,
+}
+
+/// Top-level BVH over (a subset of) the meshes.
+#[derive(Clone, Debug, Default)]
+struct Tlas {
+    nodes: Vec<Node>,
+}
+
+/// A two-level BVH over the triangles of one `FrameGeometry` (built per frame).
+/// It keeps its own copy of the triangles (f32, in leaf order), so casting does not touch the
+/// geometry; pass the same geometry to `cast` (checked by counts).
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    /// All bottom-level nodes, one tree per non-empty mesh.
+    nodes: Vec<Node>,
+    /// Triangle vertices in leaf-slot order.
+    verts: Vec<[f32; 9]>,
+    /// Global triangle index per slot.
+    ids: Vec<u32>,
+    meshes: Vec<MeshEntry>,
+    tlas: Tlas,
+    triangle_count: u32,
+    mesh_count: usize,
+}
+
+impl Bvh {
+    /// Builds the BVH of `geom` (parallel with rayon over meshes and big subtrees).
+    /// Triangles outside every mesh range are ignored (as by the rasterizer).
+    pub fn build(geom: &FrameGeometry) -> Bvh {
+        let total: usize = geom.meshes.iter().map(|m| m.triangle_count as usize).sum();
+        let mut verts = vec![[0f32; 9]; total];
+        let mut ids = vec![0u32; total];
+        // Pre-split the slot arrays per mesh.
+        let mut jobs = Vec::with_capacity(geom.meshes.len());
+        {
+            let mut vrest: &mut [[f32; 9]] = &mut verts;
+            let mut irest: &mut [u32] = &mut ids;
+            let mut slot = 0u32;
+            for (k, m) in geom.meshes.iter().enumerate() {
+                let n = m.triangle_count as usize;
+                let (v, vr) = vrest.split_at_mut(n);
+                let (i, ir) = irest.split_at_mut(n);
+                vrest = vr;
+                irest = ir;
+                jobs.push((k, slot, v, i));
+                slot += n as u32;
+            }
+        }
+        let built: Vec<(usize, Vec<Node>)> = jobs
+            .into_par_iter()
+            .filter(|(_, _, v, _)| !v.is_empty())
+            .map(|(k, slot, v, i)| {
+                let m = &geom.meshes[k];
+                let mut prims: Vec<Prim> = (0..m.triangle_count)
+                    .map(|j| {
+                        let t = m.first_triangle + j;
+                        let [a, b, c] = geom.triangle(t);
+                        let (a, b, c) = (Vec3A::from(a), Vec3A::from(b), Vec3A::from(c));
+                        Prim::new(a.min(b).min(c), a.max(b).max(c), t)
+                    })
+                    .collect();
+                let flags = if m.double_sided { 0 } else { CULL_BIT };
+                let nodes = build_tree(&mut prims, slot, flags, MAX_LEAF);
+                for ((p, vs), id) in prims.iter().zip(v.iter_mut()).zip(i.iter_mut()) {
+                    *id = p.id();
+                    let [a, b, c] = geom.triangle(*id);
+                    *vs = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
+                }
+                (k, nodes)
+            })
+            .collect();
+        let node_total: usize = built.iter().map(|(_, n)| n.len()).sum();
+        let mut nodes = Vec::with_capacity(node_total);
+        let mut meshes = Vec::with_capacity(built.len());
+        for (k, sub) in &built {
+            let base = nodes.len() as u32;
+            let r = &sub[0];
+            // The root's (padded) box; padding it again in the top level is only conservative.
+            let bounds = Aabb { lo: Vec3A::from(r.lo), hi: Vec3A::from(r.hi) };
+            meshes.push(MeshEntry { mesh: *k as u32, root: base, bounds });
+            nodes.extend(sub.iter().map(|n| {
+                let mut n = *n;
+                if n.b == 0 {
+                    n.a += base;
+                }
+                n
+            }));
+        }
+        let mut bvh = Bvh {
+            nodes,
+            verts,
+            ids,
+            meshes,
+            tlas: Tlas::default(),
+            triangle_count: geom.triangle_count(),
+            mesh_count: geom.meshes.len(),
+        };
+        bvh.tlas = bvh.build_tlas(|_| true);
+        bvh
+    }
+
+    fn build_tlas(&self, keep: impl Fn(u32) -> bool) -> Tlas {
+        let mut prims: Vec<Prim> = self
+            .meshes
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| keep(m.mesh))
+            .map(|(e, m)| Prim::new(m.bounds.lo, m.bounds.hi, e as u32))
+            .collect();
+        let mut nodes = build_tree(&mut prims, 0, 0, 1);
+        // Top-level leaves hold one mesh: point them at the entry (slot order = prims order).
+        for n in nodes.iter_mut() {
+            if n.b != 0 {
+                n.a = prims[n.a as usize].id();
+                n.b = 1;
+            }
+        }
+        Tlas { nodes }
+    }
+
+    /// Number of triangles in the BVH (those of all meshes).
+    pub fn triangle_count(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// Number of bottom-level nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    fn check(&self, geom: &FrameGeometry) {
+        assert!(
+            self.triangle_count == geom.triangle_count() && self.mesh_count == geom.meshes.len(),
+            "raycast: the BVH was built for another geometry"
+        );
+    }
+
+    /// First hit of one ray (unit `dir`) within `max_range_m`, over the meshes of `tlas`.
+    fn trace(&self, tlas: &Tlas, dir: DVec3, max_range_m: f64) -> Hit {
+        let Some(ray) = Ray::new(dir) else { return Hit::NONE };
+        if !(max_range_m > 0.0) || tlas.nodes.is_empty() {
+            return Hit::NONE;
+        }
+        let mut best_t = max_range_m;
+        let mut best_tri = u32::MAX;
+        if ray.entry(&tlas.nodes[0], best_t) == f64::INFINITY {
+            return Hit::NONE;
+        }
+        let mut stack = [(0u32, 0f64); STACK_SIZE];
+        let mut sp = 0usize;
+        let mut cur = 0u32;
+        loop {
+            let blas = cur & BLAS_BIT != 0;
+            let arr: &[Node] = if blas { &self.nodes } else { &tlas.nodes };
+            let node = &arr[(cur & !BLAS_BIT) as usize];
+            if node.b == 0 {
+                let c = node.a as usize;
+                let t0 = ray.entry(&arr[c], best_t);
+                let t1 = ray.entry(&arr[c + 1], best_t);
+                let flag = cur & BLAS_BIT;
+                let (near, tn, far, tf) =
+                    if t0 <= t1 { (c, t0, c + 1, t1) } else { (c + 1, t1, c, t0) };
+                if tn != f64::INFINITY {
+                    if tf != f64::INFINITY {
+                        stack[sp] = (far as u32 | flag, tf);
+                        sp += 1;
+                    }
+                    cur = near as u32 | flag;
+                    continue;
+                }
+            } else if !blas {
+                cur = self.meshes[node.a as usize].root | BLAS_BIT;
+                continue;
+            } else {
+                let first = node.a as usize;
+                let count = (node.b & COUNT_MASK) as usize;
+                let cull = node.b & CULL_BIT != 0;
+                for s in first..first + count {
+                    let v = &self.verts[s];
+                    let tri = [
+                        DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64),
+                        DVec3::new(v[3] as f64, v[4] as f64, v[5] as f64),
+                        DVec3::new(v[6] as f64, v[7] as f64, v[8] as f64),
+                    ];
+                    if let Some(t) = intersect_pre(&ray.pre, &tri, cull) {
+                        let id = self.ids[s];
+                        if better(t, id, best_t, best_tri) {
+                            best_t = t;
+                            best_tri = id;
+                        }
+                    }
+                }
+            }
+            // Pop the next node still in reach.
+            loop {
+                if sp == 0 {
+                    return Hit::from_best(best_t, best_tri);
+                }
+                sp -= 1;
+                let (n, t) = stack[sp];
+                if t <= best_t {
+                    cur = n;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// First hit of a single ray over all meshes (see `cast`).
+    pub fn trace_ray(&self, dir: DVec3, max_range_m: f64) -> Hit {
+        self.trace(&self.tlas, dir, max_range_m)
+    }
+}
+
+/// A ray from the origin: watertight constants and slab-test reciprocals.
+struct Ray {
+    pre: RayPre,
+    inv: [f64; 3],
+    neg: [bool; 3],
+}
+
+impl Ray {
+    fn new(dir: DVec3) -> Option<Ray> {
+        let pre = RayPre::new(dir)?;
+        let inv = [1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z];
+        let neg = [inv[0] < 0.0, inv[1] < 0.0, inv[2] < 0.0];
+        Some(Ray { pre, inv, neg })
+    }
+
+    /// Entry parameter of the (padded) box, or infinity when the ray misses it before
+    /// `t_best`. A zero direction component gives 0 * inf = NaN on a slab boundary through
+    /// the origin; `f64::max`/`min` drop NaN, which treats the boundary as inside (closed).
+    #[inline(always)]
+    fn entry(&self, n: &Node, t_best: f64) -> f64 {
+        let mut tn = 0.0f64;
+        let mut tf = t_best;
+        for k in 0..3 {
+            let (near, far) = if self.neg[k] { (n.hi[k], n.lo[k]) } else { (n.lo[k], n.hi[k]) };
+            tn = tn.max(near as f64 * self.inv[k]);
+            tf = tf.min(far as f64 * self.inv[k]);
+        }
+        if tn <= tf * (1.0 + 4.0 * f64::EPSILON) {
+            tn
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Casting
+// ---------------------------------------------------------------------------------------------
+
+/// Casts `dirs` (unit directions from the sensor origin, e.g. `Sensor::beam_dirs()`) against
+/// all meshes of `geom` with the prebuilt `bvh`: the nearest hit per ray with range
+/// `<= max_range_m` (ties: smaller triangle index). Parallel over rays (rayon); the result
+/// does not depend on the thread count. Panics if `bvh` was built for another geometry.
+pub fn cast(geom: &FrameGeometry, bvh: &Bvh, dirs: &[DVec3], max_range_m: f64) -> Vec<Hit> {
+    bvh.check(geom);
+    cast_tlas(bvh, &bvh.tlas, dirs, max_range_m)
+}
+
+/// Like `cast`, restricted to the meshes for which `filter` is true, e.g. humans only
+/// (`|m| m.instance > 0`) or background only (`|m| m.instance == 0`). Reuses `bvh`; only
+/// the small top level over the kept meshes is rebuilt.
+pub fn cast_with_filter(
+    geom: &FrameGeometry,
+    bvh: &Bvh,
+    dirs: &[DVec3],
+    max_range_m: f64,
+    filter: impl Fn(&MeshRange) -> bool,
+) -> Vec<Hit> {
+    bvh.check(geom);
+    let tlas = bvh.build_tlas(|k| filter(&geom.meshes[k as usize]));
+    cast_tlas(bvh, &tlas, dirs, max_range_m)
+}
+
+fn cast_tlas(bvh: &Bvh, tlas: &Tlas, dirs: &[DVec3], max_range_m: f64) -> Vec<Hit> {
+    dirs.par_iter().with_min_len(64).map(|&d| bvh.trace(tlas, d, max_range_m)).collect()
+}
+
+/// Builds the BVH of `geom` and casts `dirs` (see `cast`).
+pub fn cast_frame(geom: &FrameGeometry, dirs: &[DVec3], max_range_m: f64) -> Vec<Hit> {
+    let bvh = Bvh::build(geom);
+    cast(geom, &bvh, dirs, max_range_m)
+}
+
+/// Brute force over every triangle of the meshes kept by `filter` (no BVH): the referee of
+/// the referee. Same intersection function and tie rule as `cast`, so the results are equal
+/// bit for bit. Parallel over rays.
+pub fn cast_brute_force(
+    geom: &FrameGeometry,
+    dirs: &[DVec3],
+    max_range_m: f64,
+    filter: impl Fn(&MeshRange) -> bool + Sync,
+) -> Vec<Hit> {
+    dirs.par_iter()
+        .map(|&d| {
+            let Some(r) = RayPre::new(d) else { return Hit::NONE };
+            if !(max_range_m > 0.0) {
+                return Hit::NONE;
+            }
+            let mut best_t = max_range_m;
+            let mut best_tri = u32::MAX;
+            for m in geom.meshes.iter().filter(|m| filter(m)) {
+                for t in m.first_triangle..m.first_triangle + m.triangle_count {
+                    if let Some(x) = intersect_pre(&r, &geom.triangle_f64(t), !m.double_sided) {
+                        if better(x, t, best_t, best_tri) {
+                            best_t = x;
+                            best_tri = t;
+                        }
+                    }
+                }
+            }
+            Hit::from_best(best_t, best_tri)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    /// SplitMix64: small, seeded, reproducible.
+    struct Rng(u64);
+    impl Rng {
+        fn next_u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        /// Uniform in [0, 1).
+        fn f(&mut self) -> f64 {
+            (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.f()
+        }
+        fn unit(&mut self) -> DVec3 {
+            loop {
+                let v = DVec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
+                let l = v.length();
+                if l > 1e-3 && l <= 1.0 {
+                    return v / l;
+                }
+            }
+        }
+        fn below(&mut self, n: usize) -> usize {
+            (self.next_u64() % n as u64) as usize
+        }
+    }
+
+    fn f32v(v: DVec3) -> [f32; 3] {
+        [v.x as f32, v.y as f32, v.z as f32]
+    }
+
+    fn dv(p: [f32; 3]) -> DVec3 {
+        DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+    }
+
+    /// Octahedron subdivided into 8 * n^2 triangles, vertices normalised to the unit sphere
+    /// (then scaled and moved), wound outward. Vertices on the coordinate planes stay exactly
+    /// on them, so equator edges lie exactly in z = 0 (and likewise x = 0, y = 0).
+    fn octasphere(n: i32, scale: DVec3, centre: DVec3) -> (Vec<[f32; 3]>, Vec<u32>) {
+        let mut pos = Vec::new();
+        let mut map: HashMap<(i32, i32, i32), u32> = HashMap::new();
+        let mut idx = Vec::new();
+        let mut vert = |k: (i32, i32, i32), pos: &mut Vec<[f32; 3]>| -> u32 {
+            *map.entry(k).or_insert_with(|| {
+                let p = DVec3::new(k.0 as f64, k.1 as f64, k.2 as f64).normalize();
+                pos.push(f32v(p * scale + centre));
+                (pos.len() - 1) as u32
+            })
+        };
+        for sx in [-1, 1] {
+            for sy in [-1, 1] {
+                for sz in [-1, 1] {
+                    // Corners A = sx*X, B = sy*Y, C = sz*Z; outward when sx*sy*sz > 0.
+                    let flip = sx * sy * sz < 0;
+                    let lat = |i: i32, j: i32| (sx * (n - i - j), sy * i, sz * j);
+                    for i in 0..n {
+                        for j in 0..n - i {
+                            let mut tris = vec![[lat(i, j), lat(i + 1, j), lat(i, j + 1)]];
+                            if i + j + 1 < n {
+                                tris.push([lat(i + 1, j), lat(i + 1, j + 1), lat(i, j + 1)]);
+                            }
+                            for t in tris {
+                                let mut v = [vert(t[0], &mut pos), vert(t[1], &mut pos), vert(t[2], &mut pos)];
+                                if flip {
+                                    v.swap(1, 2);
+                                }
+                                idx.extend_from_slice(&v);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (pos, idx)
+    }
+
+    /// Cube [-1, 1]^3 with an n x n grid per face, rotated by `rot` (columns), moved by
+    /// `centre`, wound outward; shared vertices are shared exactly.
+    fn tess_cube(n: i32, rot: [DVec3; 3], centre: DVec3) -> (Vec<[f32; 3]>, Vec<u32>) {
+        let mut pos = Vec::new();
+        let mut map: HashMap<[i32; 3], u32> = HashMap::new();
+        let mut idx = Vec::new();
+        let mut vert = |k: [i32; 3], pos: &mut Vec<[f32; 3]>| -> u32 {
+            *map.entry(k).or_insert_with(|| {
+                let p = DVec3::new(k[0] as f64, k[1] as f64, k[2] as f64) * (2.0 / n as f64) - DVec3::ONE;
+                pos.push(f32v(rot[0] * p.x + rot[1] * p.y + rot[2] * p.z + centre));
+                (pos.len() - 1) as u32
+            })
+        };
+        // (normal axis, side, u axis, v axis) with u x v = outward normal.
+        let faces = [(0, n, 1, 2), (0, 0, 2, 1), (1, n, 2, 0), (1, 0, 0, 2), (2, n, 0, 1), (2, 0, 1, 0)];
+        for (ax, side, ua, va) in faces {
+            let key = |i: i32, j: i32| {
+                let mut k = [0; 3];
+                k[ax] = side;
+                k[ua] = i;
+                k[va] = j;
+                k
+            };
+            for i in 0..n {
+                for j in 0..n {
+                    let p00 = vert(key(i, j), &mut pos);
+                    let p10 = vert(key(i + 1, j), &mut pos);
+                    let p11 = vert(key(i + 1, j + 1), &mut pos);
+                    let p01 = vert(key(i, j + 1), &mut pos);
+                    idx.extend_from_slice(&[p00, p10, p11, p00, p11, p01]);
+                }
+            }
+        }
+        (pos, idx)
+    }
+
+    fn flip(idx: &[u32]) -> Vec<u32> {
+        idx.chunks(3).flat_map(|t| [t[0], t[2], t[1]]).collect()
+    }
+
+    fn rotation(rng: &mut Rng) -> [DVec3; 3] {
+        let a = rng.unit();
+        let b = (rng.unit() - a * a.dot(rng.unit())).normalize();
+        let b = (b - a * a.dot(b)).normalize();
+        [a, b, a.cross(b)]
+    }
+
+    fn geom_of(meshes: &[(&[[f32; 3]], &[u32], u32, bool)]) -> FrameGeometry {
+        let mut g = FrameGeometry::default();
+        for (p, i, inst, ds) in meshes {
+            g.push_mesh(p, i, *inst, *ds);
+        }
+        g
+    }
+
+    fn front_facing(tri: &[DVec3; 3]) -> bool {
+        (tri[1] - tri[0]).cross(tri[2] - tri[0]).dot(tri[0]) < 0.0
+    }
+
+    fn same(a: &[Hit], b: &[Hit]) -> Result<(), String> {
+        assert_eq!(a.len(), b.len());
+        for (k, (x, y)) in a.iter().zip(b).enumerate() {
+            if x.triangle != y.triangle || x.range_m.to_bits() != y.range_m.to_bits() {
+                return Err(format!("ray {k}: {x:?} vs {y:?}"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The edge function's sign is exact where plain f64 rounds to 0 or to the wrong sign,
+    /// checked against i128 arithmetic on random 40-bit integers times powers of two.
+    #[test]
+    fn diff_of_products_has_the_exact_sign() {
+        let e = 2f64.powi(-30);
+        // (1 + e)(1 - e) - 1 = -e^2: plain f64 says 0.
+        assert_eq!((1.0 + e) * (1.0 - e) - 1.0, 0.0);
+        assert!(diff_of_products(1.0 + e, 1.0 - e, 1.0, 1.0) < 0.0);
+        assert!(diff_of_products(1.0, 1.0, 1.0 + e, 1.0 - e) > 0.0);
+        assert_eq!(diff_of_products(3.0, 5.0, 5.0, 3.0), 0.0);
+        let mut rng = Rng(99);
+        let mut fallbacks = 0;
+        for _ in 0..200_000 {
+            let base = (rng.next_u64() >> 24) as i128; // 40 bits
+            let m = |rng: &mut Rng| base + (rng.next_u64() % 3) as i128 - 1;
+            let (p, q, r, s) = (m(&mut rng), m(&mut rng), m(&mut rng), m(&mut rng));
+            let want = (p * q - r * s).signum();
+            let k = 2f64.powi(rng.below(40) as i32 - 20);
+            let got = diff_of_products(p as f64 * k, q as f64, r as f64 * k, s as f64);
+            let plain = (p as f64 * k) * q as f64 - (r as f64 * k) * s as f64;
+            if plain.signum() as i128 != want || plain == 0.0 {
+                fallbacks += 1;
+            }
+            let sign = if got > 0.0 { 1 } else if got < 0.0 { -1 } else { 0 };
+            assert_eq!(sign, want, "{p} {q} {r} {s}");
+            assert_eq!(diff_of_products(r as f64 * k, s as f64, p as f64 * k, q as f64), -got);
+        }
+        assert!(fallbacks > 1000, "{fallbacks}");
+    }
+
+    // ---- intersection: closed forms ------------------------------------------------------
+
+    /// Plane x = 5 (two triangles, 2 km wide, facing the origin): range = 5 / dir.x within
+    /// 1e-9 relative; from behind (x = -5, facing away) culled, hit when double-sided.
+    #[test]
+    fn plane_closed_form() {
+        let s = 1000.0f32;
+        let p = [[5.0, -s, -s], [5.0, s, -s], [5.0, s, s], [5.0, -s, s]];
+        let mut idx = vec![0, 1, 2, 0, 2, 3];
+        let tri0 = [dv(p[0]), dv(p[1]), dv(p[2])];
+        if !front_facing(&tri0) {
+            idx = flip(&idx);
+        }
+        let g = geom_of(&[(&p, &idx, 0, false)]);
+        assert!(front_facing(&g.triangle_f64(0)) && front_facing(&g.triangle_f64(1)));
+        let mut rng = Rng(1);
+        let dirs: Vec<DVec3> = (0..20_000)
+            .map(|_| loop {
+                let d = rng.unit();
+                if d.x > 0.05 {
+                    break d;
+                }
+            })
+            .collect();
+        let hits = cast_frame(&g, &dirs, 1e9);
+        for (d, h) in dirs.iter().zip(&hits) {
+            let want = 5.0 / d.x;
+            assert!(h.is_hit(), "{d:?}");
+            assert!(((h.range_m - want) / want).abs() < 1e-9, "{d:?}: {} vs {want}", h.range_m);
+            assert_eq!(intersect_triangle(*d, &g.triangle_f64(h.triangle), true), Some(h.range_m));
+        }
+        // Exactly along +x through the shared diagonal: hits.
+        assert_eq!(cast_frame(&g, &[DVec3::X], 1e9)[0].range_m, 5.0);
+        // Mirrored to x = -5 with the same winding: it faces away from the origin.
+        let q: Vec<[f32; 3]> = p.iter().map(|v| [-v[0], v[1], v[2]]).collect();
+        let back = geom_of(&[(&q, &idx, 0, false)]);
+        assert!(cast_frame(&back, &[-DVec3::X], 1e9)[0] == Hit::NONE);
+        let both = geom_of(&[(&q, &idx, 0, true)]);
+        assert_eq!(cast_frame(&both, &[-DVec3::X], 1e9)[0].range_m, 5.0);
+    }
+
+    /// Box [-2,3]x[-1.5,2.5]x[-1,4] around the origin, wound inward (culled) and outward
+    /// (double-sided): range = min over axes of the slab exit, within 1e-9 relative.
+    #[test]
+    fn box_closed_form() {
+        let lo = DVec3::new(-2.0, -1.5, -1.0);
+        let hi = DVec3::new(3.0, 2.5, 4.0);
+        let rot = [DVec3::X, DVec3::Y, DVec3::Z];
+        let (mut p, idx) = tess_cube(1, rot, DVec3::ZERO);
+        for v in p.iter_mut() {
+            for k in 0..3 {
+                v[k] = if v[k] < 0.0 { lo[k] as f32 } else { hi[k] as f32 };
+            }
+        }
+        let inward = flip(&idx);
+        let g_in = geom_of(&[(&p, &inward, 0, false)]);
+        let g_out_ds = geom_of(&[(&p, &idx, 0, true)]);
+        let g_out_cull = geom_of(&[(&p, &idx, 0, false)]);
+        let mut rng = Rng(2);
+        let dirs: Vec<DVec3> = (0..20_000).map(|_| rng.unit()).collect();
+        let a = cast_frame(&g_in, &dirs, 1e9);
+        let b = cast_frame(&g_out_ds, &dirs, 1e9);
+        let c = cast_frame(&g_out_cull, &dirs, 1e9);
+        for (k, d) in dirs.iter().enumerate() {
+            let mut want = f64::INFINITY;
+            for ax in 0..3 {
+                let t = if d[ax] > 0.0 { hi[ax] / d[ax] } else { lo[ax] / d[ax] };
+                want = want.min(t);
+            }
+            for h in [a[k], b[k]] {
+                assert!(((h.range_m - want) / want).abs() < 1e-9, "{d:?}: {h:?} vs {want}");
+            }
+            assert_eq!(c[k], Hit::NONE, "outward box seen from inside must be culled");
+        }
+    }
+
+    #[test]
+    fn back_face_culling() {
+        // Counter-clockwise seen from the origin (looking along +x): front.
+        // (y, z) seen looking along +x (y left, z up): right-bottom, top, left-bottom.
+        let front = [DVec3::new(4.0, -1.0, -1.0), DVec3::new(4.0, 0.0, 1.0), DVec3::new(4.0, 1.0, -1.0)];
+        assert!(front_facing(&front));
+        assert_eq!(intersect_triangle(DVec3::X, &front, true), Some(4.0));
+        assert_eq!(intersect_triangle(DVec3::X, &front, false), Some(4.0));
+        let back = [front[0], front[2], front[1]];
+        assert!(!front_facing(&back));
+        assert_eq!(intersect_triangle(DVec3::X, &back, true), None);
+        assert_eq!(intersect_triangle(DVec3::X, &back, false), Some(4.0));
+        // Same through the BVH with the mesh flag.
+        let p = [f32v(back[0]), f32v(back[1]), f32v(back[2])];
+        let g = geom_of(&[(&p, &[0, 1, 2], 1, false)]);
+        assert_eq!(cast_frame(&g, &[DVec3::X], 100.0)[0], Hit::NONE);
+        let g = geom_of(&[(&p, &[0, 1, 2], 1, true)]);
+        assert_eq!(cast_frame(&g, &[DVec3::X], 100.0)[0], Hit { range_m: 4.0, triangle: 0 });
+        // Behind the origin or beyond max range: no hit.
+        assert_eq!(intersect_triangle(-DVec3::X, &front, false), None);
+        assert_eq!(cast_frame(&g, &[DVec3::X], 3.9)[0], Hit::NONE);
+        assert_eq!(cast_frame(&g, &[DVec3::X], 4.0)[0].range_m, 4.0);
+    }
+
+    #[test]
+    fn degenerate_triangles_never_hit() {
+        let a = DVec3::new(4.0, -1.0, -1.0);
+        let c = DVec3::new(4.0, 1.0, 1.0);
+        let m = (a + c) * 0.5; // exactly collinear (dyadic)
+        let cases = [
+            [a, a, c],
+            [a, c, c],
+            [a, a, a],
+            [a, m, c],
+            [m, a, c],
+            [DVec3::new(4.0, 0.0, -2.0), DVec3::new(4.0, 0.0, 0.0), DVec3::new(4.0, 0.0, 2.0)],
+        ];
+        // Rays through the degenerate triangle's points and around it.
+        let mut dirs = vec![DVec3::X, a.normalize(), c.normalize(), m.normalize()];
+        let mut rng = Rng(3);
+        for _ in 0..2000 {
+            dirs.push((DVec3::new(4.0, 0.0, 0.0) + rng.unit() * rng.range(0.0, 2.0)).normalize());
+        }
+        for tri in &cases {
+            for d in &dirs {
+                for cull in [false, true] {
+                    assert_eq!(intersect_triangle(*d, tri, cull), None, "{tri:?} {d:?}");
+                }
+            }
+        }
+        // NaN / infinite vertices and zero / NaN directions: no hit, no NaN.
+        let good = [DVec3::new(4.0, 1.0, -1.0), DVec3::new(4.0, 0.0, 1.0), DVec3::new(4.0, -1.0, -1.0)];
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for k in 0..3 {
+                let mut t = good;
+                t[k].y = bad;
+                for d in &dirs {
+                    assert_eq!(intersect_triangle(*d, &t, false), None);
+                }
+            }
+        }
+        for d in [DVec3::ZERO, DVec3::NAN, DVec3::new(f64::INFINITY, 0.0, 0.0)] {
+            assert_eq!(intersect_triangle(d, &good, false), None);
+        }
+        // Random degenerate soups through the BVH: nothing hits, ranges are never NaN.
+        let mut pos = Vec::new();
+        let mut idx = Vec::new();
+        for _ in 0..500 {
+            let p = DVec3::new(rng.range(1.0, 5.0), rng.range(-2.0, 2.0), rng.range(-2.0, 2.0));
+            let q = p + DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0).round() * 0.25;
+            let base = pos.len() as u32;
+            pos.extend([f32v(p), f32v(q), f32v((p + q) * 0.5), f32v(p * 2.0 - q)]);
+            idx.extend([base, base + 1, base + 2, base + 3, base, base + 1, base, base, base + 1]);
+        }
+        let g = geom_of(&[(&pos, &idx, 0, true)]);
+        let hits = cast_frame(&g, &dirs, 100.0);
+        assert!(hits.iter().all(|h| *h == Hit::NONE));
+        let mut g2 = g.clone();
+        g2.positions[0] = [f32::NAN, 1.0, 1.0];
+        g2.positions[5] = [f32::INFINITY, 1.0, 1.0];
+        let hits = cast_frame(&g2, &dirs, 100.0);
+        assert!(hits.iter().all(|h| *h == Hit::NONE && !h.range_m.is_nan()));
+    }
+
+    // ---- watertightness ------------------------------------------------------------------
+
+    /// Directions through every vertex, every edge midpoint (exact in f64) and every
+    /// centroid of a mesh, relative to the origin; `keep` selects by the incident triangles.
+    fn aimed_dirs(
+        g: &FrameGeometry,
+        keep: impl Fn(&[[DVec3; 3]]) -> bool,
+    ) -> Vec<DVec3> {
+        let mut by_vertex: HashMap<u32, Vec<u32>> = HashMap::new();
+        let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+        for t in 0..g.triangle_count() {
+            let i = &g.indices[3 * t as usize..3 * t as usize + 3];
+            for k in 0..3 {
+                by_vertex.entry(i[k]).or_default().push(t);
+                let (a, b) = (i[k], i[(k + 1) % 3]);
+                by_edge.entry((a.min(b), a.max(b))).or_default().push(t);
+            }
+        }
+        let tris = |ts: &[u32]| -> Vec<[DVec3; 3]> { ts.iter().map(|&t| g.triangle_f64(t)).collect() };
+        let mut dirs = Vec::new();
+        let mut vs: Vec<_> = by_vertex.into_iter().collect();
+        vs.sort();
+        for (v, ts) in vs {
+            if keep(&tris(&ts)) {
+                dirs.push(dv(g.positions[v as usize]));
+            }
+        }
+        let mut es: Vec<_> = by_edge.into_iter().collect();
+        es.sort();
+        for ((a, b), ts) in es {
+            assert_eq!(ts.len(), 2, "mesh not closed");
+            if keep(&tris(&ts)) {
+                dirs.push((dv(g.positions[a as usize]) + dv(g.positions[b as usize])) * 0.5);
+            }
+        }
+        for t in 0..g.triangle_count() {
+            let tri = g.triangle_f64(t);
+            if keep(&[tri]) {
+                dirs.push((tri[0] + tri[1] + tri[2]) / 3.0);
+            }
+        }
+        dirs
+    }
+
+    /// Origin inside closed meshes (octasphere 32768 triangles centred and off-centre, wound
+    /// inward and culled; rotated tessellated cube 24576 triangles): 100k random rays plus
+    /// rays through every vertex, edge midpoint and centroid (non-unit, so t = 1 at the
+    /// aimed point), rays in the coordinate planes (exactly through equator edges) and
+    /// along the axes (exactly through vertices). Zero misses; aimed rays have t = 1 within
+    /// 1e-9; random rays hit within the analytic shell.
+    #[test]
+    fn watertight_from_inside() {
+        let mut rng = Rng(4);
+        let rot = rotation(&mut rng);
+        let cases: Vec<(&str, Vec<[f32; 3]>, Vec<u32>, f64, f64)> = vec![
+            {
+                let (p, i) = octasphere(64, DVec3::ONE, DVec3::ZERO);
+                ("centred sphere", p, i, 0.9995, 1.0 + 1e-6)
+            },
+            {
+                let (p, i) = octasphere(64, DVec3::new(2.0, 1.0, 0.5), DVec3::new(0.3, -0.2, 0.1));
+                ("off-centre ellipsoid", p, i, 0.05, 3.0)
+            },
+            {
+                let (p, i) = tess_cube(64, rot, DVec3::new(0.1, 0.2, -0.3));
+                ("rotated cube", p, i, 0.3, 2.5)
+            },
+        ];
+        for (name, p, i, rmin, rmax) in cases {
+            let inward = flip(&i);
+            let g = geom_of(&[(&p, &inward, 1, false)]);
+            let bvh = Bvh::build(&g);
+            let mut dirs: Vec<DVec3> = (0..100_000).map(|_| rng.unit()).collect();
+            for k in 0..20_000 {
+                let a = k as f64 * 0.000_314_159_3;
+                let (s, c) = a.sin_cos();
+                dirs.push(DVec3::new(c, s, 0.0));
+                dirs.push(DVec3::new(0.0, c, s));
+                dirs.push(DVec3::new(s, 0.0, c));
+            }
+            for ax in [DVec3::X, DVec3::Y, DVec3::Z] {
+                dirs.push(ax);
+                dirs.push(-ax);
+            }
+            let n_random = dirs.len();
+            let aimed = aimed_dirs(&g, |_| true);
+            assert!(aimed.len() > 3 * g.triangle_count() as usize);
+            dirs.extend(aimed);
+            let hits = cast(&g, &bvh, &dirs, 1e9);
+            let misses = hits.iter().filter(|h| !h.is_hit()).count();
+            assert_eq!(misses, 0, "{name}: {misses} misses of {}", dirs.len());
+            for (k, (d, h)) in dirs.iter().zip(&hits).enumerate() {
+                if k < n_random {
+                    assert!(h.range_m >= rmin && h.range_m <= rmax, "{name} {d:?} {h:?}");
+                } else {
+                    assert!((h.range_m - 1.0).abs() < 1e-9, "{name} aimed {d:?} {h:?}");
+                }
+            }
+            // The brute force agrees on a sample of the aimed rays (same function, no BVH).
+            let sample: Vec<usize> = (n_random..dirs.len()).step_by(97).collect();
+            let sd: Vec<DVec3> = sample.iter().map(|&k| dirs[k]).collect();
+            let sh: Vec<Hit> = sample.iter().map(|&k| hits[k]).collect();
+            same(&cast_brute_force(&g, &sd, 1e9, |_| true), &sh).unwrap();
+        }
+    }
+
+    /// Closed meshes in front of the origin, wound outward and culled: every ray through a
+    /// vertex / edge midpoint / centroid whose incident triangles all face the origin (with
+    /// margin) hits at t = 1 within 1e-9; random rays through the inscribed sphere hit.
+    #[test]
+    fn watertight_from_outside() {
+        let mut rng = Rng(5);
+        let rot = rotation(&mut rng);
+        let cases = vec![
+            ("sphere", octasphere(48, DVec3::splat(1.5), DVec3::new(6.0, 1.0, -0.5)), 1.5 * 0.999),
+            ("cube", tess_cube(48, rot, DVec3::new(-5.0, 2.0, 1.0)), 0.999),
+        ];
+        for (name, (p, i), r_in) in cases {
+            let g = geom_of(&[(&p, &i, 2, false)]);
+            let bvh = Bvh::build(&g);
+            let margin = |ts: &[[DVec3; 3]]| {
+                ts.iter().all(|t| {
+                    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+                    n.dot(t[0]) < -0.05 * n.length() * t[0].length()
+                })
+            };
+            let aimed = aimed_dirs(&g, margin);
+            assert!(aimed.len() > g.triangle_count() as usize / 2, "{name}: {}", aimed.len());
+            let hits = cast(&g, &bvh, &aimed, 1e9);
+            for (d, h) in aimed.iter().zip(&hits) {
+                assert!(h.is_hit() && (h.range_m - 1.0).abs() < 1e-9, "{name} aimed {d:?} {h:?}");
+            }
+            // Random rays that pass inside the inscribed sphere must hit.
+            let centre = dv(g.meshes[0].centre);
+            let dirs: Vec<DVec3> = (0..100_000)
+                .map(|_| (centre + rng.unit() * r_in * rng.f().sqrt()).normalize())
+                .collect();
+            let hits = cast(&g, &bvh, &dirs, 1e9);
+            assert_eq!(hits.iter().filter(|h| !h.is_hit()).count(), 0, "{name}");
+        }
+    }
+
+    // ---- BVH vs brute force --------------------------------------------------------------
+
+    /// A soup: big, small, thin (sliver), grazing (plane through the origin), shared-edge
+    /// fans, exact duplicates (ties) and rotated duplicates; several meshes with mixed
+    /// culling and instances. Returns the geometry and rays aimed at vertices/edges plus
+    /// random ones.
+    fn soup(seed: u64, n: usize) -> (FrameGeometry, Vec<DVec3>) {
+        let mut rng = Rng(seed);
+        let mut g = FrameGeometry::default();
+        let mut aims = Vec::new();
+        for mesh in 0..4 {
+            let mut pos: Vec<[f32; 3]> = Vec::new();
+            let mut idx: Vec<u32> = Vec::new();
+            let tri = |a: DVec3, b: DVec3, c: DVec3, pos: &mut Vec<[f32; 3]>, idx: &mut Vec<u32>| {
+                let base = pos.len() as u32;
+                pos.extend([f32v(a), f32v(b), f32v(c)]);
+                idx.extend([base, base + 1, base + 2]);
+            };
+            while idx.len() / 3 < n / 4 {
+                let c = DVec3::new(rng.range(-20.0, 20.0), rng.range(-20.0, 20.0), rng.range(-5.0, 5.0));
+                let s = 10f64.powf(rng.range(-2.0, 0.7));
+                match rng.below(7) {
+                    0 | 1 => tri(c + rng.unit() * s, c + rng.unit() * s, c + rng.unit() * s, &mut pos, &mut idx),
+                    2 => {
+                        // sliver
+                        let a = c + rng.unit() * s;
+                        let b = a + rng.unit() * s * 1e-5;
+                        tri(a, b, c + rng.unit() * s * 3.0, &mut pos, &mut idx);
+                    }
+                    3 => {
+                        // grazing: the plane contains the origin
+                        let a = c + rng.unit() * s;
+                        let b = c + rng.unit() * s;
+                        tri(a, b, a * rng.range(0.5, 1.5), &mut pos, &mut idx);
+                    }
+                    4 => {
+                        // fan with shared edges (vertices shared by index)
+                        let base = pos.len() as u32;
+                        pos.push(f32v(c));
+                        let k = 3 + rng.below(5);
+                        for j in 0..k {
+                            let ang = j as f64 * std::f64::consts::TAU / k as f64;
+                            pos.push(f32v(c + (rot_dir(ang) + rng.unit() * 0.2) * s));
+                        }
+                        for j in 0..k as u32 {
+                            idx.extend([base, base + 1 + j, base + 1 + (j + 1) % k as u32]);
+                        }
+                        aims.push(dv(pos[base as usize]));
+                    }
+                    5 if idx.len() >= 3 => {
+                        // exact duplicate of an earlier triangle (same vertex order): tie
+                        let t = rng.below(idx.len() / 3);
+                        let i3 = [idx[3 * t], idx[3 * t + 1], idx[3 * t + 2]];
+                        idx.extend(i3);
+                    }
+                    _ if idx.len() >= 3 => {
+                        // rotated duplicate (b, c, a)
+                        let t = rng.below(idx.len() / 3);
+                        let i3 = [idx[3 * t + 1], idx[3 * t + 2], idx[3 * t]];
+                        idx.extend(i3);
+                    }
+                    _ => {}
+                }
+            }
+            for _ in 0..n / 8 {
+                let t = rng.below(idx.len() / 3);
+                let a = dv(pos[idx[3 * t] as usize]);
+                let b = dv(pos[idx[3 * t + 1] as usize]);
+                aims.push(if rng.below(2) == 0 { a } else { (a + b) * 0.5 });
+            }
+            g.push_mesh(&pos, &idx, mesh as u32, mesh % 2 == 1);
+        }
+        let mut dirs: Vec<DVec3> = (0..n).map(|_| rng.unit()).collect();
+        dirs.extend(aims.iter().map(|a| a.normalize()));
+        dirs.extend(aims); // non-unit, exactly through the point
+        (g, dirs)
+    }
+
+    fn rot_dir(a: f64) -> DVec3 {
+        DVec3::new(a.cos(), a.sin(), 0.3 * (3.0 * a).sin())
+    }
+
+    /// The BVH returns exactly (bit for bit, incl. ties) what the brute force returns, for
+    /// all meshes and with mesh filters, for several seeds and max ranges.
+    #[test]
+    fn bvh_equals_brute_force() {
+        for seed in 10..14 {
+            let (g, dirs) = soup(seed, 1200);
+            let bvh = Bvh::build(&g);
+            assert_eq!(bvh.triangle_count(), g.triangle_count() as usize);
+            for max in [1e9, 15.0] {
+                let a = cast(&g, &bvh, &dirs, max);
+                let b = cast_brute_force(&g, &dirs, max, |_| true);
+                same(&a, &b).unwrap_or_else(|e| panic!("seed {seed} max {max}: {e}"));
+                assert!(a.iter().filter(|h| h.is_hit()).count() > dirs.len() / 10);
+                let pred = |m: &MeshRange| m.instance % 2 == 0;
+                let a = cast_with_filter(&g, &bvh, &dirs, max, pred);
+                let b = cast_brute_force(&g, &dirs, max, pred);
+                same(&a, &b).unwrap_or_else(|e| panic!("seed {seed} filtered: {e}"));
+            }
+        }
+    }
+
+    /// Ties: an exact duplicate always loses to the smaller triangle index.
+    #[test]
+    fn ties_pick_the_smaller_triangle() {
+        let p = [[4.0, 1.0, -1.0], [4.0, 0.0, 1.0], [4.0, -1.0, -1.0]];
+        let g = geom_of(&[(&p, &[0, 1, 2], 0, true), (&p, &[0, 1, 2, 0, 1, 2], 1, true)]);
+        let hits = cast_frame(&g, &[DVec3::X], 100.0);
+        assert_eq!(hits[0], Hit { range_m: 4.0, triangle: 0 });
+        let h = cast_with_filter(&g, &Bvh::build(&g), &[DVec3::X], 100.0, |m| m.instance == 1);
+        assert_eq!(h[0], Hit { range_m: 4.0, triangle: 1 });
+        assert_eq!(h[0].instance(&g), 1);
+    }
+
+    /// Humans-only and background-only casts compose to the full cast.
+    #[test]
+    fn filters_compose() {
+        let (g, dirs) = soup(20, 2000);
+        let bvh = Bvh::build(&g);
+        let all = cast(&g, &bvh, &dirs, 1e9);
+        let hum = cast_with_filter(&g, &bvh, &dirs, 1e9, |m| m.instance > 0);
+        let bg = cast_with_filter(&g, &bvh, &dirs, 1e9, |m| m.instance == 0);
+        for k in 0..dirs.len() {
+            let pick = match (hum[k].is_hit(), bg[k].is_hit()) {
+                (false, _) => bg[k],
+                (true, false) => hum[k],
+                (true, true) => {
+                    if better(hum[k].range_m, hum[k].triangle, bg[k].range_m, bg[k].triangle) {
+                        hum[k]
+                    } else {
+                        bg[k]
+                    }
+                }
+            };
+            assert_eq!(pick, all[k]);
+            if hum[k].is_hit() {
+                assert!(hum[k].instance(&g) > 0);
+            }
+        }
+        let none = cast_with_filter(&g, &bvh, &dirs, 1e9, |_| false);
+        assert!(none.iter().all(|h| *h == Hit::NONE));
+    }
+
+    /// Same results (and the same BVH) with 1 and 2 rayon threads.
+    #[test]
+    fn deterministic_across_thread_counts() {
+        let (g, dirs) = soup(30, 3000);
+        // A big mesh too, so that the parallel subtree build runs.
+        let (p, i) = octasphere(40, DVec3::new(3.0, 2.0, 1.0), DVec3::new(10.0, -3.0, 0.0));
+        let mut g = g;
+        g.push_mesh(&p, &i, 9, false);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let bvh = Bvh::build(&g);
+                (cast(&g, &bvh, &dirs, 1e9), bvh.node_count())
+            })
+        };
+        let (a, na) = run(1);
+        let (b, nb) = run(2);
+        assert_eq!(na, nb);
+        same(&a, &b).unwrap();
+        let (c, _) = run(3);
+        same(&a, &c).unwrap();
+    }
+
+    #[test]
+    fn empty_geometry_and_empty_meshes() {
+        let g = FrameGeometry::default();
+        assert_eq!(cast_frame(&g, &[DVec3::X], 100.0), vec![Hit::NONE]);
+        let p = [[4.0, 1.0, -1.0], [4.0, 0.0, 1.0], [4.0, -1.0, -1.0]];
+        let g = geom_of(&[(&p, &[], 0, true), (&p, &[0, 1, 2], 3, true), (&p, &[], 0, true)]);
+        let h = cast_frame(&g, &[DVec3::X, -DVec3::X], 100.0);
+        assert_eq!(h, vec![Hit { range_m: 4.0, triangle: 0 }, Hit::NONE]);
+        assert_eq!(h[0].instance(&g), 3);
+    }
+
+    /// Build and cast timing on ~250k triangles (10 ellipsoids of ~25k), HDL-32E beams.
+    /// Not asserted. `cargo test --release --lib raycast_timing -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn raycast_timing() {
+        use std::time::Instant;
+        let mut g = FrameGeometry::default();
+        for k in 0..10 {
+            let az = k as f64 * 0.63;
+            let d = 3.0 + 1.7 * k as f64;
+            let (p, i) = octasphere(56, DVec3::new(0.25, 0.2, 0.85), DVec3::new(d * az.cos(), d * az.sin(), -0.9));
+            g.push_mesh(&p, &i, k + 1, false);
+        }
+        let dirs = crate::sensor::Sensor::hdl32e().beam_dirs();
+        println!("{} triangles, {} rays", g.triangle_count(), dirs.len());
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut tb = Vec::new();
+                let mut tc = Vec::new();
+                let mut hits = 0;
+                for _ in 0..7 {
+                    let t0 = Instant::now();
+                    let bvh = Bvh::build(&g);
+                    let t1 = Instant::now();
+                    let h = cast(&g, &bvh, &dirs, 100.0);
+                    let t2 = Instant::now();
+                    tb.push((t1 - t0).as_secs_f64() * 1e3);
+                    tc.push((t2 - t1).as_secs_f64() * 1e3);
+                    hits = h.iter().filter(|h| h.is_hit()).count();
+                }
+                tb.sort_by(f64::total_cmp);
+                tc.sort_by(f64::total_cmp);
+                println!(
+                    "{threads} thread(s): build median {:.2} ms (min {:.2}), cast median {:.2} ms (min {:.2}), {hits} hits",
+                    tb[3], tb[0], tc[3], tc[0]
+                );
+            });
+        }
+        let t0 = Instant::now();
+        let _ = cast_brute_force(&g, &dirs[..1024], 100.0, |_| true);
+        println!("brute force: {:.1} ms per 1024 rays", (Instant::now() - t0).as_secs_f64() * 1e3);
+    }
+}
