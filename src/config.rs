@@ -55,6 +55,8 @@ pub enum CompressionChoice {
 pub struct Config {
     pub seed: u64,
     pub sequences: usize,
+    /// Index of the first sequence: split one job across machines with the same seed.
+    pub first_sequence: usize,
     /// Frames per sequence.
     pub frames: usize,
     pub out: PathBuf,
@@ -130,6 +132,7 @@ impl Default for Config {
         Config {
             seed: 0,
             sequences: 1,
+            first_sequence: 0,
             frames: 32,
             out: PathBuf::from("out"),
             png: false,
@@ -191,7 +194,7 @@ impl Default for OutputConfig {
 impl Config {
     /// Reads a TOML config; relative paths inside it are taken relative to the file's folder.
     pub fn from_file(path: &Path) -> Result<Config> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
         let mut cfg: Config = toml::from_str(&text).map_err(|e| Error::input(path.display(), e))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let fix = |p: &mut PathBuf| {

@@ -129,6 +129,8 @@ pub struct HumanModel {
     pub path: PathBuf,
     /// Standing height of the rest mesh (max y - min y of LOD 0), metres.
     pub height_m: f32,
+    /// Height label from the model's metadata, if it has one.
+    pub labelled_height_m: Option<f32>,
     /// Weight from the model's metadata, if it has any.
     pub weight_kg: Option<f32>,
     /// Stride length recorded in the model (distance of one animation cycle), if any.
@@ -152,7 +154,7 @@ impl HumanModel {
     /// Loads a glTF/GLB human. `needs_animation`: the motion mode animates the gait, so a skin
     /// and an animation are required.
     pub fn load(path: &Path, needs_animation: bool) -> Result<HumanModel> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = std::fs::read(path).map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
         let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_err(path, format!("not a valid glTF: {e}")))?;
         let base = path.parent().map(Path::to_path_buf);
         let buffers = gltf::import_buffers(&gltf.document, base.as_deref(), gltf.blob.clone())
@@ -318,6 +320,7 @@ impl HumanModel {
             name,
             path: path.to_path_buf(),
             height_m,
+            labelled_height_m: extras.height_m,
             weight_kg: extras.weight_kg,
             stride_length_m: extras.stride_length_m,
             cycle_s: extras.cycle_s.filter(|c| *c > 0.0).unwrap_or(anim_duration),
@@ -329,9 +332,9 @@ impl HumanModel {
         })
     }
 
-    /// Nominal height label: the metadata's when present, else the measured rest height.
-    pub fn label_height_m(&self, extras_height: Option<f32>) -> f32 {
-        extras_height.unwrap_or(self.height_m)
+    /// Nominal height: the metadata's label when present, else the measured rest height.
+    pub fn nominal_height_m(&self) -> f32 {
+        self.labelled_height_m.unwrap_or(self.height_m)
     }
 
     /// The coarsest LOD whose recorded error is at most `max_error_m` (LOD 0 if none is).
@@ -588,6 +591,7 @@ mod tests {
             name: "t".into(),
             path: PathBuf::new(),
             height_m: 2.0,
+            labelled_height_m: None,
             weight_kg: None,
             stride_length_m: None,
             cycle_s: 1.0,
@@ -665,6 +669,7 @@ pub(crate) mod tests_support {
             name: "box".into(),
             path: PathBuf::from("box.glb"),
             height_m: 1.7,
+            labelled_height_m: Some(1.7),
             weight_kg: Some(60.0),
             stride_length_m: None,
             cycle_s: 1.0,

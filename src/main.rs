@@ -1,1 +1,192 @@
-fn main() { println!("{}", pedscan::version()); }
+//! `pedscan`: parses flags into a checked configuration and calls the library.
+//! Exit codes: 0 ok, 1 failure, 2 bad input (usage, config, files).
+
+use anyhow::Context as _;
+use clap::{Args, Parser, Subcommand};
+use pedscan::config::{CompressionChoice, Config, Refine, VelocityModel};
+use pedscan::human::MotionMode;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "pedscan", version, about = "Automatically labeled LiDAR sequences of walking people")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Generate labeled sequences (HDF5 + XML, optional PNG) on the bundled defaults or a config.
+    Generate(GenerateArgs),
+    /// Summarise a sequence file written by `generate`.
+    Info {
+        /// A `seq_NNNNNN.h5` file.
+        file: PathBuf,
+    },
+    /// List the Vulkan devices pedscan can use (for `--device`).
+    Devices,
+}
+
+/// Flags override the config file, which overrides the defaults.
+#[derive(Args, Clone, Debug, Default)]
+struct GenerateArgs {
+    /// A TOML configuration (see the README for every key).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Number of sequences.
+    #[arg(long)]
+    sequences: Option<usize>,
+    /// Index of the first sequence (to split a job across machines with one seed).
+    #[arg(long)]
+    first_sequence: Option<usize>,
+    /// Frames per sequence.
+    #[arg(long)]
+    frames: Option<usize>,
+    /// People per sequence: `MIN..MAX` (uniform, inclusive) or one number.
+    #[arg(long, value_parser = parse_count)]
+    humans: Option<[usize; 2]>,
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Output folder.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Also write debug PNG range / label / velocity images per frame.
+    #[arg(long)]
+    png: bool,
+    /// Vulkan device: `auto`, an index or part of a name (see `pedscan devices`).
+    #[arg(long)]
+    device: Option<String>,
+    /// Keep background holes where a person stands in front of them (the paper's choice).
+    #[arg(long)]
+    keep_holes: bool,
+    /// Sensor preset (`hdl32e`, `vlp16`) or a sensor TOML file.
+    #[arg(long)]
+    sensor: Option<String>,
+    /// Static environment glTF rendered as background (`none` for an empty world).
+    #[arg(long)]
+    environment: Option<PathBuf>,
+    /// Human models: a folder of .glb files or files (repeatable).
+    #[arg(long)]
+    models: Vec<PathBuf>,
+    /// How people move: full, sliding, in-place, static (the paper's Table 5 ablations).
+    #[arg(long, value_enum)]
+    motion: Option<MotionMode>,
+    /// Per-beam refinement of the raster result.
+    #[arg(long, value_enum)]
+    refine: Option<Refine>,
+    /// Texels per beam spacing at a cube-face centre.
+    #[arg(long)]
+    oversample: Option<f64>,
+    /// Velocity definition written to /velocity.
+    #[arg(long, value_enum)]
+    velocity: Option<VelocityModel>,
+    /// HDF5 compression.
+    #[arg(long, value_enum)]
+    compression: Option<CompressionChoice>,
+    /// Turn on the Vulkan validation layer (slow; for debugging).
+    #[arg(long)]
+    validation: bool,
+}
+
+fn parse_count(s: &str) -> Result<[usize; 2], String> {
+    let parse = |t: &str| t.trim().parse::<usize>().map_err(|_| format!("`{s}` is not MIN..MAX or a number"));
+    match s.split_once("..") {
+        Some((a, b)) => Ok([parse(a)?, parse(b.trim_start_matches('='))?]),
+        None => {
+            let n = parse(s)?;
+            Ok([n, n])
+        }
+    }
+}
+
+fn build_config(a: &GenerateArgs) -> pedscan::Result<Config> {
+    let mut cfg = match &a.config {
+        Some(p) => Config::from_file(p)?,
+        None => Config::default(),
+    };
+    if let Some(v) = a.sequences {
+        cfg.sequences = v;
+    }
+    if let Some(v) = a.first_sequence {
+        cfg.first_sequence = v;
+    }
+    if let Some(v) = a.frames {
+        cfg.frames = v;
+    }
+    if let Some(v) = a.humans {
+        cfg.humans.count = v;
+    }
+    if let Some(v) = a.seed {
+        cfg.seed = v;
+    }
+    if let Some(v) = &a.out {
+        cfg.out = v.clone();
+    }
+    cfg.png |= a.png;
+    if let Some(v) = &a.device {
+        cfg.device = v.clone();
+    }
+    cfg.render.keep_holes |= a.keep_holes;
+    if let Some(v) = &a.sensor {
+        cfg.sensor = v.clone();
+    }
+    if let Some(v) = &a.environment {
+        cfg.scene.environment = if v.as_os_str() == "none" { PathBuf::new() } else { v.clone() };
+    }
+    if !a.models.is_empty() {
+        cfg.humans.models = a.models.clone();
+    }
+    if let Some(v) = a.motion {
+        cfg.humans.motion = v;
+    }
+    if let Some(v) = a.refine {
+        cfg.render.refine = v;
+    }
+    if let Some(v) = a.oversample {
+        cfg.render.oversample = v;
+    }
+    if let Some(v) = a.velocity {
+        cfg.output.velocity = v;
+    }
+    if let Some(v) = a.compression {
+        cfg.output.compression = v;
+    }
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Generate(args) => {
+            let cfg = build_config(&args)?;
+            let validation = args.validation || std::env::var_os("PEDSCAN_VALIDATION").is_some_and(|v| v == "1");
+            let summary = pedscan::run::generate(cfg, validation, true)?;
+            eprintln!("{summary}");
+        }
+        Command::Info { file } => {
+            print!("{}", pedscan::output::info(&file)?);
+        }
+        Command::Devices => {
+            for (i, d) in pedscan::gpu::Context::list_devices().context("listing Vulkan devices")?.iter().enumerate() {
+                println!("{i}: {d}");
+            }
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            let input = e.downcast_ref::<pedscan::Error>().is_some_and(|e| e.is_input());
+            ExitCode::from(if input { 2 } else { 1 })
+        }
+    }
+}

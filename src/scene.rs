@@ -35,7 +35,7 @@ pub fn world_from_gltf() -> DMat4 {
 impl Environment {
     /// Loads every mesh of the default scene of a glTF/GLB file, with node transforms applied.
     pub fn load(path: &Path) -> Result<Environment> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = std::fs::read(path).map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
         let gltf = gltf::Gltf::from_slice(&bytes)
             .map_err(|e| Error::input(path.display(), format!("not a valid glTF: {e}")))?;
         let base = path.parent().map(Path::to_path_buf);

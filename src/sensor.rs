@@ -83,7 +83,7 @@ impl Sensor {
                         "neither a preset (hdl32e, vlp16) nor an existing TOML file",
                     ));
                 }
-                let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+                let text = std::fs::read_to_string(p).map_err(|e| Error::input(p.display(), format!("cannot read: {e}")))?;
                 let file: SensorFile =
                     toml::from_str(&text).map_err(|e| Error::input(p.display(), e))?;
                 let name = file.name.clone().unwrap_or_else(|| {

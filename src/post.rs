@@ -1,0 +1,154 @@
+//! Stage 4: the CPU post-pass of one frame. Composites people over the background by per-beam
+//! minimum range, applies the sensor's range limits, and derives labels, instances, xyz and
+//! velocities on the beam grid (sensor frame).
+//!
+//! Velocity of the surface point relative to the sensor, in the sensor frame, m/s:
+//! - `paper` (Kim et al. 2020, eq. 1): human beam `R^T (V_h - V_s)`, background `-R^T V_s`,
+//!   with R the sensor's world rotation and V_h, V_s world velocities from the trajectories;
+//! - `rigid`: the same minus `w x p`, the apparent motion caused by the sensor's yaw rate w
+//!   for a point p in the sensor frame (the person's own turning is not included).
+
+use crate::config::VelocityModel;
+use crate::geometry::FrameGeometry;
+use crate::output::{FrameOutput, OutputSet};
+use crate::resample::{BeamHits, NO_TRIANGLE};
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+/// What the post-pass needs besides the two hit grids.
+pub struct PostParams<'a> {
+    pub dirs: &'a [DVec3],
+    pub columns: usize,
+    pub min_range_m: f64,
+    pub max_range_m: f64,
+    pub keep_holes: bool,
+    pub velocity_model: VelocityModel,
+    pub outputs: OutputSet,
+    /// Rotation part of `world_from_sensor`.
+    pub world_from_sensor_rot: DMat3,
+    /// Sensor velocity (world) and yaw rate (rad/s, about z).
+    pub sensor_velocity_mps: DVec3,
+    pub sensor_yaw_rate_rps: f64,
+    /// World velocity of each person (index = instance - 1).
+    pub human_velocity_mps: &'a [DVec3],
+}
+
+/// Composites `human` hits over the `background` ranges into `out` (per-beam fields only).
+pub fn composite(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, background: &[f32], out: &mut FrameOutput) {
+    let n = p.dirs.len();
+    out.range.resize(n, 0.0);
+    out.label.resize(n, 0);
+    out.instance.resize(n, 0);
+    out.xyz.resize(if p.outputs.xyz { n } else { 0 }, [0.0; 3]);
+    out.velocity.resize(if p.outputs.velocity { n } else { 0 }, [0.0; 3]);
+    out.background_range.clear();
+    let in_limits = |r: f64| r >= p.min_range_m && r <= p.max_range_m;
+    if p.outputs.background {
+        out.background_range.extend(background.iter().map(|&r| if r > 0.0 && in_limits(r as f64) { r } else { 0.0 }));
+    }
+    let r_t = p.world_from_sensor_rot.transpose();
+    let v_s = r_t * p.sensor_velocity_mps;
+    let w = DVec3::new(0.0, 0.0, p.sensor_yaw_rate_rps);
+    let v_h: Vec<DVec3> = p.human_velocity_mps.iter().map(|v| r_t * *v).collect();
+    let w_cols = p.columns;
+
+    let xyz_on = p.outputs.xyz;
+    let vel_on = p.outputs.velocity;
+    let mut xyz_chunks: Vec<&mut [[f32; 3]]> = if xyz_on { out.xyz.chunks_mut(w_cols).collect() } else { Vec::new() };
+    let mut vel_chunks: Vec<&mut [[f32; 3]]> = if vel_on { out.velocity.chunks_mut(w_cols).collect() } else { Vec::new() };
+    let rows: Vec<_> = out
+        .range
+        .chunks_mut(w_cols)
+        .zip(out.label.chunks_mut(w_cols))
+        .zip(out.instance.chunks_mut(w_cols))
+        .enumerate()
+        .map(|(row, ((r, l), i))| (row, r, l, i, xyz_chunks.get_mut(row).map(std::mem::take), vel_chunks.get_mut(row).map(std::mem::take)))
+        .collect();
+    rows.into_par_iter().for_each(|(row, ranges, labels, insts, mut xyz, mut vel)| {
+        for col in 0..w_cols {
+            let b = row * w_cols + col;
+            let bg = background[b] as f64;
+            let h = human.range_m[b] as f64;
+            let ht = human.triangle[b];
+            let human_first = ht != NO_TRIANGLE && h > 0.0 && if bg > 0.0 { h < bg } else { !p.keep_holes };
+            let (range, inst) = if human_first {
+                (h, human_geom.mesh_of_triangle(ht).instance)
+            } else if bg > 0.0 {
+                (bg, 0)
+            } else {
+                (0.0, 0)
+            };
+            let returned = range > 0.0 && in_limits(range);
+            let (range, inst) = if returned { (range, inst) } else { (0.0, 0) };
+            ranges[col] = range as f32;
+            labels[col] = (inst > 0) as u8;
+            insts[col] = inst as u16;
+            let point = p.dirs[b] * range;
+            if let Some(x) = xyz.as_deref_mut() {
+                x[col] = point.as_vec3().into();
+            }
+            if let Some(v) = vel.as_deref_mut() {
+                v[col] = if !returned {
+                    [0.0; 3]
+                } else {
+                    let mut vel = if inst > 0 { v_h[inst as usize - 1] - v_s } else { -v_s };
+                    if p.velocity_model == VelocityModel::Rigid {
+                        vel -= w.cross(point);
+                    }
+                    vel.as_vec3().into()
+                };
+            }
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params<'a>(dirs: &'a [DVec3], hv: &'a [DVec3], keep_holes: bool, model: VelocityModel) -> PostParams<'a> {
+        PostParams {
+            dirs,
+            columns: dirs.len(),
+            min_range_m: 0.5,
+            max_range_m: 100.0,
+            keep_holes,
+            velocity_model: model,
+            outputs: OutputSet::default(),
+            world_from_sensor_rot: DMat3::from_rotation_z(std::f64::consts::FRAC_PI_2),
+            sensor_velocity_mps: DVec3::new(0.0, 1.0, 0.0),
+            sensor_yaw_rate_rps: 0.5,
+            human_velocity_mps: hv,
+        }
+    }
+
+    #[test]
+    fn nearer_wins_holes_are_filled_or_kept_and_velocities_follow_eq1() {
+        let mut geom = FrameGeometry::default();
+        geom.push_mesh(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[0, 1, 2], 1, false);
+        let dirs = vec![DVec3::X; 5];
+        let hv = [DVec3::new(2.0, 0.0, 0.0)];
+        // beams: human nearer, human farther, human over a hole, nothing, human too near.
+        let human = BeamHits { range_m: vec![3.0, 9.0, 4.0, 0.0, 0.2], triangle: vec![0, 0, 0, NO_TRIANGLE, 0] };
+        let bg = vec![5.0, 6.0, 0.0, 0.0, 7.0];
+        let mut out = FrameOutput::default();
+        composite(&params(&dirs, &hv, false, VelocityModel::Paper), &human, &geom, &bg, &mut out);
+        assert_eq!(out.range, vec![3.0, 6.0, 4.0, 0.0, 0.0]);
+        assert_eq!(out.label, vec![1, 0, 1, 0, 0]);
+        assert_eq!(out.instance, vec![1, 0, 1, 0, 0]);
+        assert_eq!(out.background_range, vec![5.0, 6.0, 0.0, 0.0, 7.0]);
+        // Sensor yawed +90 deg moving along world +y = its own +x at 1 m/s.
+        let v_s = DVec3::new(1.0, 0.0, 0.0);
+        let v_h = DVec3::new(0.0, -2.0, 0.0); // world +x seen from the yawed sensor
+        let close = |a: [f32; 3], b: DVec3| (DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64) - b).length() < 1e-6;
+        assert!(close(out.velocity[0], v_h - v_s), "{:?}", out.velocity[0]);
+        assert!(close(out.velocity[1], -v_s), "{:?}", out.velocity[1]);
+        assert!(close(out.velocity[3], DVec3::ZERO));
+        assert_eq!(out.xyz[0], [3.0, 0.0, 0.0]);
+
+        composite(&params(&dirs, &hv, true, VelocityModel::Rigid), &human, &geom, &bg, &mut out);
+        assert_eq!(out.range, vec![3.0, 6.0, 0.0, 0.0, 0.0], "keep_holes keeps the hole");
+        // Rigid: minus w x p with w = 0.5 z and p = (6, 0, 0) -> -(0, 3, 0).
+        assert!(close(out.velocity[1], -v_s - DVec3::new(0.0, 3.0, 0.0)), "{:?}", out.velocity[1]);
+    }
+}

@@ -1,0 +1,78 @@
+//! The `generate` job: every sequence of a configuration, one after the other, each written
+//! completely (temporary names, renamed at the end) before the next starts, so a failure in a
+//! later sequence never loses an earlier one.
+
+use crate::config::Config;
+use crate::error::{Error, Result};
+use crate::pipeline::Generator;
+use std::fmt;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// What a run produced.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    pub sequences: usize,
+    pub frames: usize,
+    pub files: Vec<PathBuf>,
+    pub seconds: f64,
+    pub device: String,
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "wrote {} sequences ({} frames, {} files) in {:.1} s ({:.1} frames/s) on {}",
+            self.sequences,
+            self.frames,
+            self.files.len(),
+            self.seconds,
+            self.frames as f64 / self.seconds.max(1e-9),
+            self.device
+        )
+    }
+}
+
+/// Runs a whole `generate` job. `progress`: draw a progress bar on a terminal.
+pub fn generate(cfg: Config, validation: bool, progress: bool) -> Result<Summary> {
+    let out = cfg.out.clone();
+    if out.exists() && !out.is_dir() {
+        return Err(Error::input(out.display(), "output path exists and is not a folder"));
+    }
+    std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
+    let mut gen = Generator::new(cfg, validation)?;
+    let total = (gen.cfg.sequences * gen.cfg.frames) as u64;
+    let bar = if progress { indicatif::ProgressBar::new(total) } else { indicatif::ProgressBar::hidden() };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let start = Instant::now();
+    let mut files = Vec::new();
+    let first = gen.cfg.first_sequence;
+    for index in first..first + gen.cfg.sequences {
+        bar.set_message(format!("seq_{index:06}"));
+        let written = gen.write_sequence(index, &out, || bar.inc(1))?;
+        files.extend(written);
+    }
+    bar.finish_and_clear();
+    let summary = Summary {
+        sequences: gen.cfg.sequences,
+        frames: gen.cfg.sequences * gen.cfg.frames,
+        files,
+        seconds: start.elapsed().as_secs_f64(),
+        device: gen.renderer.context().device_name(),
+    };
+    // With validation on, any validation error (leaks at device destruction included) fails
+    // the run, so tests of the binary see them.
+    let counter = gen.renderer.context().validation_counter();
+    let validating = gen.renderer.context().validation_enabled();
+    drop(gen);
+    let errors = counter.load(std::sync::atomic::Ordering::SeqCst);
+    if validating && errors > 0 {
+        return Err(Error::Gpu(format!("{errors} Vulkan validation errors (see the messages above)")));
+    }
+    Ok(summary)
+}

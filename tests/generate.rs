@@ -1,0 +1,197 @@
+//! End to end: runs the built `pedscan` binary on lavapipe (validation layer on) in a temporary
+//! folder and reads the files back, checking the data contract of the README.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn pedscan(args: &[&str], dir: &Path, envs: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_pedscan"));
+    c.args(args).current_dir(dir).env("PEDSCAN_VALIDATION", "1");
+    for (k, v) in envs {
+        c.env(k, v);
+    }
+    c.output().expect("run pedscan")
+}
+
+fn ok(o: &Output) {
+    assert!(
+        o.status.success(),
+        "pedscan failed ({:?}):\n{}",
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|r| r.filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().to_string())).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+struct Seq {
+    rows: usize,
+    cols: usize,
+    frames: usize,
+    range: Vec<f32>,
+    bg: Vec<f32>,
+    label: Vec<u8>,
+    instance: Vec<u16>,
+    velocity: Vec<f32>,
+    xyz: Vec<f32>,
+    time: Vec<f64>,
+    pose: Vec<f64>,
+    humans_pos: Vec<f64>,
+    n_humans: usize,
+}
+
+fn read_seq(path: &Path) -> Seq {
+    let f = hdf5::File::open(path).unwrap();
+    let range = f.dataset("range").unwrap();
+    let shape = range.shape();
+    assert_eq!(shape.len(), 3);
+    let n_humans = f.dataset("humans/height_m").unwrap().shape()[0];
+    Seq {
+        frames: shape[0],
+        rows: shape[1],
+        cols: shape[2],
+        range: range.read_raw().unwrap(),
+        bg: f.dataset("background/range").unwrap().read_raw().unwrap(),
+        label: f.dataset("label").unwrap().read_raw().unwrap(),
+        instance: f.dataset("instance").unwrap().read_raw().unwrap(),
+        velocity: f.dataset("velocity").unwrap().read_raw().unwrap(),
+        xyz: f.dataset("xyz").unwrap().read_raw().unwrap(),
+        time: f.dataset("sensor/time_s").unwrap().read_raw().unwrap(),
+        pose: f.dataset("sensor/world_from_sensor").unwrap().read_raw().unwrap(),
+        humans_pos: f.dataset("humans/position_m").unwrap().read_raw().unwrap(),
+        n_humans,
+    }
+}
+
+#[test]
+fn generate_writes_consistent_labeled_sequences() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let o = pedscan(&["generate", "--out", "out", "--frames", "5", "--sequences", "2", "--humans", "4..6", "--seed", "11", "--png"], dir, &[]);
+    ok(&o);
+    let out = dir.join("out");
+    let names = files_in(&out);
+    for s in ["seq_000000", "seq_000001"] {
+        assert!(names.contains(&format!("{s}.h5")), "{names:?}");
+        assert!(names.contains(&format!("{s}.xml")), "{names:?}");
+    }
+    assert!(!names.iter().any(|n| n.contains("tmp")), "temporary files left: {names:?}");
+
+    let s = read_seq(&out.join("seq_000000.h5"));
+    assert_eq!((s.frames, s.rows, s.cols), (5, 32, 1024));
+    assert!((4..=6).contains(&s.n_humans));
+    let hw = s.rows * s.cols;
+    let mut human_beams = 0;
+    let mut filled_holes = 0;
+    for t in 0..s.frames {
+        // Sensor velocity from the poses by central differences (exact up to O(dt^2)).
+        let p = |k: usize, i: usize| s.pose[k * 16 + i];
+        let (k0, k1) = if t == 0 { (0, 1) } else if t + 1 == s.frames { (t - 1, t) } else { (t - 1, t + 1) };
+        let dt = s.time[k1] - s.time[k0];
+        let vw = [(p(k1, 3) - p(k0, 3)) / dt, (p(k1, 7) - p(k0, 7)) / dt, (p(k1, 11) - p(k0, 11)) / dt];
+        // -R^T V_s: R rows are pose rows 0..3 (row-major 4x4).
+        let mut vs = [0.0; 3];
+        for (j, v) in vs.iter_mut().enumerate() {
+            *v = (0..3).map(|i| p(t, i * 4 + j) * vw[i]).sum::<f64>();
+        }
+        for b in 0..hw {
+            let i = t * hw + b;
+            assert_eq!(s.label[i] == 1, s.instance[i] > 0, "label == (instance > 0) at {i}");
+            assert!(s.instance[i] as usize <= s.n_humans);
+            if s.label[i] == 0 {
+                assert_eq!(s.range[i], s.bg[i], "non-human beam {i} equals the background");
+                if s.range[i] > 0.0 {
+                    for k in 0..3 {
+                        let v = s.velocity[3 * i + k] as f64;
+                        assert!((v + vs[k]).abs() < 2e-3, "background velocity {v} vs -V_s {} at frame {t}", -vs[k]);
+                    }
+                }
+            } else {
+                human_beams += 1;
+                assert!(s.range[i] > 0.0);
+                if s.bg[i] == 0.0 {
+                    filled_holes += 1;
+                } else {
+                    assert!(s.range[i] < s.bg[i], "a human beam is nearer than the background");
+                }
+            }
+            // xyz = range * beam direction: its norm is the range.
+            let n = (0..3).map(|k| (s.xyz[3 * i + k] as f64).powi(2)).sum::<f64>().sqrt();
+            assert!((n - s.range[i] as f64).abs() < 1e-4 * (1.0 + n), "|xyz| {n} vs range {}", s.range[i]);
+        }
+    }
+    assert!(human_beams > 100, "people are visible: {human_beams} human beams");
+    eprintln!("{human_beams} human beams, {filled_holes} of them in front of a background hole");
+
+    // The XML agrees with the HDF5: people per frame and their positions.
+    let xml = std::fs::read_to_string(out.join("seq_000000.xml")).unwrap();
+    assert_eq!(xml.matches("<frame ").count(), s.frames);
+    let first_frame = xml.split("<frame ").nth(1).unwrap();
+    let humans_attr = first_frame.split("humans=\"").nth(1).unwrap().split('"').next().unwrap();
+    assert_eq!(humans_attr.parse::<usize>().unwrap(), s.n_humans);
+    let x_attr: f64 = first_frame.split(" x=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap();
+    assert!((x_attr - s.humans_pos[0]).abs() < 1e-3, "XML x {x_attr} vs HDF5 {}", s.humans_pos[0]);
+
+    // PNGs were written for every frame.
+    let png_dir = out.join("seq_000000_png");
+    let pngs = files_in(&png_dir);
+    assert!(pngs.iter().filter(|n| n.starts_with("range_")).count() == 5, "{pngs:?}");
+}
+
+#[test]
+fn same_seed_gives_bit_identical_files_whatever_the_thread_count() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let args = |out: &'static str| vec!["generate", "--out", out, "--frames", "3", "--humans", "3..3", "--seed", "3"];
+    ok(&pedscan(&args("a"), dir, &[("RAYON_NUM_THREADS", "1"), ("LP_NUM_THREADS", "1")]));
+    ok(&pedscan(&args("b"), dir, &[("RAYON_NUM_THREADS", "2")]));
+    for f in ["seq_000000.h5", "seq_000000.xml"] {
+        let a = std::fs::read(dir.join("a").join(f)).unwrap();
+        let b = std::fs::read(dir.join("b").join(f)).unwrap();
+        assert!(a == b, "{f} differs between 1 and 2 threads");
+    }
+}
+
+fn expect_input_error(args: &[&str], dir: &Path, needle: &str) {
+    let o = pedscan(args, dir, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "exit code for {args:?}: {err}");
+    assert!(err.contains(needle), "message for {args:?} should name `{needle}`: {err}");
+}
+
+#[test]
+fn bad_input_is_named_exits_2_and_leaves_no_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    expect_input_error(&["generate", "--out", "o1", "--frames", "0"], dir, "frames");
+    expect_input_error(&["generate", "--out", "o2", "--humans", "5..2"], dir, "humans.count");
+    expect_input_error(&["generate", "--out", "o3", "--config", "missing.toml"], dir, "missing.toml");
+    std::fs::write(dir.join("typo.toml"), "frames = 2\nfrmaes = 3\n").unwrap();
+    expect_input_error(&["generate", "--out", "o4", "--config", "typo.toml"], dir, "frmaes");
+    std::fs::write(dir.join("broken.glb"), b"glTF\x02\x00\x00\x00garbage").unwrap();
+    expect_input_error(&["generate", "--out", "o5", "--models", "broken.glb"], dir, "broken.glb");
+    expect_input_error(&["generate", "--out", "o6", "--sensor", "nosuch.toml"], dir, "nosuch.toml");
+    std::fs::write(dir.join("up.toml"), "elevation_deg = [50.0, 0.0]\ncolumns = 512\n").unwrap();
+    expect_input_error(&["generate", "--out", "o7", "--sensor", "up.toml"], dir, "up.toml");
+    expect_input_error(&["info", "broken.glb"], dir, "broken.glb");
+    for o in ["o1", "o2", "o3", "o4", "o5", "o6", "o7"] {
+        assert!(files_in(&dir.join(o)).is_empty(), "{o} holds files: {:?}", files_in(&dir.join(o)));
+    }
+}
+
+#[test]
+fn info_summarises_a_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&pedscan(&["generate", "--out", "o", "--frames", "2", "--humans", "2..2"], dir, &[]));
+    let o = pedscan(&["info", "o/seq_000000.h5"], dir, &[]);
+    ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("hdl32e"), "{text}");
+}

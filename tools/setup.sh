@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Installs what pedscan needs on Debian 12 (system packages, and Rust through rustup where
+# cargo is missing), then either runs pedscan or its test suite.
+#
+#   bash tools/setup.sh generate [flags...]   # install, build, run `pedscan generate`
+#   bash tools/setup.sh test                  # install, build, run the whole test suite
+#   bash tools/setup.sh <any pedscan subcommand and flags>
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+packages="build-essential ca-certificates curl pkg-config mesa-vulkan-drivers libvulkan1 libvulkan-dev
+  vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools libhdf5-dev hdf5-tools"
+# shellcheck disable=SC2086
+if ! dpkg -s $packages >/dev/null 2>&1; then
+  $sudo apt-get update
+  # shellcheck disable=SC2086
+  $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends $packages
+fi
+
+export PATH="$HOME/.cargo/bin:$PATH"
+if ! command -v cargo >/dev/null 2>&1; then
+  curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal
+fi
+
+if [ $# -eq 0 ]; then set -- generate; fi
+case "$1" in
+  test)
+    shift
+    # Lavapipe runs every GPU test; the validation layer is on in each of them.
+    exec cargo test --locked "$@"
+    ;;
+  *)
+    exec cargo run --locked --release --quiet -- "$@"
+    ;;
+esac
