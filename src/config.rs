@@ -216,9 +216,19 @@ impl Config {
         Ok(cfg)
     }
 
-    /// The resolved configuration as TOML text (recorded in every output).
+    /// The resolved configuration as TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}\n"))
+    }
+
+    /// The configuration recorded in every output: everything that decides the content, not
+    /// where it is written or which device ran it (`out`, `device` are left at their
+    /// defaults), so the same seed and config give the same bytes wherever they run.
+    pub fn to_recorded_toml(&self) -> String {
+        let mut c = self.clone();
+        c.out = Config::default().out;
+        c.device = Config::default().device;
+        c.to_toml()
     }
 
     /// Rejects impossible values with a message naming the key.

@@ -282,7 +282,7 @@ impl Generator {
             index,
             seed: self.cfg.seed,
             sensor: self.sensor.clone(),
-            config_toml: self.cfg.to_toml(),
+            config_toml: self.cfg.to_recorded_toml(),
             frames: plan.times_s.len(),
             humans: plan
                 .humans
