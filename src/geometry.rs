@@ -5,6 +5,7 @@
 //! `triangle + 1` (0 = no hit), so the CPU finds the mesh (and its instance) of any hit.
 
 use glam::{DVec3, Vec3};
+use std::sync::Arc;
 
 /// A contiguous run of triangles that belong to one drawn object.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,6 +29,69 @@ pub struct FrameGeometry {
     /// Three absolute indices into `positions` per triangle.
     pub indices: Vec<u32>,
     pub meshes: Vec<MeshRange>,
+    /// Per mesh (parallel to `meshes`): triangle neighbourhoods, when known.
+    pub adjacency: Vec<Option<Arc<Adjacency>>>,
+}
+
+/// For each triangle of a mesh, the triangles that share a vertex with it (its one-ring),
+/// as local triangle indices. Topology only: computed once per mesh, valid for every pose.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Adjacency {
+    offsets: Vec<u32>,
+    neighbours: Vec<u32>,
+}
+
+impl Adjacency {
+    /// Builds the one-rings of a triangle list (`indices` local, 3 per triangle).
+    pub fn build(indices: &[u32]) -> Adjacency {
+        let tris = indices.len() / 3;
+        let nv = indices.iter().copied().max().map_or(0, |m| m as usize + 1);
+        // vertex -> triangles (CSR)
+        let mut vcount = vec![0u32; nv + 1];
+        for &i in indices {
+            vcount[i as usize + 1] += 1;
+        }
+        for k in 0..nv {
+            vcount[k + 1] += vcount[k];
+        }
+        let mut vtris = vec![0u32; indices.len()];
+        let mut fill = vcount.clone();
+        for (t, tri) in indices.chunks_exact(3).enumerate() {
+            for &i in tri {
+                vtris[fill[i as usize] as usize] = t as u32;
+                fill[i as usize] += 1;
+            }
+        }
+        let mut offsets = Vec::with_capacity(tris + 1);
+        let mut neighbours = Vec::with_capacity(tris * 12);
+        offsets.push(0);
+        let mut ring: Vec<u32> = Vec::with_capacity(32);
+        for (t, tri) in indices.chunks_exact(3).enumerate() {
+            ring.clear();
+            for &i in tri {
+                let (a, b) = (vcount[i as usize] as usize, vcount[i as usize + 1] as usize);
+                ring.extend(vtris[a..b].iter().copied().filter(|&n| n != t as u32));
+            }
+            ring.sort_unstable();
+            ring.dedup();
+            neighbours.extend_from_slice(&ring);
+            offsets.push(neighbours.len() as u32);
+        }
+        Adjacency { offsets, neighbours }
+    }
+
+    /// Local triangles sharing a vertex with local triangle `t`.
+    pub fn of(&self, t: u32) -> &[u32] {
+        let t = t as usize;
+        if t + 1 >= self.offsets.len() {
+            return &[];
+        }
+        &self.neighbours[self.offsets[t] as usize..self.offsets[t + 1] as usize]
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
 }
 
 impl FrameGeometry {
@@ -36,6 +100,7 @@ impl FrameGeometry {
         self.positions.clear();
         self.indices.clear();
         self.meshes.clear();
+        self.adjacency.clear();
     }
 
     /// Number of triangles.
@@ -46,6 +111,21 @@ impl FrameGeometry {
     /// Appends a mesh whose `positions` are already in the sensor frame and whose `indices`
     /// are local to `positions`. The bounding sphere is computed here.
     pub fn push_mesh(&mut self, positions: &[[f32; 3]], indices: &[u32], instance: u32, double_sided: bool) {
+        self.push_mesh_with_adjacency(positions, indices, instance, double_sided, None);
+    }
+
+    /// Like `push_mesh`, with the mesh's triangle neighbourhoods (built from the same `indices`)
+    /// so exact refinement can search around the rendered triangle.
+    pub fn push_mesh_with_adjacency(
+        &mut self,
+        positions: &[[f32; 3]],
+        indices: &[u32],
+        instance: u32,
+        double_sided: bool,
+        adjacency: Option<Arc<Adjacency>>,
+    ) {
+        debug_assert!(adjacency.as_ref().map_or(true, |a| a.triangle_count() == indices.len() / 3));
+        self.adjacency.push(adjacency);
         let base = self.positions.len() as u32;
         let first_triangle = self.triangle_count();
         self.positions.extend_from_slice(positions);
@@ -76,9 +156,25 @@ impl FrameGeometry {
 
     /// The mesh that owns global triangle `t`.
     pub fn mesh_of_triangle(&self, t: u32) -> &MeshRange {
+        &self.meshes[self.mesh_index_of_triangle(t)]
+    }
+
+    /// Index (into `meshes`) of the mesh that owns global triangle `t`.
+    pub fn mesh_index_of_triangle(&self, t: u32) -> usize {
         let k = self.meshes.partition_point(|m| m.first_triangle <= t);
         debug_assert!(k > 0, "triangle {t} before the first mesh");
-        &self.meshes[k - 1]
+        k - 1
+    }
+
+    /// Global triangles sharing a vertex with global triangle `t` (empty without adjacency).
+    pub fn neighbours(&self, t: u32) -> impl Iterator<Item = u32> + '_ {
+        let k = self.mesh_index_of_triangle(t);
+        let first = self.meshes[k].first_triangle;
+        let ring: &[u32] = match self.adjacency.get(k) {
+            Some(Some(a)) => a.of(t - first),
+            _ => &[],
+        };
+        ring.iter().map(move |n| n + first)
     }
 }
 
@@ -105,6 +201,20 @@ mod tests {
     use super::*;
 
     #[test]
+    fn adjacency_is_the_vertex_one_ring() {
+        // A fan of 4 triangles around vertex 0, plus one far triangle.
+        let idx = [0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 5, 6, 7, 8];
+        let a = Adjacency::build(&idx);
+        assert_eq!(a.triangle_count(), 5);
+        assert_eq!(a.of(0), &[1, 2, 3]);
+        assert_eq!(a.of(4), &[] as &[u32]);
+        let mut g = FrameGeometry::default();
+        g.push_mesh(&[[0.0; 3]; 3], &[0, 1, 2], 0, true);
+        g.push_mesh_with_adjacency(&[[0.0; 3]; 9], &idx, 2, false, Some(Arc::new(a)));
+        assert_eq!(g.neighbours(2).collect::<Vec<_>>(), vec![1, 3, 4]);
+    }
+
+    #[test]
     fn triangles_are_numbered_globally_and_map_back_to_their_mesh() {
         let mut g = FrameGeometry::default();
         let quad = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
@@ -116,6 +226,7 @@ mod tests {
         assert_eq!(g.mesh_of_triangle(2).instance, 7);
         assert_eq!(g.triangle(2)[1], Vec3::new(1.0, 0.0, 0.0));
         assert_eq!(g.indices[6..9], [4, 5, 6]);
+        assert_eq!(g.neighbours(0).count(), 0, "no adjacency given");
         let m = g.meshes[1];
         for p in &quad[..3] {
             assert!(Vec3::from(*p).distance(Vec3::from(m.centre)) <= m.radius);

@@ -10,10 +10,12 @@
 //! Alexander's relation between relative stride and Froude number (see [`stride_length_m`]).
 
 use crate::error::{Error, Result};
+use crate::geometry::Adjacency;
 use glam::{Mat4, Quat, Vec3, Vec4};
 use rayon::prelude::*;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// glTF model frame (y up, facing +Z) -> body frame (z up, facing +x):
 /// a +90 deg turn about x (y up -> z up) followed by +90 deg about z (facing -y -> +x).
@@ -113,6 +115,8 @@ pub struct Lod {
     pub indices: Vec<u32>,
     /// Recorded geometric error against LOD 0, metres (0 for LOD 0).
     pub error_m: f32,
+    /// Triangle one-rings, for the exact refinement's neighbour search.
+    pub adjacency: Arc<Adjacency>,
 }
 
 impl Lod {
@@ -524,7 +528,14 @@ fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], erro
     }
     // Compact: keep only the vertices this LOD's triangles use, in first-use order.
     let mut remap = vec![u32::MAX; positions.len()];
-    let mut lod = Lod { positions: Vec::new(), joints: Vec::new(), weights: Vec::new(), indices: Vec::with_capacity(indices.len()), error_m };
+    let mut lod = Lod {
+        positions: Vec::new(),
+        joints: Vec::new(),
+        weights: Vec::new(),
+        indices: Vec::with_capacity(indices.len()),
+        error_m,
+        adjacency: Arc::default(),
+    };
     for i in indices {
         let r = &mut remap[i as usize];
         if *r == u32::MAX {
@@ -535,6 +546,7 @@ fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], erro
         }
         lod.indices.push(*r);
     }
+    lod.adjacency = Arc::new(Adjacency::build(&lod.indices));
     Ok(lod)
 }
 
@@ -601,6 +613,7 @@ mod tests {
                 weights: vec![[0.5, 0.5, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]],
                 indices: vec![0, 1, 2],
                 error_m: 0.0,
+                adjacency: Arc::new(Adjacency::build(&[0, 1, 2])),
             }],
             nodes,
             joint_nodes: vec![0, 1],
@@ -673,7 +686,14 @@ pub(crate) mod tests_support {
             weight_kg: Some(60.0),
             stride_length_m: None,
             cycle_s: 1.0,
-            lods: vec![Lod { joints: vec![[0; 4]; 8], weights: vec![[1.0, 0.0, 0.0, 0.0]; 8], positions, indices, error_m: 0.0 }],
+            lods: vec![Lod {
+                joints: vec![[0; 4]; 8],
+                weights: vec![[1.0, 0.0, 0.0, 0.0]; 8],
+                positions,
+                adjacency: Arc::new(Adjacency::build(&indices)),
+                indices,
+                error_m: 0.0,
+            }],
             nodes: vec![NodeRest { parent: None, translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE }],
             joint_nodes: vec![0],
             inverse_bind: vec![Mat4::IDENTITY],

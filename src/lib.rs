@@ -7,6 +7,7 @@
 //! `raycast` is the independent CPU reference over the same triangles.
 
 pub mod config;
+pub mod crosscheck;
 pub mod error;
 pub mod geometry;
 pub mod gpu;

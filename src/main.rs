@@ -19,6 +19,17 @@ struct Cli {
 enum Command {
     /// Generate labeled sequences (HDF5 + XML, optional PNG) on the bundled defaults or a config.
     Generate(GenerateArgs),
+    /// Hold the raster path against the CPU ray-cast reference on the same posed triangles.
+    Crosscheck {
+        #[command(flatten)]
+        args: GenerateArgs,
+        /// Write the report as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Write a PNG strip (raster, reference, error, unrefined mask disagreement).
+        #[arg(long = "strip-png")]
+        strip_png: Option<PathBuf>,
+    },
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -87,6 +98,9 @@ struct GenerateArgs {
     /// Turn on the Vulkan validation layer (slow; for debugging).
     #[arg(long)]
     validation: bool,
+    /// Also write each frame's posed human triangles (sensor frame) as PLY under this folder.
+    #[arg(long)]
+    export_geometry: Option<PathBuf>,
 }
 
 fn parse_count(s: &str) -> Result<[usize; 2], String> {
@@ -160,9 +174,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Generate(args) => {
             let cfg = build_config(&args)?;
-            let validation = args.validation || std::env::var_os("PEDSCAN_VALIDATION").is_some_and(|v| v == "1");
-            let summary = pedscan::run::generate(cfg, validation, true)?;
+            let validation = args.validation || pedscan::gpu::validation_from_env();
+            let summary = pedscan::run::generate(cfg, validation, true, args.export_geometry.clone())?;
             eprintln!("{summary}");
+        }
+        Command::Crosscheck { mut args, json, strip_png } => {
+            // By default 4 sequences of 32 frames: over 100 frames.
+            args.sequences = args.sequences.or(Some(4));
+            let cfg = build_config(&args)?;
+            let opts = pedscan::crosscheck::CrosscheckOptions {
+                json,
+                png: strip_png,
+                export_geometry: args.export_geometry.clone(),
+                validation: args.validation || pedscan::gpu::validation_from_env(),
+            };
+            let report = pedscan::crosscheck::crosscheck(cfg, &opts)?;
+            println!("{report}");
         }
         Command::Info { file } => {
             print!("{}", pedscan::output::info(&file)?);

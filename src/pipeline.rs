@@ -8,7 +8,7 @@
 
 use crate::config::{CompressionChoice, Config};
 use crate::error::{Error, Result};
-use crate::geometry::FrameGeometry;
+use crate::geometry::{Adjacency, FrameGeometry};
 use crate::gpu::{Context, ContextOptions, DeviceChoice};
 use crate::human::{HumanModel, MODEL_TO_BODY};
 use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter, WriterOptions};
@@ -40,7 +40,20 @@ pub struct Generator {
     pub cube: CubeFaces,
     pub lookup: BeamLookup,
     pub renderer: Renderer,
-    scratch: Scratch,
+    pub scratch: Scratch,
+    /// Per environment mesh: its vertex range in `environment.positions`, local indices and
+    /// triangle one-rings (computed once).
+    env_meshes: Vec<EnvDraw>,
+    /// Write each frame's posed humans as PLY under this folder (`--export-geometry`).
+    pub export_geometry: Option<PathBuf>,
+}
+
+struct EnvDraw {
+    first_vertex: usize,
+    vertex_count: usize,
+    local_indices: Vec<u32>,
+    double_sided: bool,
+    adjacency: Arc<Adjacency>,
 }
 
 /// Per-frame buffers, reused (no per-frame allocation in steady state).
@@ -125,11 +138,24 @@ impl Generator {
             }
             (Some(env), Some(grid))
         };
+        let env_meshes = environment.as_ref().map_or_else(Vec::new, |env| {
+            env.meshes
+                .iter()
+                .filter(|m| !m.indices.is_empty())
+                .map(|m| {
+                    let lo = *m.indices.iter().min().unwrap_or(&0);
+                    let hi = *m.indices.iter().max().unwrap_or(&0);
+                    let local_indices: Vec<u32> = m.indices.iter().map(|i| i - lo).collect();
+                    let adjacency = Arc::new(Adjacency::build(&local_indices));
+                    EnvDraw { first_vertex: lo as usize, vertex_count: (hi - lo + 1) as usize, local_indices, double_sided: m.double_sided, adjacency }
+                })
+                .collect()
+        });
         let cube = CubeFaces::new(&sensor, cfg.render.oversample);
         let lookup = BeamLookup::new(&sensor, &cube);
         let ctx = Arc::new(Context::new(&ContextOptions { validation, device: device_choice(&cfg.device) })?);
         let renderer = Renderer::new(&ctx, &cube)?;
-        Ok(Generator { cfg, sensor, models, environment, grid, cube, lookup, renderer, scratch: Scratch::default() })
+        Ok(Generator { cfg, sensor, models, environment, grid, cube, lookup, renderer, scratch: Scratch::default(), env_meshes, export_geometry: None })
     }
 
     /// The random stream of sequence `index`.
@@ -183,15 +209,9 @@ impl Generator {
         if let Some(env) = &self.environment {
             s.env_sensor.clear();
             s.env_sensor.extend(env.positions.iter().map(|p| sensor_from_world.transform_point3(*p).as_vec3().to_array()));
-            for m in &env.meshes {
-                // Environment meshes index the shared vertex array; push each with its own copy
-                // of the vertices it uses so meshes stay contiguous ranges.
-                let (lo, hi) = m.indices.iter().fold((u32::MAX, 0u32), |(lo, hi), &i| (lo.min(i), hi.max(i)));
-                if lo > hi {
-                    continue;
-                }
-                let local: Vec<u32> = m.indices.iter().map(|i| i - lo).collect();
-                s.background.push_mesh(&s.env_sensor[lo as usize..=hi as usize], &local, 0, m.double_sided);
+            for m in &self.env_meshes {
+                let verts = &s.env_sensor[m.first_vertex..m.first_vertex + m.vertex_count];
+                s.background.push_mesh_with_adjacency(verts, &m.local_indices, 0, m.double_sided, Some(m.adjacency.clone()));
             }
         }
         s.humans.clear();
@@ -216,7 +236,8 @@ impl Generator {
             model.joint_matrices(st.gait_phase, &mut s.joints);
             let transform = (sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4();
             model.skin_into(lod, &s.joints, &transform, &mut s.skinned);
-            s.humans.push_mesh(&s.skinned, &model.lods[lod].indices, k as u32 + 1, false);
+            let l = &model.lods[lod];
+            s.humans.push_mesh_with_adjacency(&s.skinned, &l.indices, k as u32 + 1, false, Some(l.adjacency.clone()));
         }
     }
 
@@ -271,11 +292,6 @@ impl Generator {
         Ok(state)
     }
 
-    /// The posed geometry of the last frame (for the ray-cast reference and exports).
-    pub fn scratch(&self) -> &Scratch {
-        &self.scratch
-    }
-
     /// Metadata of sequence `index`.
     pub fn meta(&self, index: usize, plan: &SequencePlan) -> SequenceMeta {
         SequenceMeta {
@@ -313,6 +329,10 @@ impl Generator {
         for k in 0..plan.times_s.len() {
             self.frame(&plan, k, &mut out)?;
             writer.write_frame(&out)?;
+            if let Some(dir) = &self.export_geometry {
+                let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
+                crate::output::ply::write_humans_ply(&path, &self.scratch.humans)?;
+            }
             on_frame();
         }
         writer.finish()

@@ -18,6 +18,10 @@ use rayon::prelude::*;
 /// No triangle hit.
 pub const NO_TRIANGLE: u32 = u32::MAX;
 
+/// How many one-rings around the rendered triangles exact refinement searches when the beam
+/// hits none of them (triangles up to ~4x smaller than a texel).
+pub const MAX_RINGS: usize = 4;
+
 /// Per-beam face and texel, computed once per sensor and face set.
 #[derive(Clone, Debug)]
 pub struct BeamLookup {
@@ -101,6 +105,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
         .zip(out.triangle.par_chunks_mut(w))
         .enumerate()
         .for_each(|(row, (ranges, tris))| {
+            let mut bufs = RingBuffers::default();
             for col in 0..w {
                 let b = row * w + col;
                 let f = lookup.face[b] as usize;
@@ -129,7 +134,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         (r, t)
                     }
                     Refine::Exact => {
-                        let mut cand = [0u32; 9];
+                        let mut cand = [(0u32, 0f32); 9];
                         let mut nc = 0;
                         let mut any_empty = false;
                         for dv in -1i64..=1 {
@@ -137,10 +142,13 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                                 let uu = (u as i64 + du).clamp(0, fw as i64 - 1) as u32;
                                 let vv = (v as i64 + dv).clamp(0, fh as i64 - 1) as u32;
                                 let id = img.id[at(uu, vv)];
+                                let r = img.range_m[at(uu, vv)];
                                 if id == 0 {
                                     any_empty = true;
-                                } else if !cand[..nc].contains(&id) {
-                                    cand[nc] = id;
+                                } else if let Some(c) = cand[..nc].iter_mut().find(|c| c.0 == id - 1) {
+                                    c.1 = c.1.min(r);
+                                } else {
+                                    cand[nc] = (id - 1, r);
                                     nc += 1;
                                 }
                             }
@@ -148,24 +156,12 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         if nc == 0 {
                             continue;
                         }
-                        // Deterministic: nearest hit, ties to the smaller triangle index.
-                        cand[..nc].sort_unstable();
-                        let mut best: Option<(f64, u32)> = None;
-                        for &id in &cand[..nc] {
-                            let t = id - 1;
-                            let cull = !geom.mesh_of_triangle(t).double_sided;
-                            if let Some(r) = intersect_triangle(dir, &geom.triangle_f64(t), cull) {
-                                if best.map_or(true, |(br, _)| r < br) {
-                                    best = Some((r, t));
-                                }
-                            }
-                        }
-                        match best {
+                        cand[..nc].sort_unstable_by_key(|c| c.0);
+                        match refine_exact(dir, geom, &cand[..nc], &mut bufs) {
                             Some(hit) => hit,
                             // The beam misses every nearby triangle. Next to an empty texel this
-                            // is a silhouette: no hit. Inside a covered patch it passed through
-                            // a triangle too small to reach a texel centre: take the centre
-                            // triangle's plane (error second order in the texel size).
+                            // is a silhouette: no hit. Inside a covered patch (no adjacency to
+                            // search): take the centre triangle's plane.
                             None if any_empty || centre_id == 0 => continue,
                             None => {
                                 let t = centre_id - 1;
@@ -180,6 +176,92 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
             }
         });
 }
+
+/// Scratch vectors of the ring search, one set per worker.
+#[derive(Default)]
+struct RingBuffers {
+    ring: Vec<u32>,
+    seen: Vec<u32>,
+    frontier: Vec<u32>,
+}
+
+/// Nearest hit of `dir` with triangle `t` folded into `best` (ties: smaller triangle).
+fn test_triangle(dir: DVec3, geom: &FrameGeometry, t: u32, best: &mut Option<(f64, u32)>) {
+    let cull = !geom.mesh_of_triangle(t).double_sided;
+    if let Some(r) = intersect_triangle(dir, &geom.triangle_f64(t), cull) {
+        if best.map_or(true, |(br, bt)| r < br || (r == br && t < bt)) {
+            *best = Some((r, t));
+        }
+    }
+}
+
+/// Searches outwards from `seeds` (already tested) ring by ring, up to `MAX_RINGS`, and
+/// returns the nearest hit of the first ring that has one.
+fn ring_search(dir: DVec3, geom: &FrameGeometry, seeds: impl Iterator<Item = u32>, b: &mut RingBuffers) -> Option<(f64, u32)> {
+    b.seen.clear();
+    b.seen.extend(seeds);
+    b.seen.sort_unstable();
+    b.frontier.clear();
+    b.frontier.extend_from_slice(&b.seen);
+    let mut best = None;
+    for _ in 0..MAX_RINGS {
+        b.ring.clear();
+        for &t in b.frontier.iter() {
+            b.ring.extend(geom.neighbours(t));
+        }
+        b.ring.sort_unstable();
+        b.ring.dedup();
+        let seen = &b.seen;
+        b.ring.retain(|t| seen.binary_search(t).is_err());
+        if b.ring.is_empty() {
+            break;
+        }
+        for &t in b.ring.iter() {
+            test_triangle(dir, geom, t, &mut best);
+        }
+        if best.is_some() {
+            break;
+        }
+        b.seen.extend_from_slice(&b.ring);
+        b.seen.sort_unstable();
+        std::mem::swap(&mut b.frontier, &mut b.ring);
+    }
+    best
+}
+
+/// Exact refinement of one beam from the triangles rendered in its 3x3 texels (`cand`:
+/// triangle and the nearest range it was rendered at, sorted by triangle).
+///
+/// 1. The nearest exact hit among the candidates.
+/// 2. None: triangles smaller than a texel can hold the beam without covering a texel centre,
+///    so search the rings around the candidates.
+/// 3. A hit, but some candidate surface was rendered clearly nearer: the beam may pass through
+///    a small triangle of that nearer surface (a silhouette over a person behind), so search
+///    the rings around the nearer candidates and keep the nearer hit.
+fn refine_exact(dir: DVec3, geom: &FrameGeometry, cand: &[(u32, f32)], b: &mut RingBuffers) -> Option<(f64, u32)> {
+    let mut best = None;
+    for &(t, _) in cand {
+        test_triangle(dir, geom, t, &mut best);
+    }
+    match best {
+        None => ring_search(dir, geom, cand.iter().map(|c| c.0), b),
+        Some((r, _)) => {
+            let nearer = |c: &&(u32, f32)| (c.1 as f64) < r * (1.0 - OCCLUDER_MARGIN);
+            if cand.iter().any(|c| nearer(&c)) {
+                if let Some(alt) = ring_search(dir, geom, cand.iter().filter(nearer).map(|c| c.0), b) {
+                    if alt.0 < r {
+                        return Some(alt);
+                    }
+                }
+            }
+            best
+        }
+    }
+}
+
+/// A rendered candidate counts as a nearer surface when its texel range is this fraction
+/// nearer than the best hit.
+const OCCLUDER_MARGIN: f64 = 0.02;
 
 #[cfg(test)]
 mod tests {

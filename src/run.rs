@@ -35,13 +35,14 @@ impl fmt::Display for Summary {
 }
 
 /// Runs a whole `generate` job. `progress`: draw a progress bar on a terminal.
-pub fn generate(cfg: Config, validation: bool, progress: bool) -> Result<Summary> {
+pub fn generate(cfg: Config, validation: bool, progress: bool, export_geometry: Option<PathBuf>) -> Result<Summary> {
     let out = cfg.out.clone();
     if out.exists() && !out.is_dir() {
         return Err(Error::input(out.display(), "output path exists and is not a folder"));
     }
     std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
     let mut gen = Generator::new(cfg, validation)?;
+    gen.export_geometry = export_geometry;
     let total = (gen.cfg.sequences * gen.cfg.frames) as u64;
     let bar = if progress { indicatif::ProgressBar::new(total) } else { indicatif::ProgressBar::hidden() };
     bar.set_style(

@@ -9,6 +9,7 @@ use crate::sensor::Sensor;
 
 mod h5;
 mod info;
+pub mod ply;
 pub mod png;
 mod writer;
 mod xml;

@@ -1,0 +1,466 @@
+//! `pedscan crosscheck`: holds the raster path against the CPU ray-cast reference on the same
+//! posed triangles, frame by frame. One render per frame is resampled three ways (no
+//! refinement, plane, exact) so every mode is measured on identical input.
+//!
+//! Metrics on the human layer (people only, before compositing): beams both paths call human,
+//! beams only one does, mask IoU, instance mix-ups, and the range error on beams both call
+//! human; broken down by reference range (0-4, 4-8, 8+ m as in the paper's tables) and by
+//! closeness to a cube-face seam. The background layer's range error is reported too.
+
+use crate::config::{Config, Refine};
+use crate::error::{Error, Result};
+use crate::geometry::FrameGeometry;
+use crate::output::png::{save_png, turbo};
+use crate::pipeline::Generator;
+use crate::raycast::{self, Bvh, Hit};
+use crate::resample::{resample, BeamHits, NO_TRIANGLE};
+use image::RgbImage;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Distance bins of the paper's tables, metres.
+pub const DISTANCE_BINS: [(&str, f64, f64); 3] = [("0-4", 0.0, 4.0), ("4-8", 4.0, 8.0), ("8+", 8.0, f64::INFINITY)];
+/// A beam within this many face texels of a cube-face seam counts as "near a seam".
+pub const SEAM_TEXELS: f64 = 2.0;
+
+/// Options of a cross-check run.
+#[derive(Clone, Debug, Default)]
+pub struct CrosscheckOptions {
+    pub json: Option<PathBuf>,
+    pub png: Option<PathBuf>,
+    pub export_geometry: Option<PathBuf>,
+    pub validation: bool,
+}
+
+/// Range-error statistics, metres.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct ErrorStats {
+    pub count: usize,
+    pub median: f64,
+    pub p99: f64,
+    pub max: f64,
+    pub rms: f64,
+}
+
+impl ErrorStats {
+    pub fn from(errors: &mut [f64]) -> ErrorStats {
+        if errors.is_empty() {
+            return ErrorStats::default();
+        }
+        errors.sort_by(|a, b| a.total_cmp(b));
+        let q = |p: f64| errors[((p * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)];
+        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+        ErrorStats { count: errors.len(), median: q(0.5), p99: q(0.99), max: *errors.last().unwrap(), rms }
+    }
+}
+
+/// Agreement and range error of one refinement mode on one subset of beams.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct Agreement {
+    pub both_human: usize,
+    pub raster_only: usize,
+    pub reference_only: usize,
+    pub instance_mixups: usize,
+    /// both / (both + raster only + reference only).
+    pub human_beam_agreement: f64,
+    pub range_error_m: ErrorStats,
+}
+
+#[derive(Default)]
+struct Acc {
+    both: usize,
+    raster_only: usize,
+    ref_only: usize,
+    mixups: usize,
+    errors: Vec<f64>,
+}
+
+impl Acc {
+    fn finish(&mut self) -> Agreement {
+        let union = self.both + self.raster_only + self.ref_only;
+        Agreement {
+            both_human: self.both,
+            raster_only: self.raster_only,
+            reference_only: self.ref_only,
+            instance_mixups: self.mixups,
+            human_beam_agreement: if union == 0 { 1.0 } else { self.both as f64 / union as f64 },
+            range_error_m: ErrorStats::from(&mut self.errors),
+        }
+    }
+}
+
+/// One refinement mode over the whole run.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct ModeReport {
+    pub human_beam_agreement: f64,
+    /// Mean over frames with any human beam of |raster AND reference| / |raster OR reference|.
+    pub mask_iou: f64,
+    pub range_error_m: ErrorStats,
+    pub overall: Agreement,
+    pub by_distance: std::collections::BTreeMap<String, Agreement>,
+    pub near_seam: Agreement,
+    pub away_from_seam: Agreement,
+}
+
+/// The whole report (`--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub frames: usize,
+    pub sensor: String,
+    pub oversample: f64,
+    pub lod_max_error_mrad: f64,
+    pub device: String,
+    /// Top level (flattened): no refinement.
+    #[serde(flatten)]
+    pub unrefined: ModeReport,
+    pub plane: ModeReport,
+    /// Exact re-intersection (the default of `generate`).
+    pub refined: ModeReport,
+    /// Background layer, exact refinement against the reference.
+    pub background_range_error_m: ErrorStats,
+    pub background_beam_agreement: f64,
+    pub timing_ms: Timing,
+}
+
+/// Median milliseconds per frame of each path.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Timing {
+    pub pose: f64,
+    pub raster_render: f64,
+    pub resample_exact: f64,
+    pub raycast_build: f64,
+    pub raycast_cast: f64,
+}
+
+struct ModeAcc {
+    overall: Acc,
+    bins: [Acc; 3],
+    near_seam: Acc,
+    away: Acc,
+    iou_sum: f64,
+    iou_frames: usize,
+}
+
+impl ModeAcc {
+    fn new() -> ModeAcc {
+        ModeAcc { overall: Acc::default(), bins: Default::default(), near_seam: Acc::default(), away: Acc::default(), iou_sum: 0.0, iou_frames: 0 }
+    }
+
+    fn add(&mut self, raster: &BeamHits, reference: &[Hit], geom: &FrameGeometry, seam: &[bool]) {
+        let (mut inter, mut union) = (0usize, 0usize);
+        for (b, r) in reference.iter().enumerate() {
+            let rh = raster.triangle[b] != NO_TRIANGLE && raster.range_m[b] > 0.0;
+            let fh = r.is_hit();
+            if !rh && !fh {
+                continue;
+            }
+            union += 1;
+            let dist = if fh { r.range_m } else { raster.range_m[b] as f64 };
+            let bin = DISTANCE_BINS.iter().position(|(_, lo, hi)| dist >= *lo && dist < *hi).unwrap_or(2);
+            let accs: [&mut Acc; 3] = {
+                let (a, b2) = (&mut self.overall, &mut self.bins[bin]);
+                let s = if seam[b] { &mut self.near_seam } else { &mut self.away };
+                [a, b2, s]
+            };
+            for acc in accs {
+                match (rh, fh) {
+                    (true, true) => {
+                        acc.both += 1;
+                        acc.errors.push((raster.range_m[b] as f64 - r.range_m).abs());
+                        let ri = geom.mesh_of_triangle(raster.triangle[b]).instance;
+                        if ri != r.instance(geom) {
+                            acc.mixups += 1;
+                        }
+                    }
+                    (true, false) => acc.raster_only += 1,
+                    (false, true) => acc.ref_only += 1,
+                    (false, false) => {}
+                }
+            }
+            if rh && fh {
+                inter += 1;
+            }
+        }
+        if union > 0 {
+            self.iou_sum += inter as f64 / union as f64;
+            self.iou_frames += 1;
+        }
+    }
+
+    fn finish(mut self) -> ModeReport {
+        let overall = self.overall.finish();
+        let mut by_distance = std::collections::BTreeMap::new();
+        for (k, (name, _, _)) in DISTANCE_BINS.iter().enumerate() {
+            by_distance.insert(name.to_string(), self.bins[k].finish());
+        }
+        ModeReport {
+            human_beam_agreement: overall.human_beam_agreement,
+            mask_iou: if self.iou_frames == 0 { 1.0 } else { self.iou_sum / self.iou_frames as f64 },
+            range_error_m: overall.range_error_m.clone(),
+            overall,
+            by_distance,
+            near_seam: self.near_seam.finish(),
+            away_from_seam: self.away.finish(),
+        }
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Which beams lie within `SEAM_TEXELS` texels of a cube-face seam.
+fn seam_mask(gen: &Generator) -> Vec<bool> {
+    gen.lookup
+        .dirs
+        .iter()
+        .zip(&gen.lookup.face)
+        .map(|(d, f)| {
+            let face = &gen.cube.faces[*f as usize];
+            let (px, _) = face.pixel(*d).unwrap_or((0.0, 0.0));
+            px < SEAM_TEXELS || px > face.width as f64 - SEAM_TEXELS
+        })
+        .collect()
+}
+
+/// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames.
+pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
+    let mut gen = Generator::new(cfg, opts.validation)?;
+    let seam = seam_mask(&gen);
+    let dirs = gen.lookup.dirs.clone();
+    let max_range = gen.sensor.max_range_m;
+    let mut modes = [ModeAcc::new(), ModeAcc::new(), ModeAcc::new()];
+    let refines = [Refine::None, Refine::Plane, Refine::Exact];
+    let mut hits = [BeamHits::default(), BeamHits::default(), BeamHits::default()];
+    let mut bg_hits = BeamHits::default();
+    let mut bg_errors = Vec::new();
+    let (mut bg_both, mut bg_union) = (0usize, 0usize);
+    let (mut t_pose, mut t_render, mut t_resample, mut t_build, mut t_cast) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut strip: Option<(usize, Vec<f32>, Vec<u32>, Vec<f32>, Vec<u32>, Vec<u32>)> = None;
+    let mut best_strip_beams = 0usize;
+    let mut frames = 0usize;
+    let first = gen.cfg.first_sequence;
+    for index in first..first + gen.cfg.sequences {
+        let plan = gen.plan(index)?;
+        for k in 0..plan.times_s.len() {
+            let t0 = Instant::now();
+            let state = gen.frame_state(&plan, k);
+            gen.pose_frame(&plan, &state);
+            t_pose.push(t0.elapsed().as_secs_f64() * 1e3);
+            let n = dirs.len();
+            // Humans: one render, three resamplings.
+            let humans = &gen.scratch.humans;
+            if humans.meshes.is_empty() {
+                for h in &mut hits {
+                    h.clear_to(n);
+                }
+            } else {
+                let t1 = Instant::now();
+                let frame = gen.renderer.render(humans)?;
+                t_render.push(t1.elapsed().as_secs_f64() * 1e3);
+                for (m, r) in refines.iter().enumerate() {
+                    let t2 = Instant::now();
+                    resample(&gen.lookup, frame, humans, *r, &mut hits[m]);
+                    if *r == Refine::Exact {
+                        t_resample.push(t2.elapsed().as_secs_f64() * 1e3);
+                    }
+                }
+            }
+            let t3 = Instant::now();
+            let bvh = Bvh::build(humans);
+            t_build.push(t3.elapsed().as_secs_f64() * 1e3);
+            let t4 = Instant::now();
+            let reference = raycast::cast(humans, &bvh, &dirs, max_range);
+            t_cast.push(t4.elapsed().as_secs_f64() * 1e3);
+            for (m, acc) in modes.iter_mut().enumerate() {
+                acc.add(&hits[m], &reference, humans, &seam);
+            }
+            let human_beams = reference.iter().filter(|h| h.is_hit()).count();
+            if human_beams > best_strip_beams {
+                best_strip_beams = human_beams;
+                let rr: Vec<f32> = reference.iter().map(|h| h.range_m as f32).collect();
+                let ri: Vec<u32> = reference.iter().map(|h| h.instance(humans)).collect();
+                let xi: Vec<u32> = hits[2].triangle.iter().map(|&t| if t == NO_TRIANGLE { 0 } else { humans.mesh_of_triangle(t).instance }).collect();
+                let xu: Vec<u32> = hits[0].triangle.iter().map(|&t| if t == NO_TRIANGLE { 0 } else { humans.mesh_of_triangle(t).instance }).collect();
+                strip = Some((frames, hits[2].range_m.clone(), xi, rr, ri, xu));
+            }
+            // Background: exact refinement against the reference.
+            let bg = &gen.scratch.background;
+            if !bg.meshes.is_empty() {
+                let frame = gen.renderer.render(bg)?;
+                resample(&gen.lookup, frame, bg, Refine::Exact, &mut bg_hits);
+                let reference = raycast::cast_frame(bg, &dirs, max_range);
+                for (b, r) in reference.iter().enumerate() {
+                    let rh = bg_hits.triangle[b] != NO_TRIANGLE;
+                    if rh || r.is_hit() {
+                        bg_union += 1;
+                    }
+                    if rh && r.is_hit() {
+                        bg_both += 1;
+                        bg_errors.push((bg_hits.range_m[b] as f64 - r.range_m).abs());
+                    }
+                }
+            }
+            if let Some(dir) = &opts.export_geometry {
+                let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
+                crate::output::ply::write_humans_ply(&path, humans)?;
+            }
+            frames += 1;
+        }
+    }
+    let [none, plane, exact] = modes;
+    let report = Report {
+        frames,
+        sensor: gen.sensor.name.clone(),
+        oversample: gen.cfg.render.oversample,
+        lod_max_error_mrad: gen.cfg.render.lod_max_error_mrad,
+        device: gen.renderer.context().device_name(),
+        unrefined: none.finish(),
+        plane: plane.finish(),
+        refined: exact.finish(),
+        background_range_error_m: ErrorStats::from(&mut bg_errors),
+        background_beam_agreement: if bg_union == 0 { 1.0 } else { bg_both as f64 / bg_union as f64 },
+        timing_ms: Timing {
+            pose: median(&mut t_pose),
+            raster_render: median(&mut t_render),
+            resample_exact: median(&mut t_resample),
+            raycast_build: median(&mut t_build),
+            raycast_cast: median(&mut t_cast),
+        },
+    };
+    if let Some(p) = &opts.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| Error::Internal(e.to_string()))?;
+        write_atomic(p, text.as_bytes())?;
+    }
+    if let (Some(p), Some((_, rr, ri, fr, fi, xu))) = (&opts.png, &strip) {
+        let img = strip_png(gen.sensor.rows(), gen.sensor.columns, rr, ri, fr, fi, xu);
+        save_png(&img, p)?;
+    }
+    let counter = gen.renderer.context().validation_counter();
+    let validating = gen.renderer.context().validation_enabled();
+    drop(gen);
+    let errors = counter.load(std::sync::atomic::Ordering::SeqCst);
+    if validating && errors > 0 {
+        return Err(Error::Gpu(format!("{errors} Vulkan validation errors")));
+    }
+    Ok(report)
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// Four bands, each rows x 4 px high: raster range (exact), reference range, per-beam error of
+/// the exact mode (turbo over 0..5 mm; red = raster-only human, blue = reference-only), and
+/// the unrefined mask disagreement (red / blue as above, grey = agree).
+fn strip_png(rows: usize, cols: usize, rr: &[f32], ri: &[u32], fr: &[f32], fi: &[u32], xu: &[u32]) -> RgbImage {
+    const S: u32 = 4;
+    let band = rows as u32 * S;
+    let max = rr.iter().chain(fr).cloned().fold(0.0f32, f32::max).max(1.0);
+    let mut img = RgbImage::new(cols as u32, 4 * band + 3 * 2);
+    for row in 0..rows {
+        for col in 0..cols {
+            let b = row * cols + col;
+            let rng = |r: f32, hit: bool| if hit { turbo(1.0 - r / max) } else { [0, 0, 0] };
+            let err = match (ri[b] > 0, fi[b] > 0) {
+                (true, true) => turbo(((rr[b] - fr[b]).abs() / 0.005).min(1.0)),
+                (true, false) => [255, 0, 0],
+                (false, true) => [0, 80, 255],
+                _ => [0, 0, 0],
+            };
+            let unref = match (xu[b] > 0, fi[b] > 0) {
+                (true, true) => [128, 128, 128],
+                (true, false) => [255, 0, 0],
+                (false, true) => [0, 80, 255],
+                _ => [0, 0, 0],
+            };
+            let px = [rng(rr[b], ri[b] > 0), rng(fr[b], fi[b] > 0), err, unref];
+            for (k, c) in px.iter().enumerate() {
+                for dy in 0..S {
+                    img.put_pixel(col as u32, k as u32 * (band + 2) + row as u32 * S + dy, image::Rgb(*c));
+                }
+            }
+        }
+    }
+    img
+}
+
+impl std::fmt::Display for Report {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "crosscheck: {} frames, {} on {}, oversample {}, LOD bound {} mrad", self.frames, self.sensor, self.device, self.oversample, self.lod_max_error_mrad)?;
+        writeln!(f, "{:<10} {:>10} {:>9} {:>12} {:>12} {:>12} {:>12} {:>8}", "mode", "agreement", "mask IoU", "median mm", "p99 mm", "max mm", "rms mm", "mixups")?;
+        for (name, m) in [("none", &self.unrefined), ("plane", &self.plane), ("exact", &self.refined)] {
+            let e = &m.range_error_m;
+            writeln!(
+                f,
+                "{:<10} {:>9.4}% {:>9.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>8}",
+                name,
+                100.0 * m.human_beam_agreement,
+                m.mask_iou,
+                e.median * 1e3,
+                e.p99 * 1e3,
+                e.max * 1e3,
+                e.rms * 1e3,
+                m.overall.instance_mixups
+            )?;
+        }
+        for (name, _, _) in DISTANCE_BINS {
+            let a = &self.unrefined.by_distance[name];
+            let r = &self.refined.by_distance[name];
+            writeln!(
+                f,
+                "  {:>4} m: {:>7} beams, agreement none {:.4}% exact {:.4}%, median error none {:.3} mm exact {:.4} mm",
+                name,
+                r.both_human + r.raster_only + r.reference_only,
+                100.0 * a.human_beam_agreement,
+                100.0 * r.human_beam_agreement,
+                a.range_error_m.median * 1e3,
+                r.range_error_m.median * 1e3
+            )?;
+        }
+        writeln!(
+            f,
+            "  near a face seam: agreement exact {:.4}% ({} beams); away: {:.4}%",
+            100.0 * self.refined.near_seam.human_beam_agreement,
+            self.refined.near_seam.both_human + self.refined.near_seam.raster_only + self.refined.near_seam.reference_only,
+            100.0 * self.refined.away_from_seam.human_beam_agreement
+        )?;
+        writeln!(
+            f,
+            "background: agreement {:.4}%, median error {:.4} mm, max {:.4} mm",
+            100.0 * self.background_beam_agreement,
+            self.background_range_error_m.median * 1e3,
+            self.background_range_error_m.max * 1e3
+        )?;
+        let t = &self.timing_ms;
+        write!(
+            f,
+            "median ms/frame: pose {:.2}, raster render {:.2}, resample exact {:.2}, ray-cast BVH build {:.2}, cast {:.2}",
+            t.pose, t.raster_render, t.resample_exact, t.raycast_build, t.raycast_cast
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_stats_are_order_statistics() {
+        let mut v: Vec<f64> = (1..=100).map(|k| k as f64).collect();
+        let s = ErrorStats::from(&mut v);
+        assert_eq!(s.count, 100);
+        assert_eq!(s.max, 100.0);
+        assert_eq!(s.median, 51.0);
+        assert_eq!(s.p99, 99.0);
+        assert!((s.rms - (338350.0f64 / 100.0).sqrt()).abs() < 1e-9);
+        assert_eq!(ErrorStats::from(&mut []), ErrorStats::default());
+    }
+}
