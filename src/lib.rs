@@ -14,6 +14,7 @@ pub mod gpu;
 pub mod human;
 pub mod output;
 pub mod pipeline;
+pub mod plot;
 pub mod post;
 pub mod projection;
 pub mod raster;
