@@ -30,6 +30,27 @@ enum Command {
         #[arg(long = "strip-png")]
         strip_png: Option<PathBuf>,
     },
+    /// Time against error: sweep resolution, level of detail, refinement, people and columns.
+    Bench {
+        /// A reduced sweep (under a minute).
+        #[arg(long)]
+        quick: bool,
+        /// Base configuration (the sweep overrides its render and workload keys).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Write the points as JSON.
+        #[arg(long, default_value = "bench.json")]
+        json: PathBuf,
+        /// Write a Markdown table.
+        #[arg(long, default_value = "bench.md")]
+        markdown: PathBuf,
+        /// Write the time-vs-error plot.
+        #[arg(long, default_value = "bench.png")]
+        plot: PathBuf,
+        /// Run one point (internal: the sweep runs each point in a child process).
+        #[arg(long, hide = true)]
+        point: Option<String>,
+    },
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -95,6 +116,10 @@ struct GenerateArgs {
     /// HDF5 compression.
     #[arg(long, value_enum)]
     compression: Option<CompressionChoice>,
+    /// Per-beam outputs to compute and store: range, label and instance always, plus any of
+    /// xyz, velocity, background (comma separated, e.g. `range,label,instance,velocity`).
+    #[arg(long, value_delimiter = ',')]
+    outputs: Option<Vec<String>>,
     /// Turn on the Vulkan validation layer (slow; for debugging).
     #[arg(long)]
     validation: bool,
@@ -166,6 +191,25 @@ fn build_config(a: &GenerateArgs) -> pedscan::Result<Config> {
     if let Some(v) = a.compression {
         cfg.output.compression = v;
     }
+    if let Some(list) = &a.outputs {
+        cfg.output.xyz = false;
+        cfg.output.velocity_field = false;
+        cfg.output.background = false;
+        for o in list {
+            match o.trim() {
+                "range" | "label" | "instance" => {}
+                "xyz" => cfg.output.xyz = true,
+                "velocity" => cfg.output.velocity_field = true,
+                "background" => cfg.output.background = true,
+                other => {
+                    return Err(pedscan::Error::input(
+                        "--outputs",
+                        format!("unknown output `{other}` (range, label, instance, xyz, velocity, background)"),
+                    ))
+                }
+            }
+        }
+    }
     cfg.validate()?;
     Ok(cfg)
 }
@@ -190,6 +234,41 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let report = pedscan::crosscheck::crosscheck(cfg, &opts)?;
             println!("{report}");
+        }
+        Command::Bench { quick, config, json, markdown, plot, point } => {
+            let base = match &config {
+                Some(p) => Config::from_file(p)?,
+                None => Config::default(),
+            };
+            if let Some(spec) = point {
+                let spec: pedscan::bench::PointSpec = serde_json::from_str(&spec).context("--point")?;
+                let p = pedscan::bench::run_point(&base, &spec)?;
+                println!("{}", serde_json::to_string(&p)?);
+                return Ok(());
+            }
+            let exe = std::env::current_exe().context("locating the pedscan executable")?;
+            let specs = pedscan::bench::sweep(quick);
+            let n = specs.len();
+            let points = pedscan::bench::run_sweep(&exe, config.as_deref(), &specs, |i, p| {
+                eprintln!(
+                    "[{}/{n}] res {} lod {} {:?} people {} cols {}: {:.1} frames/s, agreement {:.4} %, median error {:.4} mm, peak {:.0} MiB",
+                    i + 1,
+                    p.spec.resolution,
+                    p.spec.lod,
+                    p.spec.refine,
+                    p.spec.humans,
+                    p.spec.columns,
+                    p.frames_per_s,
+                    100.0 * p.human_beam_agreement,
+                    p.median_range_error_m * 1e3,
+                    p.peak_rss_mb
+                );
+            })?;
+            std::fs::write(&json, serde_json::to_string_pretty(&points)?).with_context(|| json.display().to_string())?;
+            let table = pedscan::bench::markdown(&points);
+            std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
+            pedscan::bench::plot(&points).save(&plot)?;
+            print!("{table}");
         }
         Command::Info { file } => {
             print!("{}", pedscan::output::info(&file)?);

@@ -186,7 +186,8 @@ impl Generator {
                 position_m: s.position_m.into(),
                 heading_rad: s.heading_rad as f32,
                 velocity_mps: s.velocity_mps.as_vec3().into(),
-                gait_phase: s.gait_phase as f32,
+                // Rounding to f32 can turn 1 - 1e-9 into 1.0: wrap again to keep [0, 1).
+                gait_phase: (s.gait_phase as f32).rem_euclid(1.0),
             });
             vel.push(s.velocity_mps);
         }

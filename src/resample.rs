@@ -261,7 +261,7 @@ fn refine_exact(dir: DVec3, geom: &FrameGeometry, cand: &[(u32, f32)], b: &mut R
 
 /// A rendered candidate counts as a nearer surface when its texel range is this fraction
 /// nearer than the best hit.
-const OCCLUDER_MARGIN: f64 = 0.02;
+const OCCLUDER_MARGIN: f64 = 0.005;
 
 #[cfg(test)]
 mod tests {

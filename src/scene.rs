@@ -345,19 +345,15 @@ impl Trajectory {
         self.heading0_rad + self.yaw_rate_rps * t_s
     }
 
-    /// World position at time `t_s` (exact, closed form).
+    /// World position at time `t_s` (exact, closed form). The chord form
+    /// `2 v / w sin(w t / 2)` along the mean heading `h0 + w t / 2` has no cancellation, so it
+    /// stays exact for tiny yaw rates and long times (the `sin(h1) - sin(h0)` form lost 0.1 mm
+    /// at w t = 1e-9 after 1000 s).
     pub fn position(&self, t_s: f64) -> DVec3 {
         let (h0, w, v) = (self.heading0_rad, self.yaw_rate_rps, self.speed_mps);
-        let d = if (w * t_s).abs() < 1e-9 {
-            // Straight line (or the limit of a very gentle arc): second-order Taylor term.
-            let s = v * t_s;
-            let h = h0 + 0.5 * w * t_s;
-            DVec2::new(s * h.cos(), s * h.sin())
-        } else {
-            let h1 = h0 + w * t_s;
-            DVec2::new(v / w * (h1.sin() - h0.sin()), -v / w * (h1.cos() - h0.cos()))
-        };
-        (self.start_m + d).extend(self.z_m)
+        let chord = if w == 0.0 { v * t_s } else { 2.0 * v / w * (0.5 * w * t_s).sin() };
+        let h = h0 + 0.5 * w * t_s;
+        (self.start_m + chord * DVec2::new(h.cos(), h.sin())).extend(self.z_m)
     }
 
     /// World velocity at time `t_s`, m/s (exact).

@@ -198,3 +198,36 @@ fn info_summarises_a_file() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("hdl32e"), "{text}");
 }
+
+#[test]
+fn outputs_not_asked_for_are_not_stored_and_unknown_ones_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&pedscan(&["generate", "--out", "o", "--frames", "2", "--humans", "2..2", "--outputs", "range,label,instance,velocity"], dir, &[]));
+    let f = hdf5::File::open(dir.join("o/seq_000000.h5")).unwrap();
+    assert!(f.dataset("velocity").is_ok());
+    assert!(f.dataset("xyz").is_err(), "xyz was not asked for");
+    assert!(f.group("background").is_err() || f.dataset("background/range").is_err(), "background was not asked for");
+    expect_input_error(&["generate", "--out", "p", "--outputs", "range,colour"], dir, "colour");
+}
+
+/// Without an environment every beam behind a person is a hole: by default the person is
+/// measured, with `--keep-holes` (the paper's choice) the hole stays and nobody is labelled.
+#[test]
+fn keep_holes_keeps_background_holes_in_front_of_which_people_stand() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let args = ["generate", "--frames", "2", "--humans", "4..4", "--environment", "none", "--seed", "2"];
+    let mut filled = args.to_vec();
+    filled.extend(["--out", "filled"]);
+    let mut kept = args.to_vec();
+    kept.extend(["--out", "kept", "--keep-holes"]);
+    ok(&pedscan(&filled, dir, &[]));
+    ok(&pedscan(&kept, dir, &[]));
+    let a = read_seq(&dir.join("filled/seq_000000.h5"));
+    let b = read_seq(&dir.join("kept/seq_000000.h5"));
+    let humans_a = a.label.iter().filter(|l| **l == 1).count();
+    assert!(humans_a > 50, "people are measured in front of holes: {humans_a}");
+    assert!(a.bg.iter().all(|r| *r == 0.0), "no environment, no background");
+    assert!(b.label.iter().all(|l| *l == 0) && b.range.iter().all(|r| *r == 0.0), "holes kept");
+}

@@ -771,12 +771,6 @@ fn trajectory_at_999_9_s_matches_closed_form_within_1e_9_m() {
 }
 
 #[test]
-#[ignore = "BUG: Trajectory::position (src/scene.rs) loses precision for small yaw rates just above \
-            its straight-line threshold |w t| >= 1e-9: the arc form v/w * (sin(h0 + w t) - sin h0) \
-            cancels catastrophically (relative error ~1e-16 / |w t|, times the distance v t). At \
-            t = 999.9 s, v = 1.3 m/s the position is off by up to ~1e-4 m for |w t| ~ 1e-9 and \
-            > 1e-9 m for |w t| up to ~1e-4. Fix: use the chord form 2 v/w sin(w t/2) (cos, sin)(h0 + w t/2) \
-            (no cancellation), which also makes the Taylor branch unnecessary."]
 fn trajectory_with_tiny_yaw_rate_keeps_1e_9_m_at_999_9_s() {
     // Tolerance: 1e-9 m against the cancellation-free chord form, for yaw rates whose w t
     // spans 1e-9 .. 1e-3 at t = 999.9 s (realistic: a sampled yaw rate range containing 0).
@@ -846,11 +840,6 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
 }
 
 #[test]
-#[ignore = "BUG: Generator::frame_state (src/pipeline.rs) stores HumanState::gait_phase as \
-            `s.gait_phase as f32`; a phase in [1 - 2^-25, 1) rounds to exactly 1.0f32, which \
-            violates HumanState's documented range [0, 1) in the written labels (the rig itself \
-            wraps it to 0, so the pose is right). Fix: wrap after the cast, e.g. \
-            `let p = s.gait_phase as f32; if p >= 1.0 { 0.0 } else { p }`."]
 fn frame_state_gait_phase_stays_below_one_after_f32_rounding() {
     // Tolerance: exact ([0, 1) as f32).
     let gen = Generator::new(generator_config(), true).expect("generator");

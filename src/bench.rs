@@ -1,0 +1,319 @@
+//! `pedscan bench`: run time against error. Sweeps the knobs that trade one for the other
+//! (face resolution, level-of-detail bound, refinement) and the workload (people, columns).
+//! Every point runs in a child process (`pedscan bench --point ...`) so its peak memory is its
+//! own. A point generates real sequences end to end (pose, render, resample, composite, HDF5
+//! with all outputs) into a temporary folder and times them; then, untimed, it measures the
+//! human layer against the ray-cast reference over the FULL-detail people (LOD 0), so the
+//! error includes what levels of detail cost. The ray-cast path is timed on the same frames.
+//! Numbers are medians over frames; compare points as ratios within one run.
+
+use crate::config::{Config, Refine};
+use crate::error::{Error, Result};
+use crate::output::{FrameOutput, SequenceWriter, WriterOptions};
+use crate::pipeline::Generator;
+use crate::raycast::{self, Bvh};
+use crate::resample::NO_TRIANGLE;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One configuration of the sweep.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PointSpec {
+    pub projection: String,
+    /// Face texels per beam spacing (`render.oversample`).
+    pub resolution: f64,
+    /// Level-of-detail bound, mrad (0 = full detail).
+    pub lod: f64,
+    pub refine: Refine,
+    pub humans: usize,
+    pub columns: usize,
+    pub frames: usize,
+}
+
+/// A measured point (`bench --json` writes a list of these).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Point {
+    #[serde(flatten)]
+    pub spec: PointSpec,
+    pub frames_per_s: f64,
+    pub ms_per_frame: f64,
+    pub peak_rss_mb: f64,
+    pub human_beam_agreement: f64,
+    pub median_range_error_m: f64,
+    pub p99_range_error_m: f64,
+    pub triangles_per_frame: f64,
+    /// The ray-cast path on the same frames (full-detail people): BVH build + cast.
+    pub raycast: RaycastTiming,
+    /// Median milliseconds per frame of the stages.
+    pub stage_ms: StageMs,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct RaycastTiming {
+    pub frames_per_s: f64,
+    pub build_ms: f64,
+    pub cast_ms: f64,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct StageMs {
+    pub pose: f64,
+    pub render_resample: f64,
+    pub post: f64,
+    pub write: f64,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Peak resident set of this process, MiB (Linux `VmHWM`; 0 where unknown).
+pub fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok()))
+        .map_or(0.0, |kb| kb / 1024.0)
+}
+
+/// The sweep: a base point (10 people, 1024 columns) varied one knob at a time, the
+/// time/error trade-off grid (resolution x LOD x refinement) at 10 people, and the workload
+/// scaling (people 1..100, columns 1024..4096) at the default settings.
+pub fn sweep(quick: bool) -> Vec<PointSpec> {
+    let frames = if quick { 4 } else { 16 };
+    let p = |resolution: f64, lod: f64, refine: Refine, humans: usize, columns: usize| PointSpec {
+        projection: "cube".into(),
+        resolution,
+        lod,
+        refine,
+        humans,
+        columns,
+        frames,
+    };
+    let mut v = Vec::new();
+    if quick {
+        for (res, lod, refine) in [(2.0, 1.0, Refine::Exact), (1.0, 10.0, Refine::Exact), (2.0, 1.0, Refine::None)] {
+            v.push(p(res, lod, refine, 5, 1024));
+        }
+        return v;
+    }
+    for res in [1.0, 2.0, 3.0] {
+        for lod in [0.0, 1.0, 3.0, 10.0] {
+            for refine in [Refine::None, Refine::Exact] {
+                v.push(p(res, lod, refine, 10, 1024));
+            }
+        }
+    }
+    for humans in [1, 30, 100] {
+        v.push(p(2.0, 1.0, Refine::Exact, humans, 1024));
+    }
+    for columns in [2048, 4096] {
+        v.push(p(2.0, 1.0, Refine::Exact, 10, columns));
+    }
+    v
+}
+
+/// Runs one point in this process (the child side of `bench`).
+pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
+    let mut cfg = base.clone();
+    cfg.render.oversample = spec.resolution;
+    cfg.render.lod_max_error_mrad = spec.lod;
+    cfg.render.refine = spec.refine;
+    cfg.humans.count = [spec.humans, spec.humans];
+    cfg.frames = spec.frames;
+    cfg.sequences = 1;
+    cfg.png = false;
+    // A custom HDL-32E with more columns for the column sweep.
+    let mut sensor = crate::sensor::Sensor::hdl32e();
+    sensor.columns = spec.columns;
+    let sensor_file = std::env::temp_dir().join(format!("pedscan-bench-sensor-{}-{}.toml", std::process::id(), spec.columns));
+    let elev: Vec<String> = sensor.elevation_deg.iter().map(|e| format!("{e}")).collect();
+    std::fs::write(&sensor_file, format!("name = \"hdl32e_{}\"\nelevation_deg = [{}]\ncolumns = {}\n", spec.columns, elev.join(", "), spec.columns))
+        .map_err(|e| Error::io(&sensor_file, e))?;
+    cfg.sensor = sensor_file.display().to_string();
+    if spec.humans > 60 {
+        cfg.humans.spawn_radius_m = 16.0;
+        cfg.humans.min_separation_m = 0.5;
+    }
+    let out = tempdir_for_point()?;
+    let mut gen = Generator::new(cfg, false)?;
+    let _ = std::fs::remove_file(&sensor_file);
+    let (mut t_pose, mut t_render, mut t_post, mut t_write, mut t_total) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut t_build, mut t_cast) = (vec![], vec![]);
+    let mut errors = Vec::new();
+    let (mut both, mut union) = (0usize, 0usize);
+    let mut triangles = 0u64;
+    let plan = gen.plan(0)?;
+    let meta = gen.meta(0, &plan);
+    let mut writer = SequenceWriter::create(&out, &meta, &WriterOptions::default())?;
+    let mut frame = FrameOutput::default();
+    let dirs = gen.lookup.dirs.clone();
+    for k in 0..plan.times_s.len() {
+        let t0 = Instant::now();
+        let state = gen.frame_state(&plan, k);
+        gen.pose_frame(&plan, &state);
+        let t1 = Instant::now();
+        gen.render_posed()?;
+        let t2 = Instant::now();
+        gen.post(&state, &mut frame);
+        let t3 = Instant::now();
+        writer.write_frame(&frame)?;
+        let t4 = Instant::now();
+        t_pose.push((t1 - t0).as_secs_f64() * 1e3);
+        t_render.push((t2 - t1).as_secs_f64() * 1e3);
+        t_post.push((t3 - t2).as_secs_f64() * 1e3);
+        t_write.push((t4 - t3).as_secs_f64() * 1e3);
+        t_total.push((t4 - t0).as_secs_f64() * 1e3);
+        triangles += gen.scratch.humans.triangle_count() as u64 + gen.scratch.background.triangle_count() as u64;
+        // Untimed: the reference over full-detail people, and the raster human layer.
+        let raster = gen.scratch.human_hits.clone();
+        let lod = gen.cfg.render.lod_max_error_mrad;
+        gen.cfg.render.lod_max_error_mrad = 0.0;
+        gen.pose_frame(&plan, &state);
+        gen.cfg.render.lod_max_error_mrad = lod;
+        let geom = &gen.scratch.humans;
+        let tb = Instant::now();
+        let bvh = Bvh::build(geom);
+        t_build.push(tb.elapsed().as_secs_f64() * 1e3);
+        let tc = Instant::now();
+        let reference = raycast::cast(geom, &bvh, &dirs, gen.sensor.max_range_m);
+        t_cast.push(tc.elapsed().as_secs_f64() * 1e3);
+        for (b, r) in reference.iter().enumerate() {
+            let rh = raster.triangle[b] != NO_TRIANGLE;
+            if rh || r.is_hit() {
+                union += 1;
+            }
+            if rh && r.is_hit() {
+                both += 1;
+                errors.push((raster.range_m[b] as f64 - r.range_m).abs());
+            }
+        }
+    }
+    drop(writer); // not finished: the temporary files are removed
+    let _ = std::fs::remove_dir_all(&out);
+    let ms = median(&mut t_total);
+    errors.sort_by(|a, b| a.total_cmp(b));
+    let q = |p: f64| if errors.is_empty() { 0.0 } else { errors[((p * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)] };
+    let build = median(&mut t_build);
+    let cast = median(&mut t_cast);
+    Ok(Point {
+        spec: spec.clone(),
+        frames_per_s: 1e3 / ms.max(1e-9),
+        ms_per_frame: ms,
+        peak_rss_mb: peak_rss_mb(),
+        human_beam_agreement: if union == 0 { 1.0 } else { both as f64 / union as f64 },
+        median_range_error_m: q(0.5),
+        p99_range_error_m: q(0.99),
+        triangles_per_frame: triangles as f64 / plan.times_s.len().max(1) as f64,
+        raycast: RaycastTiming { frames_per_s: 1e3 / (build + cast).max(1e-9), build_ms: build, cast_ms: cast },
+        stage_ms: StageMs { pose: median(&mut t_pose), render_resample: median(&mut t_render), post: median(&mut t_post), write: median(&mut t_write) },
+    })
+}
+
+fn tempdir_for_point() -> Result<PathBuf> {
+    let dir = std::env::temp_dir().join(format!("pedscan-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    Ok(dir)
+}
+
+/// Runs the sweep, each point in a child process of `exe`; returns the points.
+pub fn run_sweep(exe: &Path, config: Option<&Path>, specs: &[PointSpec], mut progress: impl FnMut(usize, &Point)) -> Result<Vec<Point>> {
+    let mut points = Vec::new();
+    for (i, spec) in specs.iter().enumerate() {
+        let json = serde_json::to_string(spec).map_err(|e| Error::Internal(e.to_string()))?;
+        let mut cmd = std::process::Command::new(exe);
+        cmd.arg("bench").arg("--point").arg(&json);
+        if let Some(c) = config {
+            cmd.arg("--config").arg(c);
+        }
+        let out = cmd.output().map_err(|e| Error::io(exe, e))?;
+        if !out.status.success() {
+            return Err(Error::Internal(format!("bench point {json} failed: {}", String::from_utf8_lossy(&out.stderr))));
+        }
+        let text = String::from_utf8_lossy(&out.stdout);
+        let line = text.lines().last().unwrap_or("");
+        let p: Point = serde_json::from_str(line).map_err(|e| Error::Internal(format!("bench point output: {e}: {line}")))?;
+        progress(i, &p);
+        points.push(p);
+    }
+    Ok(points)
+}
+
+/// The Markdown table of a sweep.
+pub fn markdown(points: &[Point]) -> String {
+    let mut s = String::from(
+        "| projection | resolution | LOD mrad | refine | people | columns | frames/s | ms/frame | pose | render+resample | post | write | triangles/frame | peak MiB | agreement | median err mm | p99 err mm | ray-cast frames/s |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for p in points {
+        s += &format!(
+            "| {} | {} | {} | {:?} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.4} % | {:.4} | {:.3} | {:.1} |\n",
+            p.spec.projection,
+            p.spec.resolution,
+            p.spec.lod,
+            p.spec.refine,
+            p.spec.humans,
+            p.spec.columns,
+            p.frames_per_s,
+            p.ms_per_frame,
+            p.stage_ms.pose,
+            p.stage_ms.render_resample,
+            p.stage_ms.post,
+            p.stage_ms.write,
+            p.triangles_per_frame,
+            p.peak_rss_mb,
+            100.0 * p.human_beam_agreement,
+            p.median_range_error_m * 1e3,
+            p.p99_range_error_m * 1e3,
+            p.raycast.frames_per_s
+        );
+    }
+    s
+}
+
+/// Time against error: every trade-off point of the sweep's base workload (the people and
+/// columns of its first point), by refinement, with the Pareto front and the ray-cast path.
+pub fn plot(points: &[Point]) -> crate::plot::Plot {
+    use crate::plot::{Marker, Plot, Series};
+    let (humans, columns) = points.first().map_or((10, 1024), |p| (p.spec.humans, p.spec.columns));
+    let tradeoff: Vec<&Point> = points.iter().filter(|p| p.spec.humans == humans && p.spec.columns == columns).collect();
+    let err = |p: &Point| (1.0 - p.human_beam_agreement).max(1e-5);
+    let mut series = Vec::new();
+    for (refine, colour, marker) in [(Refine::Exact, [31, 119, 180], Marker::Circle), (Refine::None, [214, 39, 40], Marker::Square), (Refine::Plane, [44, 160, 44], Marker::Triangle)] {
+        let pts: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
+        if !pts.is_empty() {
+            series.push(Series { name: format!("refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
+        }
+    }
+    let all: Vec<(f64, f64)> = tradeoff.iter().map(|p| (p.ms_per_frame, err(p))).collect();
+    let front = crate::plot::pareto_front(&all);
+    series.push(Series { name: "Pareto".into(), points: front.iter().map(|&i| all[i]).collect(), colour: [90, 90, 90], line: true, marker: Marker::Cross });
+    // The reference has no error by definition: drawn at the bottom of the error range. Its
+    // time is BVH build + cast of the people only (no background, post or writing).
+    let floor = all.iter().map(|p| p.1).fold(f64::INFINITY, f64::min).min(1e-3) / 2.0;
+    let mut rc: Vec<f64> = tradeoff.iter().map(|p| 1e3 / p.raycast.frames_per_s.max(1e-9)).collect();
+    let rc_ms = median(&mut rc);
+    if rc_ms > 0.0 {
+        series.push(Series {
+            name: "ray cast (error 0)".into(),
+            points: vec![(rc_ms, floor)],
+            colour: [148, 103, 189],
+            line: false,
+            marker: Marker::Triangle,
+        });
+    }
+    Plot {
+        title: format!("pedscan: time per frame vs human-beam disagreement ({humans} people, {columns} columns)"),
+        x_label: "ms per frame (end to end, median)".into(),
+        y_label: "1 - human beam agreement vs full-detail reference".into(),
+        log_x: true,
+        log_y: true,
+        series,
+        width: 1000,
+        height: 650,
+    }
+}

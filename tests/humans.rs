@@ -1,0 +1,232 @@
+//! The bundled humans as the runtime sees them: heights, recorded LOD error bounds, walking,
+//! and what a model without skin or animation gets.
+
+use glam::{Mat4, Vec3};
+use pedscan::human::HumanModel;
+use std::path::{Path, PathBuf};
+
+fn bundled() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "glb"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Parses `h1700_w60` into (1.700 m, 60 kg).
+fn label(name: &str) -> (f32, f32) {
+    let (h, w) = name.trim_start_matches('h').split_once("_w").unwrap();
+    (h.parse::<f32>().unwrap() / 1000.0, w.parse::<f32>().unwrap())
+}
+
+#[test]
+fn all_fifteen_paper_variants_are_bundled_with_their_labels() {
+    let files = bundled();
+    assert_eq!(files.len(), 15, "{files:?}");
+    for f in &files {
+        let m = HumanModel::load(f, true).unwrap();
+        let (h, w) = label(&m.name);
+        assert_eq!(m.labelled_height_m, Some(h), "{}", m.name);
+        assert_eq!(m.weight_kg, Some(w), "{}", m.name);
+        // Measured standing height of the rest mesh within 1% of the label.
+        let err = (m.height_m - h).abs() / h;
+        assert!(err < 0.01, "{}: rest height {} m vs {} m ({:.3} %)", m.name, m.height_m, h, 100.0 * err);
+        assert!(m.lods.len() >= 2, "{} has levels of detail", m.name);
+        assert!(m.cycle_s > 0.5 && m.cycle_s < 2.0, "{} cycle {}", m.name, m.cycle_s);
+        let stride = m.stride_length_m.unwrap();
+        assert!(stride > 0.6 * h && stride < 1.0 * h, "{} stride {stride}", m.name);
+    }
+}
+
+/// Posed LOD `lod` vertices of `m` at `phase` (None: rest pose without animation).
+fn posed(m: &HumanModel, lod: usize, phase: Option<f32>) -> (Vec<Vec3>, Vec<u32>) {
+    let mut joints = Vec::new();
+    let mut out = Vec::new();
+    match phase {
+        Some(p) => m.joint_matrices(p, &mut joints),
+        None => joints.clear(),
+    }
+    m.skin_into(lod, &joints, &Mat4::IDENTITY, &mut out);
+    (out.into_iter().map(Vec3::from).collect(), m.lods[lod].indices.clone())
+}
+
+fn point_triangle_distance(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> f32 {
+    // Ericson, Real-Time Collision Detection, 5.1.5 (closest point on triangle).
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return p.distance(a);
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return p.distance(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return p.distance(a + v * ab);
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return p.distance(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return p.distance(a + w * ac);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return p.distance(b + w * (c - b));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    p.distance(a + ab * v + ac * w)
+}
+
+/// One-sided distance from every point of `from` to the surface (`verts`, `idx`), via a uniform
+/// grid of triangles; returns the largest distance found, capped at `cap` (a point farther than
+/// `cap` from every triangle reports `f32::INFINITY`).
+fn one_sided(from: &[Vec3], verts: &[Vec3], idx: &[u32], cap: f32) -> f32 {
+    let cell = cap.max(0.01);
+    let key = |p: Vec3| ((p.x / cell).floor() as i32, (p.y / cell).floor() as i32, (p.z / cell).floor() as i32);
+    let mut grid: std::collections::HashMap<(i32, i32, i32), Vec<usize>> = std::collections::HashMap::new();
+    for (t, tri) in idx.chunks_exact(3).enumerate() {
+        let [a, b, c] = [0, 1, 2].map(|k| verts[tri[k] as usize]);
+        let lo = key(a.min(b).min(c));
+        let hi = key(a.max(b).max(c));
+        for x in lo.0..=hi.0 {
+            for y in lo.1..=hi.1 {
+                for z in lo.2..=hi.2 {
+                    grid.entry((x, y, z)).or_default().push(t);
+                }
+            }
+        }
+    }
+    let mut worst = 0.0f32;
+    for p in from {
+        let k = key(*p);
+        let mut best = f32::INFINITY;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(ts) = grid.get(&(k.0 + dx, k.1 + dy, k.2 + dz)) {
+                        for &t in ts {
+                            let tri = &idx[3 * t..3 * t + 3];
+                            let d = point_triangle_distance(*p, verts[tri[0] as usize], verts[tri[1] as usize], verts[tri[2] as usize]);
+                            best = best.min(d);
+                        }
+                    }
+                }
+            }
+        }
+        worst = worst.max(if best <= cap { best } else { f32::INFINITY });
+    }
+    worst
+}
+
+/// Two-sided (Hausdorff-style, vertex-sampled) distance between each LOD and LOD 0, at rest and
+/// at four gait phases, stays within the error the model records for that LOD (+0.1 mm for the
+/// f32 skinning of a different vertex subset).
+#[test]
+fn recorded_lod_errors_bound_the_distance_to_the_full_mesh() {
+    for f in bundled().iter().step_by(4) {
+        let m = HumanModel::load(f, true).unwrap();
+        for phase in [None, Some(0.0), Some(0.25), Some(0.5), Some(0.75)] {
+            let (v0, i0) = posed(&m, 0, phase);
+            for lod in 1..m.lods.len() {
+                let bound = m.lods[lod].error_m + 1e-4;
+                let (vk, ik) = posed(&m, lod, phase);
+                let a = one_sided(&v0, &vk, &ik, bound);
+                let b = one_sided(&vk, &v0, &i0, bound);
+                assert!(
+                    a <= bound && b <= bound,
+                    "{} LOD {lod} at {phase:?}: distances {a} / {b} m exceed the recorded {} m",
+                    m.name,
+                    m.lods[lod].error_m
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_walk_moves_the_legs_and_keeps_the_height() {
+    let f = bundled().into_iter().find(|p| p.ends_with("h1700_w60.glb")).unwrap();
+    let m = HumanModel::load(&f, true).unwrap();
+    let (a, _) = posed(&m, 0, Some(0.0));
+    let (b, _) = posed(&m, 0, Some(0.5));
+    // Half a cycle apart the legs have swapped: many vertices move by decimetres.
+    let moved = a.iter().zip(&b).filter(|(p, q)| p.distance(**q) > 0.1).count();
+    assert!(moved > 1000, "only {moved} vertices moved > 10 cm between phase 0 and 0.5");
+    for (name, v) in [("0.0", &a), ("0.5", &b)] {
+        let lo = v.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        let hi = v.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+        assert!(lo.abs() < 0.03, "feet near the floor at phase {name}: {lo}");
+        assert!((hi - lo - 1.7).abs() < 0.1, "walking height at phase {name}: {}", hi - lo);
+    }
+}
+
+/// A minimal glTF: one 1.7 m tall box, no skin, no animation.
+fn write_rigid_box(path: &Path) {
+    let (x, y, z) = (0.2f32, 1.7f32, 0.15f32);
+    let pos: Vec<[f32; 3]> = vec![[-x, 0.0, -z], [x, 0.0, -z], [x, y, -z], [-x, y, -z], [-x, 0.0, z], [x, 0.0, z], [x, y, z], [-x, y, z]];
+    let idx: Vec<u16> = vec![0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    let pos_len = bin.len();
+    bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":8,"type":"VEC3","min":[-0.2,0,-0.15],"max":[0.2,1.7,0.15]}},
+                     {{"bufferView":1,"componentType":5123,"count":36,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{pos_len}}},{{"buffer":0,"byteOffset":{pos_len},"byteLength":72}}],
+        "buffers":[{{"byteLength":{}}}]}}"#,
+        bin.len()
+    );
+    let mut js = json.into_bytes();
+    while js.len() % 4 != 0 {
+        js.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((12 + 8 + js.len() + 8 + bin.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(js.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&js);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    std::fs::write(path, out).unwrap();
+}
+
+#[test]
+fn a_model_without_skin_or_animation_is_refused_only_when_the_motion_needs_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("rigid.glb");
+    write_rigid_box(&p);
+    let e = HumanModel::load(&p, true).unwrap_err();
+    assert!(e.is_input(), "{e}");
+    assert!(e.to_string().contains("rigid.glb") && e.to_string().contains("skin"), "{e}");
+    let m = HumanModel::load(&p, false).unwrap();
+    assert!((m.height_m - 1.7).abs() < 1e-6);
+    let (v, _) = posed(&m, 0, Some(0.3));
+    assert_eq!(v.len(), 8, "the rigid mesh is used as is");
+}
+
