@@ -41,6 +41,8 @@ pub struct ErrorStats {
     pub p99: f64,
     pub max: f64,
     pub rms: f64,
+    /// Fraction of the beams whose error exceeds 1 mm (a nearer part missed, a wrong surface).
+    pub over_1mm: f64,
 }
 
 impl ErrorStats {
@@ -51,7 +53,8 @@ impl ErrorStats {
         errors.sort_by(|a, b| a.total_cmp(b));
         let q = |p: f64| errors[((p * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)];
         let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
-        ErrorStats { count: errors.len(), median: q(0.5), p99: q(0.99), max: *errors.last().unwrap(), rms }
+        let over = errors.iter().filter(|e| **e > 1e-3).count() as f64 / errors.len() as f64;
+        ErrorStats { count: errors.len(), median: q(0.5), p99: q(0.99), max: *errors.last().unwrap(), rms, over_1mm: over }
     }
 }
 
@@ -121,6 +124,38 @@ pub struct Report {
     pub background_range_error_m: ErrorStats,
     pub background_beam_agreement: f64,
     pub timing_ms: Timing,
+    /// One row per frame.
+    pub per_frame: Vec<FrameRow>,
+}
+
+/// Per-frame agreement and median range error, unrefined and exact.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameRow {
+    pub sequence: usize,
+    pub frame: usize,
+    /// Beams either path calls human (exact mode).
+    pub human_beams: usize,
+    pub agreement_none: f64,
+    pub agreement_exact: f64,
+    pub median_error_none_m: f64,
+    pub median_error_exact_m: f64,
+}
+
+/// Agreement and median error of one frame's raster hits against the reference.
+fn frame_stats(raster: &BeamHits, reference: &[Hit]) -> (usize, f64, f64) {
+    let (mut both, mut union) = (0usize, 0usize);
+    let mut errors = Vec::new();
+    for (b, r) in reference.iter().enumerate() {
+        let rh = raster.triangle[b] != NO_TRIANGLE && raster.range_m[b] > 0.0;
+        if rh || r.is_hit() {
+            union += 1;
+        }
+        if rh && r.is_hit() {
+            both += 1;
+            errors.push((raster.range_m[b] as f64 - r.range_m).abs());
+        }
+    }
+    (union, if union == 0 { 1.0 } else { both as f64 / union as f64 }, median(&mut errors))
 }
 
 /// Median milliseconds per frame of each path.
@@ -244,6 +279,7 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
     let mut strip: Option<(usize, Vec<f32>, Vec<u32>, Vec<f32>, Vec<u32>, Vec<u32>)> = None;
     let mut best_strip_beams = 0usize;
     let mut frames = 0usize;
+    let mut per_frame = Vec::new();
     let first = gen.cfg.first_sequence;
     for index in first..first + gen.cfg.sequences {
         let plan = gen.plan(index)?;
@@ -280,6 +316,9 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
             for (m, acc) in modes.iter_mut().enumerate() {
                 acc.add(&hits[m], &reference, humans, &seam);
             }
+            let (_, agreement_none, median_error_none_m) = frame_stats(&hits[0], &reference);
+            let (human_beams, agreement_exact, median_error_exact_m) = frame_stats(&hits[2], &reference);
+            per_frame.push(FrameRow { sequence: index, frame: k, human_beams, agreement_none, agreement_exact, median_error_none_m, median_error_exact_m });
             let human_beams = reference.iter().filter(|h| h.is_hit()).count();
             if human_beams > best_strip_beams {
                 best_strip_beams = human_beams;
@@ -332,6 +371,7 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
             raycast_build: median(&mut t_build),
             raycast_cast: median(&mut t_cast),
         },
+        per_frame,
     };
     if let Some(p) = &opts.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| Error::Internal(e.to_string()))?;
@@ -395,12 +435,12 @@ fn strip_png(rows: usize, cols: usize, rr: &[f32], ri: &[u32], fr: &[f32], fi: &
 impl std::fmt::Display for Report {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(f, "crosscheck: {} frames, {} on {}, oversample {}, LOD bound {} mrad", self.frames, self.sensor, self.device, self.oversample, self.lod_max_error_mrad)?;
-        writeln!(f, "{:<10} {:>10} {:>9} {:>12} {:>12} {:>12} {:>12} {:>8}", "mode", "agreement", "mask IoU", "median mm", "p99 mm", "max mm", "rms mm", "mixups")?;
+        writeln!(f, "{:<10} {:>10} {:>9} {:>12} {:>12} {:>12} {:>12} {:>9} {:>8}", "mode", "agreement", "mask IoU", "median mm", "p99 mm", "max mm", "rms mm", "> 1 mm", "mixups")?;
         for (name, m) in [("none", &self.unrefined), ("plane", &self.plane), ("exact", &self.refined)] {
             let e = &m.range_error_m;
             writeln!(
                 f,
-                "{:<10} {:>9.4}% {:>9.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>8}",
+                "{:<10} {:>9.4}% {:>9.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>8.3}% {:>8}",
                 name,
                 100.0 * m.human_beam_agreement,
                 m.mask_iou,
@@ -408,6 +448,7 @@ impl std::fmt::Display for Report {
                 e.p99 * 1e3,
                 e.max * 1e3,
                 e.rms * 1e3,
+                100.0 * e.over_1mm,
                 m.overall.instance_mixups
             )?;
         }
@@ -461,6 +502,8 @@ mod tests {
         assert_eq!(s.median, 51.0);
         assert_eq!(s.p99, 99.0);
         assert!((s.rms - (338350.0f64 / 100.0).sqrt()).abs() < 1e-9);
+        assert_eq!(s.over_1mm, 1.0);
+        assert_eq!(ErrorStats::from(&mut [0.0, 0.002]).over_1mm, 0.5);
         assert_eq!(ErrorStats::from(&mut []), ErrorStats::default());
     }
 }

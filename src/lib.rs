@@ -24,6 +24,7 @@ pub mod resample;
 pub mod run;
 pub mod scene;
 pub mod sensor;
+pub mod sheet;
 pub mod sequence;
 
 pub use error::{Error, Result};

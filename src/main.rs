@@ -51,6 +51,20 @@ enum Command {
         #[arg(long, hide = true)]
         point: Option<String>,
     },
+    /// Contact sheet of human models at several gait phases, rendered by pedscan itself.
+    Sheet {
+        /// Output PNG.
+        #[arg(long, default_value = "humans.png")]
+        out: PathBuf,
+        /// Human models: folders of .glb files or files (default: the bundled humans).
+        #[arg(long)]
+        models: Vec<PathBuf>,
+        /// Gait phases, comma separated.
+        #[arg(long, value_delimiter = ',', default_value = "0,0.25,0.5,0.75")]
+        phases: Vec<f32>,
+        #[arg(long)]
+        validation: bool,
+    },
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -269,6 +283,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
             pedscan::bench::plot(&points).save(&plot)?;
             print!("{table}");
+        }
+        Command::Sheet { out, models, phases, validation } => {
+            let models = if models.is_empty() { Config::default().humans.models } else { models };
+            pedscan::sheet::write_contact_sheet(&models, &phases, &out, validation || pedscan::gpu::validation_from_env())?;
+            eprintln!("wrote {}", out.display());
         }
         Command::Info { file } => {
             print!("{}", pedscan::output::info(&file)?);

@@ -196,8 +196,8 @@ fn test_triangle(dir: DVec3, geom: &FrameGeometry, t: u32, best: &mut Option<(f6
 }
 
 /// Searches outwards from `seeds` (already tested) ring by ring, up to `MAX_RINGS`, and
-/// returns the nearest hit of the first ring that has one.
-fn ring_search(dir: DVec3, geom: &FrameGeometry, seeds: impl Iterator<Item = u32>, b: &mut RingBuffers) -> Option<(f64, u32)> {
+/// returns the nearest hit nearer than `before` found by the first ring that has one.
+fn ring_search(dir: DVec3, geom: &FrameGeometry, seeds: impl Iterator<Item = u32>, before: f64, b: &mut RingBuffers) -> Option<(f64, u32)> {
     b.seen.clear();
     b.seen.extend(seeds);
     b.seen.sort_unstable();
@@ -219,9 +219,10 @@ fn ring_search(dir: DVec3, geom: &FrameGeometry, seeds: impl Iterator<Item = u32
         for &t in b.ring.iter() {
             test_triangle(dir, geom, t, &mut best);
         }
-        if best.is_some() {
+        if best.is_some_and(|(r, _)| r < before) {
             break;
         }
+        best = None;
         b.seen.extend_from_slice(&b.ring);
         b.seen.sort_unstable();
         std::mem::swap(&mut b.frontier, &mut b.ring);
@@ -235,28 +236,25 @@ fn ring_search(dir: DVec3, geom: &FrameGeometry, seeds: impl Iterator<Item = u32
 /// 1. The nearest exact hit among the candidates.
 /// 2. None: triangles smaller than a texel can hold the beam without covering a texel centre,
 ///    so search the rings around the candidates.
-/// 3. A hit, but some candidate surface was rendered clearly nearer: the beam may pass through
-///    a small triangle of that nearer surface (a silhouette over a person behind), so search
-///    the rings around the nearer candidates and keep the nearer hit.
+/// 3. A hit (from 1 or 2), but some candidate surface was rendered clearly nearer: the beam may
+///    pass through a small triangle of that nearer surface (an arm over the torso, a silhouette
+///    over a person behind), so search the rings around the nearer candidates for a nearer hit.
 fn refine_exact(dir: DVec3, geom: &FrameGeometry, cand: &[(u32, f32)], b: &mut RingBuffers) -> Option<(f64, u32)> {
     let mut best = None;
     for &(t, _) in cand {
         test_triangle(dir, geom, t, &mut best);
     }
-    match best {
-        None => ring_search(dir, geom, cand.iter().map(|c| c.0), b),
-        Some((r, _)) => {
-            let nearer = |c: &&(u32, f32)| (c.1 as f64) < r * (1.0 - OCCLUDER_MARGIN);
-            if cand.iter().any(|c| nearer(&c)) {
-                if let Some(alt) = ring_search(dir, geom, cand.iter().filter(nearer).map(|c| c.0), b) {
-                    if alt.0 < r {
-                        return Some(alt);
-                    }
-                }
-            }
-            best
+    if best.is_none() {
+        best = ring_search(dir, geom, cand.iter().map(|c| c.0), f64::INFINITY, b);
+    }
+    let (r, _) = best?;
+    let nearer = |c: &&(u32, f32)| (c.1 as f64) < r * (1.0 - OCCLUDER_MARGIN);
+    if cand.iter().any(|c| nearer(&c)) {
+        if let Some(alt) = ring_search(dir, geom, cand.iter().filter(nearer).map(|c| c.0), r, b) {
+            return Some(alt);
         }
     }
+    best
 }
 
 /// A rendered candidate counts as a nearer surface when its texel range is this fraction

@@ -93,7 +93,17 @@ fn grid_image(
         .expect("buffer size matches the image size")
 }
 
-/// Range image: Turbo over `0..max_range_m` (blue near, red far), black = no return.
+/// Where range `r` falls on the display scale in [0, 1]: logarithmic, `ln(1 + r) / ln(1 + max)`,
+/// so near people (2 m), the room (10 m) and far walls (40 m) all stay distinguishable.
+pub fn range_display(r: f32, max_range_m: f32) -> f32 {
+    if max_range_m <= 0.0 {
+        return 0.0;
+    }
+    ((1.0 + r.max(0.0)).ln() / (1.0 + max_range_m).ln()).clamp(0.0, 1.0)
+}
+
+/// Range image: Turbo over `0..max_range_m` on a log scale ([`range_display`]; blue near, red
+/// far), black = no return.
 ///
 /// Panics if `range.len() != rows * columns`.
 pub fn range_png(
@@ -104,18 +114,17 @@ pub fn range_png(
     row_scale: u32,
 ) -> RgbImage {
     check(range.len(), rows, columns, "range");
-    let inv = if max_range_m > 0.0 { 1.0 / max_range_m } else { 0.0 };
     grid_image(rows, columns, row_scale, |i| {
         let r = range[i];
         if r > 0.0 {
-            turbo(r * inv)
+            turbo(range_display(r, max_range_m))
         } else {
             [0, 0, 0]
         }
     })
 }
 
-/// Label image: returns in grey (bright = near, dark = far), each human instance in its own
+/// Label image: returns in grey (bright = near, dark = far, log scale), each human instance in its own
 /// saturated colour ([`instance_colour`]), black = no return.
 ///
 /// Panics if a grid's length is not `rows * columns`.
@@ -129,14 +138,13 @@ pub fn label_png(
 ) -> RgbImage {
     check(range.len(), rows, columns, "range");
     check(instance.len(), rows, columns, "instance");
-    let inv = if max_range_m > 0.0 { 1.0 / max_range_m } else { 0.0 };
     grid_image(rows, columns, row_scale, |i| {
         let r = range[i];
         let k = instance[i];
         if k > 0 {
             instance_colour(k)
         } else if r > 0.0 {
-            let g = to_u8((1.0 - 0.8 * (r * inv).clamp(0.0, 1.0)) as f64 * 0.9);
+            let g = to_u8((1.0 - 0.8 * range_display(r, max_range_m)) as f64 * 0.9);
             [g, g, g]
         } else {
             [0, 0, 0]

@@ -1,0 +1,98 @@
+//! `pedscan sheet`: a contact sheet of human models at several gait phases, rendered by
+//! pedscan's own raster path (Vulkan, exact refinement) with a dense virtual LiDAR, so a person
+//! can see every bundled (or user) model walk. Each cell is the range image of one person
+//! walking across the view (heading +y, 3.2 m in front of a sensor at hip height), in turbo
+//! colours by range.
+
+use crate::config::Refine;
+use crate::error::{Error, Result};
+use crate::geometry::FrameGeometry;
+use crate::gpu::{Context, ContextOptions};
+use crate::human::{HumanModel, MODEL_TO_BODY};
+use crate::output::png::turbo;
+use crate::plot::font::{draw_text, text_width};
+use crate::projection::CubeFaces;
+use crate::raster::Renderer;
+use crate::resample::{resample, BeamHits, BeamLookup, NO_TRIANGLE};
+use crate::sensor::Sensor;
+use glam::{DMat4, DVec3, Mat4};
+use image::RgbImage;
+use std::path::Path;
+use std::sync::Arc;
+
+const DISTANCE_M: f64 = 3.2;
+const SENSOR_HEIGHT_M: f64 = 0.95;
+/// Columns of the virtual sensor around azimuth 0 kept per cell.
+const CELL_COLS: usize = 150;
+
+/// Renders the sheet: one column per model, one row per phase; returns the image.
+pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) -> Result<RgbImage> {
+    if models.is_empty() || phases.is_empty() {
+        return Err(Error::input("sheet", "no models or no phases"));
+    }
+    // A dense virtual LiDAR: 0.15 deg per row and column, +-18 deg.
+    let rows = 241;
+    let sensor = Sensor {
+        name: "sheet".into(),
+        elevation_deg: (0..rows).map(|i| 18.0 - 0.15 * i as f64).collect(),
+        columns: 2400,
+        rate_hz: 10.0,
+        min_range_m: 0.1,
+        max_range_m: 20.0,
+    };
+    let cube = CubeFaces::new(&sensor, 1.0);
+    let lookup = BeamLookup::new(&sensor, &cube);
+    let ctx = Arc::new(Context::new(&ContextOptions { validation, ..Default::default() })?);
+    let mut renderer = Renderer::new(&ctx, &cube)?;
+    let scale = 1u32;
+    let label_h = 14u32;
+    let (cw, ch) = (CELL_COLS as u32, rows as u32);
+    let mut img = RgbImage::from_pixel(cw * models.len() as u32, label_h + ch * phases.len() as u32, image::Rgb([255, 255, 255]));
+    let mut geom = FrameGeometry::default();
+    let mut hits = BeamHits::default();
+    let (mut joints, mut skinned) = (Vec::new(), Vec::new());
+    let c0 = sensor.columns / 2 - CELL_COLS / 2;
+    for (mi, m) in models.iter().enumerate() {
+        let name = &m.name;
+        let tw = text_width(name, scale);
+        draw_text(&mut img, (mi as u32 * cw + cw.saturating_sub(tw) / 2) as i64, 3, name, scale, [0, 0, 0]);
+        for (pi, &phase) in phases.iter().enumerate() {
+            // Person at (DISTANCE, 0) on the floor walking towards +y; sensor at the origin.
+            let world_from_body = DMat4::from_translation(DVec3::new(DISTANCE_M, 0.0, -SENSOR_HEIGHT_M))
+                * DMat4::from_rotation_z(std::f64::consts::FRAC_PI_2);
+            m.joint_matrices(phase, &mut joints);
+            let t: Mat4 = (world_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4();
+            m.skin_into(0, &joints, &t, &mut skinned);
+            geom.clear();
+            geom.push_mesh_with_adjacency(&skinned, &m.lods[0].indices, 1, false, Some(m.lods[0].adjacency.clone()));
+            let frame = renderer.render(&geom)?;
+            resample(&lookup, frame, &geom, Refine::Exact, &mut hits);
+            for r in 0..rows {
+                for c in 0..CELL_COLS {
+                    let b = r * sensor.columns + c0 + c;
+                    let px = if hits.triangle[b] != NO_TRIANGLE {
+                        let range = hits.range_m[b] as f64;
+                        turbo((1.0 - ((range - (DISTANCE_M - 0.6)) / 1.2).clamp(0.0, 1.0)) as f32)
+                    } else {
+                        [235, 235, 235]
+                    };
+                    img.put_pixel(mi as u32 * cw + c as u32, label_h + pi as u32 * ch + r as u32, image::Rgb(px));
+                }
+            }
+        }
+    }
+    drop(renderer);
+    let errors = ctx.validation_errors();
+    if validation && errors > 0 {
+        return Err(Error::Gpu(format!("{errors} Vulkan validation errors")));
+    }
+    Ok(img)
+}
+
+/// Loads `models` and writes the sheet to `out` (temporary name, then rename).
+pub fn write_contact_sheet(model_paths: &[std::path::PathBuf], phases: &[f32], out: &Path, validation: bool) -> Result<()> {
+    let files = crate::pipeline::model_files(model_paths)?;
+    let models = files.iter().map(|f| HumanModel::load(f, true)).collect::<Result<Vec<_>>>()?;
+    let img = contact_sheet(&models, phases, validation)?;
+    crate::output::png::save_png(&img, out)
+}
