@@ -31,6 +31,16 @@ pub struct PointSpec {
     pub frames: usize,
 }
 
+impl std::fmt::Display for PointSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} res {} lod {} mrad refine {:?}, {} people, {} columns",
+            self.projection, self.resolution, self.lod, self.refine, self.humans, self.columns
+        )
+    }
+}
+
 /// A measured point (`bench --json` writes a list of these).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Point {

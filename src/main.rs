@@ -265,13 +265,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let n = specs.len();
             let points = pedscan::bench::run_sweep(&exe, config.as_deref(), &specs, |i, p| {
                 eprintln!(
-                    "[{}/{n}] res {} lod {} {:?} people {} cols {}: {:.1} frames/s, agreement {:.4} %, median error {:.4} mm, peak {:.0} MiB",
+                    "[{}/{n}] {}: {:.1} frames/s, agreement {:.4} %, median error {:.4} mm, peak {:.0} MiB",
                     i + 1,
-                    p.spec.resolution,
-                    p.spec.lod,
-                    p.spec.refine,
-                    p.spec.humans,
-                    p.spec.columns,
+                    p.spec,
                     p.frames_per_s,
                     100.0 * p.human_beam_agreement,
                     p.median_range_error_m * 1e3,

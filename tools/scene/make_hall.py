@@ -56,26 +56,25 @@ class Mesh:
 
 def build():
     objects = {}
-    floor = Mesh()
-    # Floor and ceiling as grids of 3 m tiles so no triangle is huge.
-    nx, ny = 12, 8
-    for i in range(nx):
-        for j in range(ny):
-            x0 = -HALL_X + 2 * HALL_X * i / nx
-            x1 = -HALL_X + 2 * HALL_X * (i + 1) / nx
-            y0 = -HALL_Y + 2 * HALL_Y * j / ny
-            y1 = -HALL_Y + 2 * HALL_Y * (j + 1) / ny
-            floor.add([(x0, y0, 0), (x1, y0, 0), (x1, y1, 0), (x0, y1, 0)], [(0, 1, 2, 3)])
-    objects["floor"] = floor
-    ceiling = Mesh()
-    for i in range(nx):
-        for j in range(ny):
-            x0 = -HALL_X + 2 * HALL_X * i / nx
-            x1 = -HALL_X + 2 * HALL_X * (i + 1) / nx
-            y0 = -HALL_Y + 2 * HALL_Y * j / ny
-            y1 = -HALL_Y + 2 * HALL_Y * (j + 1) / ny
-            ceiling.add([(x0, y0, HALL_H), (x0, y1, HALL_H), (x1, y1, HALL_H), (x1, y0, HALL_H)], [(0, 1, 2, 3)])
-    objects["ceiling"] = ceiling
+    def tiles(z, facing_up):
+        """The floor (facing up) or ceiling (facing down) as a 12 x 8 grid of 3 m tiles, so no
+        triangle is huge."""
+        m = Mesh()
+        nx, ny = 12, 8
+        for i in range(nx):
+            for j in range(ny):
+                x0 = -HALL_X + 2 * HALL_X * i / nx
+                x1 = -HALL_X + 2 * HALL_X * (i + 1) / nx
+                y0 = -HALL_Y + 2 * HALL_Y * j / ny
+                y1 = -HALL_Y + 2 * HALL_Y * (j + 1) / ny
+                if facing_up:
+                    m.add([(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)], [(0, 1, 2, 3)])
+                else:
+                    m.add([(x0, y0, z), (x0, y1, z), (x1, y1, z), (x1, y0, z)], [(0, 1, 2, 3)])
+        return m
+
+    objects["floor"] = tiles(0, True)
+    objects["ceiling"] = tiles(HALL_H, False)
     walls = Mesh()
     t = 0.3
     walls.add(*box(0, HALL_Y + t / 2, 0, 2 * HALL_X + 2 * t, t, HALL_H))
