@@ -35,6 +35,8 @@ pub struct BeamLookup {
     pub texel: Vec<(u32, u32)>,
     /// Width and height of each face.
     pub face_size: Vec<(u32, u32)>,
+    /// The faces themselves (texel directions for the exact refinement).
+    pub faces: Vec<crate::projection::Face>,
 }
 
 impl BeamLookup {
@@ -55,6 +57,7 @@ impl BeamLookup {
             face,
             texel,
             face_size: cube.faces.iter().map(|f| (f.width, f.height)).collect(),
+            faces: cube.faces.clone(),
         }
     }
 
@@ -134,7 +137,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         (r, t)
                     }
                     Refine::Exact => {
-                        let mut cand = [(0u32, 0f32); 9];
+                        let mut cand = [Cand::default(); 9];
                         let mut nc = 0;
                         let mut any_empty = false;
                         for dv in -1i64..=1 {
@@ -145,10 +148,12 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                                 let r = img.range_m[at(uu, vv)];
                                 if id == 0 {
                                     any_empty = true;
-                                } else if let Some(c) = cand[..nc].iter_mut().find(|c| c.0 == id - 1) {
-                                    c.1 = c.1.min(r);
+                                } else if let Some(c) = cand[..nc].iter_mut().find(|c| c.triangle == id - 1) {
+                                    if r < c.range_m {
+                                        (c.range_m, c.u, c.v) = (r, uu, vv);
+                                    }
                                 } else {
-                                    cand[nc] = (id - 1, r);
+                                    cand[nc] = Cand { triangle: id - 1, range_m: r, u: uu, v: vv };
                                     nc += 1;
                                 }
                             }
@@ -156,8 +161,8 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         if nc == 0 {
                             continue;
                         }
-                        cand[..nc].sort_unstable_by_key(|c| c.0);
-                        match refine_exact(dir, geom, &cand[..nc], &mut bufs) {
+                        cand[..nc].sort_unstable_by_key(|c| c.triangle);
+                        match refine_exact(dir, geom, &lookup.faces[f], &cand[..nc], &mut bufs) {
                             Some(hit) => hit,
                             // The beam misses every nearby triangle. Next to an empty texel this
                             // is a silhouette: no hit. Inside a covered patch (no adjacency to
@@ -230,27 +235,44 @@ fn ring_search(dir: DVec3, geom: &FrameGeometry, seeds: impl Iterator<Item = u32
     best
 }
 
-/// Exact refinement of one beam from the triangles rendered in its 3x3 texels (`cand`:
-/// triangle and the nearest range it was rendered at, sorted by triangle).
+/// A triangle rendered in a beam's 3x3 texels, with the nearest texel it was rendered at.
+#[derive(Clone, Copy, Debug, Default)]
+struct Cand {
+    triangle: u32,
+    range_m: f32,
+    u: u32,
+    v: u32,
+}
+
+/// Exact refinement of one beam from the triangles rendered in its 3x3 texels (`cand`, sorted
+/// by triangle).
 ///
 /// 1. The nearest exact hit among the candidates.
 /// 2. None: triangles smaller than a texel can hold the beam without covering a texel centre,
 ///    so search the rings around the candidates.
-/// 3. A hit (from 1 or 2), but some candidate surface was rendered clearly nearer: the beam may
-///    pass through a small triangle of that nearer surface (an arm over the torso, a silhouette
-///    over a person behind), so search the rings around the nearer candidates for a nearer hit.
-fn refine_exact(dir: DVec3, geom: &FrameGeometry, cand: &[(u32, f32)], b: &mut RingBuffers) -> Option<(f64, u32)> {
+/// 3. A hit (from 1 or 2), but some candidate was rendered clearly in front of the hit
+///    triangle's plane (along that candidate's own texel direction): the beam may pass through
+///    a small triangle of that nearer surface (an arm over the torso, a silhouette over a
+///    person behind), so search the rings around those candidates for a nearer hit. Comparing
+///    with the plane, not with the hit's range, keeps a floor seen at grazing incidence (whose
+///    neighbouring texels are nearer simply because the floor is slanted) out of this search.
+fn refine_exact(dir: DVec3, geom: &FrameGeometry, face: &crate::projection::Face, cand: &[Cand], b: &mut RingBuffers) -> Option<(f64, u32)> {
     let mut best = None;
-    for &(t, _) in cand {
-        test_triangle(dir, geom, t, &mut best);
+    for c in cand {
+        test_triangle(dir, geom, c.triangle, &mut best);
     }
     if best.is_none() {
-        best = ring_search(dir, geom, cand.iter().map(|c| c.0), f64::INFINITY, b);
+        best = ring_search(dir, geom, cand.iter().map(|c| c.triangle), f64::INFINITY, b);
     }
-    let (r, _) = best?;
-    let nearer = |c: &&(u32, f32)| (c.1 as f64) < r * (1.0 - OCCLUDER_MARGIN);
-    if cand.iter().any(|c| nearer(&c)) {
-        if let Some(alt) = ring_search(dir, geom, cand.iter().filter(nearer).map(|c| c.0), r, b) {
+    let (r, t) = best?;
+    let plane = geom.triangle_f64(t);
+    let in_front = |c: &&Cand| {
+        let d = face.texel_dir(c.u, c.v).normalize();
+        let expected = plane_hit(d, &plane).unwrap_or(r);
+        (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
+    };
+    if cand.iter().any(|c| in_front(&c)) {
+        if let Some(alt) = ring_search(dir, geom, cand.iter().filter(in_front).map(|c| c.triangle), r, b) {
             return Some(alt);
         }
     }
@@ -258,7 +280,7 @@ fn refine_exact(dir: DVec3, geom: &FrameGeometry, cand: &[(u32, f32)], b: &mut R
 }
 
 /// A rendered candidate counts as a nearer surface when its texel range is this fraction
-/// nearer than the best hit.
+/// nearer than the hit triangle's plane along the candidate's texel direction.
 const OCCLUDER_MARGIN: f64 = 0.005;
 
 #[cfg(test)]
