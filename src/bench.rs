@@ -20,6 +20,8 @@ use std::time::Instant;
 /// One configuration of the sweep.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PointSpec {
+    /// `cube` (Vulkan raster into cube faces) or `raycast` (the CPU ray caster as the
+    /// generation backend; resolution and refinement do not apply).
     pub projection: String,
     /// Face texels per beam spacing (`render.oversample`).
     pub resolution: f64,
@@ -109,6 +111,7 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
         for (res, lod, refine) in [(2.0, 1.0, Refine::Exact), (1.0, 10.0, Refine::Exact), (2.0, 1.0, Refine::None)] {
             v.push(p(res, lod, refine, 5, 1024));
         }
+        v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, 5, 1024) });
         return v;
     }
     for res in [1.0, 2.0, 3.0] {
@@ -118,11 +121,16 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
             }
         }
     }
+    for lod in [0.0, 3.0] {
+        v.push(PointSpec { projection: "raycast".into(), ..p(2.0, lod, Refine::Exact, 10, 1024) });
+    }
     for humans in [1, 30, 100] {
         v.push(p(2.0, 1.0, Refine::Exact, humans, 1024));
+        v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, humans, 1024) });
     }
     for columns in [2048, 4096] {
         v.push(p(2.0, 1.0, Refine::Exact, 10, columns));
+        v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, 10, columns) });
     }
     v
 }
@@ -130,6 +138,7 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
 /// Runs one point in this process (the child side of `bench`).
 pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     let mut cfg = base.clone();
+    cfg.render.backend = if spec.projection == "raycast" { crate::config::Backend::Raycast } else { crate::config::Backend::Raster };
     cfg.render.oversample = spec.resolution;
     cfg.render.lod_max_error_mrad = spec.lod;
     cfg.render.refine = spec.refine;
@@ -294,22 +303,27 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
     let err = |p: &Point| (1.0 - p.human_beam_agreement).max(1e-5);
     let mut series = Vec::new();
     for (refine, colour, marker) in [(Refine::Exact, [31, 119, 180], Marker::Circle), (Refine::None, [214, 39, 40], Marker::Square), (Refine::Plane, [44, 160, 44], Marker::Triangle)] {
-        let pts: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
+        let pts: Vec<(f64, f64)> =
+            tradeoff.iter().filter(|p| p.spec.projection == "cube" && p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
         if !pts.is_empty() {
             series.push(Series { name: format!("refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
         }
+    }
+    let rc_points: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.projection == "raycast").map(|p| (p.ms_per_frame, err(p))).collect();
+    if !rc_points.is_empty() {
+        series.push(Series { name: "ray-cast backend".into(), points: rc_points, colour: [255, 127, 14], line: false, marker: Marker::Cross });
     }
     let all: Vec<(f64, f64)> = tradeoff.iter().map(|p| (p.ms_per_frame, err(p))).collect();
     let front = crate::plot::pareto_front(&all);
     series.push(Series { name: "Pareto".into(), points: front.iter().map(|&i| all[i]).collect(), colour: [90, 90, 90], line: true, marker: Marker::Cross });
     // The reference has no error by definition: drawn at the bottom of the error range. Its
-    // time is BVH build + cast of the people only (no background, post or writing).
+    // time is BVH build + cast of the full-detail people only (no background, post or writing).
     let floor = all.iter().map(|p| p.1).fold(f64::INFINITY, f64::min).min(1e-3) / 2.0;
     let mut rc: Vec<f64> = tradeoff.iter().map(|p| 1e3 / p.raycast.frames_per_s.max(1e-9)).collect();
     let rc_ms = median(&mut rc);
     if rc_ms > 0.0 {
         series.push(Series {
-            name: "ray cast (error 0)".into(),
+            name: "reference cast".into(),
             points: vec![(rc_ms, floor)],
             colour: [148, 103, 189],
             line: false,

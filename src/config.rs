@@ -29,6 +29,17 @@ pub enum Refine {
     Exact,
 }
 
+/// How beams find the surfaces of a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Backend {
+    /// Vulkan rasterization into cube faces, resampled and refined (GPU or lavapipe).
+    Raster,
+    /// The CPU ray caster (BVH, watertight f64): exact by construction; on a 2-core machine
+    /// with lavapipe it is the faster of the two (see the README's benchmark).
+    Raycast,
+}
+
 /// Which velocity definition is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -106,6 +117,8 @@ pub struct SceneConfig {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct RenderConfig {
+    /// Raster (default) or CPU ray cast.
+    pub backend: Backend,
     /// Texels per beam spacing at a face centre.
     pub oversample: f64,
     pub refine: Refine,
@@ -175,7 +188,7 @@ impl Default for SceneConfig {
 
 impl Default for RenderConfig {
     fn default() -> Self {
-        RenderConfig { oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
+        RenderConfig { backend: Backend::Raster, oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
     }
 }
 

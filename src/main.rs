@@ -3,7 +3,7 @@
 
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
-use pedscan::config::{CompressionChoice, Config, Refine, VelocityModel};
+use pedscan::config::{Backend, CompressionChoice, Config, Refine, VelocityModel};
 use pedscan::human::MotionMode;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -118,6 +118,9 @@ struct GenerateArgs {
     /// How people move: full, sliding, in-place, static (the paper's Table 5 ablations).
     #[arg(long, value_enum)]
     motion: Option<MotionMode>,
+    /// How beams find surfaces: Vulkan raster (default) or the CPU ray caster.
+    #[arg(long, value_enum)]
+    backend: Option<Backend>,
     /// Per-beam refinement of the raster result.
     #[arg(long, value_enum)]
     refine: Option<Refine>,
@@ -192,6 +195,9 @@ fn build_config(a: &GenerateArgs) -> pedscan::Result<Config> {
     }
     if let Some(v) = a.motion {
         cfg.humans.motion = v;
+    }
+    if let Some(v) = a.backend {
+        cfg.render.backend = v;
     }
     if let Some(v) = a.refine {
         cfg.render.refine = v;

@@ -6,7 +6,7 @@
 //! sequence's content depends only on the seed, the configuration and its index: never on
 //! thread count, on which other sequences ran, or on the GPU.
 
-use crate::config::{CompressionChoice, Config};
+use crate::config::{Backend, CompressionChoice, Config};
 use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, FrameGeometry};
 use crate::gpu::{Context, ContextOptions, DeviceChoice};
@@ -245,19 +245,27 @@ impl Generator {
     /// Renders and resamples the posed frame into `scratch.bg_hits` / `scratch.human_hits`.
     pub fn render_posed(&mut self) -> Result<()> {
         let refine = self.cfg.render.refine;
+        let backend = self.cfg.render.backend;
         let n = self.lookup.dirs.len();
         let s = &mut self.scratch;
-        if s.background.meshes.is_empty() {
-            s.bg_hits.clear_to(n);
-        } else {
-            let frame = self.renderer.render(&s.background)?;
-            resample(&self.lookup, frame, &s.background, refine, &mut s.bg_hits);
-        }
-        if s.humans.meshes.is_empty() {
-            s.human_hits.clear_to(n);
-        } else {
-            let frame = self.renderer.render(&s.humans)?;
-            resample(&self.lookup, frame, &s.humans, refine, &mut s.human_hits);
+        for (geom, hits) in [(&s.background, &mut s.bg_hits), (&s.humans, &mut s.human_hits)] {
+            if geom.meshes.is_empty() {
+                hits.clear_to(n);
+                continue;
+            }
+            match backend {
+                Backend::Raster => {
+                    let frame = self.renderer.render(geom)?;
+                    resample(&self.lookup, frame, geom, refine, hits);
+                }
+                Backend::Raycast => {
+                    // Ranges are limited later, in the post-pass, as for the raster path.
+                    let cast = crate::raycast::cast_frame(geom, &self.lookup.dirs, f64::MAX);
+                    hits.clear_to(0);
+                    hits.range_m.extend(cast.iter().map(|h| h.range_m as f32));
+                    hits.triangle.extend(cast.iter().map(|h| h.triangle));
+                }
+            }
         }
         Ok(())
     }
