@@ -26,6 +26,9 @@ pub const MODEL_TO_BODY: Mat4 = Mat4::from_cols(
     Vec4::new(0.0, 0.0, 0.0, 1.0),
 );
 
+/// Deepest node hierarchy accepted in a human glTF (skeletons are a few dozen levels deep).
+pub const MAX_NODE_DEPTH: usize = 512;
+
 /// How people move (the paper's Table 5 ablations).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -194,6 +197,19 @@ impl HumanModel {
                 nodes[c.index()].parent = Some(n.index());
             }
         }
+        // The node tree must have no cycle and a sane depth (transforms are composed
+        // recursively; a hostile file could make either).
+        for i in 0..nodes.len() {
+            let mut k = i;
+            let mut steps = 0;
+            while let Some(p) = nodes[k].parent {
+                k = p;
+                steps += 1;
+                if steps > MAX_NODE_DEPTH {
+                    return Err(gltf_err(path, format!("node hierarchy is cyclic or deeper than {MAX_NODE_DEPTH} levels")));
+                }
+            }
+        }
 
         // Skin.
         let skin = doc.skins().next();
@@ -303,18 +319,6 @@ impl HumanModel {
             return Err(gltf_err(path, format!("rest mesh height {height_m} m is not that of a person (0.1..5 m); is it in metres with y up?")));
         }
 
-        // Re-check the node tree has no cycles (a hostile file could make one).
-        for i in 0..nodes.len() {
-            let mut k = i;
-            let mut steps = 0;
-            while let Some(p) = nodes[k].parent {
-                k = p;
-                steps += 1;
-                if steps > nodes.len() {
-                    return Err(gltf_err(path, "node hierarchy has a cycle"));
-                }
-            }
-        }
         if nodes.iter().any(|n| !n.translation.is_finite() || !n.rotation.is_finite() || !n.scale.is_finite()) {
             return Err(gltf_err(path, "a node transform is not finite"));
         }

@@ -181,14 +181,23 @@ fn the_walk_moves_the_legs_and_keeps_the_height() {
 
 /// A minimal glTF: one 1.7 m tall box, no skin, no animation.
 fn write_rigid_box(path: &Path) {
+    write_rigid_box_under_chain(path, 0);
+}
+
+/// The box (node 0) under a chain of `depth` empty parents (node k + 1 holds node k).
+fn write_rigid_box_under_chain(path: &Path, depth: usize) {
     let (x, y, z) = (0.2f32, 1.7f32, 0.15f32);
     let pos: Vec<[f32; 3]> = vec![[-x, 0.0, -z], [x, 0.0, -z], [x, y, -z], [-x, y, -z], [-x, 0.0, z], [x, 0.0, z], [x, y, z], [-x, y, z]];
     let idx: Vec<u16> = vec![0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4, 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7];
     let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
     let pos_len = bin.len();
     bin.extend(idx.iter().flat_map(|i| i.to_le_bytes()));
+    let nodes: Vec<String> = std::iter::once(r#"{"mesh":0}"#.to_string())
+        .chain((0..depth).map(|k| format!(r#"{{"children":[{k}]}}"#)))
+        .collect();
+    let nodes = nodes.join(",");
     let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[{depth}]}}],"nodes":[{nodes}],
         "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
         "accessors":[{{"bufferView":0,"componentType":5126,"count":8,"type":"VEC3","min":[-0.2,0,-0.15],"max":[0.2,1.7,0.15]}},
                      {{"bufferView":1,"componentType":5123,"count":36,"type":"SCALAR"}}],
@@ -230,3 +239,16 @@ fn a_model_without_skin_or_animation_is_refused_only_when_the_motion_needs_them(
     assert_eq!(v.len(), 8, "the rigid mesh is used as is");
 }
 
+
+#[test]
+fn a_hostile_node_hierarchy_is_an_input_error_not_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let ok = dir.path().join("shallow.glb");
+    write_rigid_box_under_chain(&ok, 20);
+    let m = HumanModel::load(&ok, false).unwrap();
+    assert!((m.height_m - 1.7).abs() < 1e-6, "parents without transforms keep the box");
+    let deep = dir.path().join("deep.glb");
+    write_rigid_box_under_chain(&deep, pedscan::human::MAX_NODE_DEPTH + 100);
+    let e = HumanModel::load(&deep, false).unwrap_err();
+    assert!(e.is_input() && e.to_string().contains("deep.glb"), "{e}");
+}
