@@ -276,7 +276,7 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
     let mut bg_errors = Vec::new();
     let (mut bg_both, mut bg_union) = (0usize, 0usize);
     let (mut t_pose, mut t_render, mut t_resample, mut t_build, mut t_cast) = (vec![], vec![], vec![], vec![], vec![]);
-    let mut strip: Option<(usize, Vec<f32>, Vec<u32>, Vec<f32>, Vec<u32>, Vec<u32>)> = None;
+    let mut strip: Option<Strip> = None;
     let mut best_strip_beams = 0usize;
     let mut frames = 0usize;
     let mut per_frame = Vec::new();
@@ -326,7 +326,7 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
                 let ri: Vec<u32> = reference.iter().map(|h| h.instance(humans)).collect();
                 let xi: Vec<u32> = hits[2].triangle.iter().map(|&t| if t == NO_TRIANGLE { 0 } else { humans.mesh_of_triangle(t).instance }).collect();
                 let xu: Vec<u32> = hits[0].triangle.iter().map(|&t| if t == NO_TRIANGLE { 0 } else { humans.mesh_of_triangle(t).instance }).collect();
-                strip = Some((frames, hits[2].range_m.clone(), xi, rr, ri, xu));
+                strip = Some(Strip { raster_range: hits[2].range_m.clone(), raster_instance: xi, reference_range: rr, reference_instance: ri, unrefined_instance: xu });
             }
             // Background: exact refinement against the reference.
             let bg = &gen.scratch.background;
@@ -377,9 +377,8 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
         let text = serde_json::to_string_pretty(&report).map_err(|e| Error::Internal(e.to_string()))?;
         write_atomic(p, text.as_bytes())?;
     }
-    if let (Some(p), Some((_, rr, ri, fr, fi, xu))) = (&opts.png, &strip) {
-        let img = strip_png(gen.sensor.rows(), gen.sensor.columns, rr, ri, fr, fi, xu);
-        save_png(&img, p)?;
+    if let (Some(p), Some(s)) = (&opts.png, &strip) {
+        save_png(&strip_png(gen.sensor.rows(), gen.sensor.columns, s), p)?;
     }
     let counter = gen.renderer.context().validation_counter();
     let validating = gen.renderer.context().validation_enabled();
@@ -397,10 +396,20 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
 }
 
+/// The human layer of the frame with the most human beams, for the PNG strip.
+struct Strip {
+    raster_range: Vec<f32>,
+    raster_instance: Vec<u32>,
+    reference_range: Vec<f32>,
+    reference_instance: Vec<u32>,
+    unrefined_instance: Vec<u32>,
+}
+
 /// Four bands, each rows x 4 px high: raster range (exact), reference range, per-beam error of
 /// the exact mode (turbo over 0..5 mm; red = raster-only human, blue = reference-only), and
 /// the unrefined mask disagreement (red / blue as above, grey = agree).
-fn strip_png(rows: usize, cols: usize, rr: &[f32], ri: &[u32], fr: &[f32], fi: &[u32], xu: &[u32]) -> RgbImage {
+fn strip_png(rows: usize, cols: usize, s: &Strip) -> RgbImage {
+    let (rr, ri, fr, fi, xu) = (&s.raster_range, &s.raster_instance, &s.reference_range, &s.reference_instance, &s.unrefined_instance);
     const S: u32 = 4;
     let band = rows as u32 * S;
     let max = rr.iter().chain(fr).cloned().fold(0.0f32, f32::max).max(1.0);
