@@ -26,6 +26,7 @@ pub mod scene;
 pub mod sensor;
 pub mod sheet;
 pub mod sequence;
+pub mod tracks;
 
 pub use error::{Error, Result};
 
