@@ -713,8 +713,10 @@ impl Blas {
     /// same (incl. padding) as a fresh build of the same layout would give.
     fn refit(&mut self, verts: &[[f32; 9]]) -> f64 {
         let n = self.nodes.len();
-        self.boxes.clear();
-        self.boxes.resize(n, Aabb::EMPTY);
+        if self.boxes.len() != n {
+            self.boxes.clear();
+            self.boxes.resize(n, Aabb::EMPTY); // every entry is written below before it is read
+        }
         let mut area = 0.0f64;
         for i in (0..n).rev() {
             let node = self.nodes[i];
@@ -744,10 +746,15 @@ impl Blas {
     }
 }
 
-/// The per-slot arrays of `geom` (vertices, triangle ids), zeroed.
-fn slot_arrays(geom: &FrameGeometry) -> (Vec<[f32; 9]>, Vec<u32>) {
+/// The per-slot arrays of `geom` (vertices, triangle ids), reusing the given allocations;
+/// their contents are stale (every slot is overwritten by `Blas::fill_slots`).
+fn slot_arrays(geom: &FrameGeometry, mut verts: Vec<[f32; 9]>, mut ids: Vec<u32>) -> (Vec<[f32; 9]>, Vec<u32>) {
     let total: usize = geom.meshes.iter().map(|m| m.triangle_count as usize).sum();
-    (vec![[0f32; 9]; total], vec![0u32; total])
+    verts.truncate(total);
+    verts.resize(total, [0f32; 9]);
+    ids.truncate(total);
+    ids.resize(total, 0);
+    (verts, ids)
 }
 
 /// The slot arrays split per mesh: `(mesh, its verts, its ids)`.
@@ -870,7 +877,9 @@ impl BvhCache {
                 _ => taken.push(None),
             }
         }
-        let (mut verts, mut ids) = slot_arrays(geom);
+        // Reuse the last frame's arrays (no page faults, no zeroing in steady state).
+        let old = std::mem::take(&mut self.bvh);
+        let (mut verts, mut ids) = slot_arrays(geom, old.verts, old.ids);
         let jobs = slot_jobs(geom, &mut verts, &mut ids);
         // (mesh, tree, key, how: 0 built uncached, 1 built, 2 refit, 3 quality rebuild)
         let done: Vec<(usize, Blas, Option<CacheKey>, u8)> = jobs
@@ -904,7 +913,7 @@ impl BvhCache {
             })
             .collect();
         let trees: Vec<(usize, &[Node])> = done.iter().map(|(k, b, _, _)| (*k, &b.nodes[..])).collect();
-        self.bvh = Bvh::assemble(geom, &trees, verts, ids);
+        self.bvh = Bvh::assemble(geom, &trees, verts, ids, old.nodes);
         for (k, blas, key, how) in done {
             match how {
                 0 => self.stats.uncached += 1,
@@ -973,7 +982,7 @@ impl Bvh {
     /// Builds the BVH of `geom` (parallel with rayon over meshes and big subtrees).
     /// Triangles outside every mesh range are ignored (as by the rasterizer).
     pub fn build(geom: &FrameGeometry) -> Bvh {
-        let (mut verts, mut ids) = slot_arrays(geom);
+        let (mut verts, mut ids) = slot_arrays(geom, Vec::new(), Vec::new());
         let jobs = slot_jobs(geom, &mut verts, &mut ids);
         let built: Vec<(usize, Blas)> = jobs
             .into_par_iter()
@@ -985,12 +994,19 @@ impl Bvh {
             })
             .collect();
         let trees: Vec<(usize, &[Node])> = built.iter().map(|(k, b)| (*k, &b.nodes[..])).collect();
-        Bvh::assemble(geom, &trees, verts, ids)
+        Bvh::assemble(geom, &trees, verts, ids, Vec::new())
     }
 
     /// Concatenates the bottom-level trees (local node indices, leaf slots local to the mesh)
     /// into one node array and builds the top level.
-    fn assemble(geom: &FrameGeometry, trees: &[(usize, &[Node])], verts: Vec<[f32; 9]>, ids: Vec<u32>) -> Bvh {
+    /// `nodes`: an allocation to reuse (its contents are overwritten).
+    fn assemble(
+        geom: &FrameGeometry,
+        trees: &[(usize, &[Node])],
+        verts: Vec<[f32; 9]>,
+        ids: Vec<u32>,
+        mut nodes: Vec<Node>,
+    ) -> Bvh {
         let mut slot_of = Vec::with_capacity(geom.meshes.len());
         let mut slot = 0u32;
         for m in &geom.meshes {
@@ -998,7 +1014,8 @@ impl Bvh {
             slot += m.triangle_count;
         }
         let node_total: usize = trees.iter().map(|(_, n)| n.len()).sum();
-        let mut nodes = vec![Node::default(); node_total];
+        nodes.truncate(node_total);
+        nodes.resize(node_total, Node::default());
         let mut meshes = Vec::with_capacity(trees.len());
         let mut jobs = Vec::with_capacity(trees.len());
         {
