@@ -27,15 +27,21 @@
 //!   relative + 1 um) so the conservative box test never culls a triangle the f64 test hits;
 //!   iterative traversal with a fixed stack, near child first, pruning by the current best
 //!   range (ties kept, so the result equals brute force bit for bit).
+//! * Refit across frames (`BvhCache::build_or_refit`): a mesh with a topology key (its
+//!   `Arc<Adjacency>` identity, with its instance and rank) keeps the bottom-level tree built
+//!   at its first sight; later frames only rewrite its triangles and recompute its boxes
+//!   bottom-up (O(n), parallel over meshes), and rebuild it when the summed box area has more
+//!   than doubled. The hits never depend on the tree shape, so they stay bit-identical to a
+//!   fresh build and to brute force.
 //! * Determinism: each ray returns the lexicographic minimum of (range, triangle index) over
 //!   all hits with `range <= max_range_m`; it does not depend on thread count or traversal
 //!   order, and the BVH build itself is deterministic.
 
 use crate::geometry::{Adjacency, FrameGeometry, MeshRange};
-use std::collections::HashMap;
-use std::sync::Arc;
 use glam::{DVec3, Vec3A, Vec4};
 use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::Arc;
 
 // ---------------------------------------------------------------------------------------------
 // Exact-sign arithmetic (Shewchuk's expansions, FMA two-product)
