@@ -15,6 +15,7 @@ use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, 
 use crate::post::{composite, PostParams};
 use crate::projection::CubeFaces;
 use crate::raster::Renderer;
+use crate::raycast::BvhCache;
 use crate::resample::{resample, BeamHits, BeamLookup};
 use crate::scene::{Environment, WalkableGrid};
 use crate::sensor::Sensor;
@@ -66,6 +67,10 @@ pub struct Scratch {
     joints: Vec<Mat4>,
     skinned: Vec<[f32; 3]>,
     env_sensor: Vec<[f32; 3]>,
+    /// Ray-cast backend: bottom-level BVHs kept across frames (refit to each pose), one
+    /// cache for the background and one for the people.
+    bvh_background: BvhCache,
+    bvh_humans: BvhCache,
 }
 
 /// The sensor and people at one frame (world frame).
@@ -155,7 +160,13 @@ impl Generator {
         let lookup = BeamLookup::new(&sensor, &cube);
         let ctx = Arc::new(Context::new(&ContextOptions { validation, device: device_choice(&cfg.device) })?);
         let renderer = Renderer::new(&ctx, &cube)?;
-        Ok(Generator { cfg, sensor, models, environment, grid, cube, lookup, renderer, scratch: Scratch::default(), env_meshes, export_geometry: None })
+        let mut scratch = Scratch::default();
+        // PEDSCAN_BVH_REFIT=0 rebuilds every BVH every frame (for comparison).
+        if std::env::var("PEDSCAN_BVH_REFIT").is_ok_and(|v| v == "0") {
+            scratch.bvh_background = BvhCache::disabled();
+            scratch.bvh_humans = BvhCache::disabled();
+        }
+        Ok(Generator { cfg, sensor, models, environment, grid, cube, lookup, renderer, scratch, env_meshes, export_geometry: None })
     }
 
     /// The random stream of sequence `index`.
@@ -248,7 +259,9 @@ impl Generator {
         let backend = self.cfg.render.backend;
         let n = self.lookup.dirs.len();
         let s = &mut self.scratch;
-        for (geom, hits) in [(&s.background, &mut s.bg_hits), (&s.humans, &mut s.human_hits)] {
+        for (geom, hits, cache) in
+            [(&s.background, &mut s.bg_hits, &mut s.bvh_background), (&s.humans, &mut s.human_hits, &mut s.bvh_humans)]
+        {
             if geom.meshes.is_empty() {
                 hits.clear_to(n);
                 continue;
@@ -260,7 +273,8 @@ impl Generator {
                 }
                 Backend::Raycast => {
                     // Ranges are limited later, in the post-pass, as for the raster path.
-                    let cast = crate::raycast::cast_frame(geom, &self.lookup.dirs, f64::MAX);
+                    let bvh = cache.build_or_refit(geom);
+                    let cast = crate::raycast::cast(geom, bvh, &self.lookup.dirs, f64::MAX);
                     hits.clear_to(0);
                     hits.range_m.extend(cast.iter().map(|h| h.range_m as f32));
                     hits.triangle.extend(cast.iter().map(|h| h.triangle));
