@@ -8,6 +8,8 @@
 //! f64 reference may disagree). On failure actual / expected PNGs are written to
 //! `$TMPDIR/pedscan-gpu-raster/`.
 
+mod common;
+
 use glam::{DVec3, Vec3};
 use pedscan::geometry::FrameGeometry;
 use pedscan::gpu::{Context, ContextOptions, DeviceChoice};
@@ -41,32 +43,10 @@ fn finish(renderer: Renderer, ctx: Arc<Context>) {
 }
 
 /// An axis-aligned box [lo, hi] as 12 triangles, wound so that normals point outward
-/// (`outward`) or inward. Each side has its own 4 vertices.
+/// (`outward`) or inward, in f32 for a `FrameGeometry`.
 fn box_mesh(lo: DVec3, hi: DVec3, outward: bool) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let centre = 0.5 * (lo + hi);
-    let mut pos = Vec::new();
-    let mut idx = Vec::new();
-    for axis in 0..3 {
-        for side in [lo, hi] {
-            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
-            let corner = |s1: bool, s2: bool| {
-                let mut p = side;
-                p[a1] = if s1 { hi[a1] } else { lo[a1] };
-                p[a2] = if s2 { hi[a2] } else { lo[a2] };
-                p
-            };
-            let quad = [corner(false, false), corner(true, false), corner(true, true), corner(false, true)];
-            let n = (quad[1] - quad[0]).cross(quad[2] - quad[0]);
-            let mut face_centre = centre;
-            face_centre[axis] = side[axis];
-            let out = n.dot(face_centre - centre) > 0.0;
-            let base = pos.len() as u32;
-            pos.extend(quad.iter().map(|p| p.as_vec3().to_array()));
-            let tris: [u32; 6] = if out == outward { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
-            idx.extend(tris.iter().map(|i| base + i));
-        }
-    }
-    (pos, idx)
+    let (pos, idx) = common::box_f64(lo, hi, outward);
+    (pos.iter().map(|p| p.as_vec3().to_array()).collect(), idx)
 }
 
 /// A rectangle x = const facing the sensor (front-facing by the geometry convention).

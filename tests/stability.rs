@@ -12,6 +12,9 @@
 //!
 //! Run with `cargo test --test stability -- --nocapture` to see the measured values.
 
+mod common;
+
+use common::box_f64;
 use glam::{DMat4, DVec2, DVec3, Mat4, Vec3};
 use pedscan::config::{Config, Refine};
 use pedscan::geometry::{Adjacency, FrameGeometry};
@@ -62,34 +65,6 @@ fn custom_sensor(name: &str, elevation_deg: Vec<f64>, columns: usize) -> Sensor 
     Sensor { name: name.into(), elevation_deg, columns, rate_hz: 10.0, min_range_m: 0.5, max_range_m: 100.0 }
 }
 
-/// An axis-aligned box [lo, hi] as 12 triangles (each side its own 4 vertices), wound so the
-/// normals point outward (`outward`) or inward. f64 positions (world or sensor frame).
-fn box_f64(lo: DVec3, hi: DVec3, outward: bool) -> (Vec<DVec3>, Vec<u32>) {
-    let centre = 0.5 * (lo + hi);
-    let mut pos = Vec::new();
-    let mut idx = Vec::new();
-    for axis in 0..3 {
-        for side in [lo, hi] {
-            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
-            let corner = |s1: bool, s2: bool| {
-                let mut p = side;
-                p[a1] = if s1 { hi[a1] } else { lo[a1] };
-                p[a2] = if s2 { hi[a2] } else { lo[a2] };
-                p
-            };
-            let quad = [corner(false, false), corner(true, false), corner(true, true), corner(false, true)];
-            let n = (quad[1] - quad[0]).cross(quad[2] - quad[0]);
-            let mut face_centre = centre;
-            face_centre[axis] = side[axis];
-            let out = n.dot(face_centre - centre) > 0.0;
-            let base = pos.len() as u32;
-            pos.extend_from_slice(&quad);
-            let tris: [u32; 6] = if out == outward { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
-            idx.extend(tris.iter().map(|i| base + i));
-        }
-    }
-    (pos, idx)
-}
 
 fn to_f32(p: &[DVec3]) -> Vec<[f32; 3]> {
     p.iter().map(|p| p.as_vec3().to_array()).collect()

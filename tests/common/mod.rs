@@ -1,0 +1,32 @@
+//! Helpers shared by the integration tests.
+
+use glam::DVec3;
+
+/// An axis-aligned box [lo, hi] as 12 triangles (each side its own 4 vertices), wound so the
+/// normals point outward (`outward`) or inward. f64 positions (world or sensor frame).
+pub fn box_f64(lo: DVec3, hi: DVec3, outward: bool) -> (Vec<DVec3>, Vec<u32>) {
+    let centre = 0.5 * (lo + hi);
+    let mut pos = Vec::new();
+    let mut idx = Vec::new();
+    for axis in 0..3 {
+        for side in [lo, hi] {
+            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+            let corner = |s1: bool, s2: bool| {
+                let mut p = side;
+                p[a1] = if s1 { hi[a1] } else { lo[a1] };
+                p[a2] = if s2 { hi[a2] } else { lo[a2] };
+                p
+            };
+            let quad = [corner(false, false), corner(true, false), corner(true, true), corner(false, true)];
+            let n = (quad[1] - quad[0]).cross(quad[2] - quad[0]);
+            let mut face_centre = centre;
+            face_centre[axis] = side[axis];
+            let out = n.dot(face_centre - centre) > 0.0;
+            let base = pos.len() as u32;
+            pos.extend_from_slice(&quad);
+            let tris: [u32; 6] = if out == outward { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
+            idx.extend(tris.iter().map(|i| base + i));
+        }
+    }
+    (pos, idx)
+}
