@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::output::{FrameOutput, SequenceWriter, WriterOptions};
 use crate::pipeline::Generator;
 use crate::raycast::{self, Bvh};
-use crate::resample::NO_TRIANGLE;
+use crate::crosscheck::{median, ErrorStats, Tally};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -74,14 +74,6 @@ pub struct StageMs {
     pub render_resample: f64,
     pub post: f64,
     pub write: f64,
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
 }
 
 /// Peak resident set of this process, MiB (Linux `VmHWM`; 0 where unknown).
@@ -163,8 +155,7 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     let _ = std::fs::remove_file(&sensor_file);
     let (mut t_pose, mut t_render, mut t_post, mut t_write, mut t_total) = (vec![], vec![], vec![], vec![], vec![]);
     let (mut t_build, mut t_cast) = (vec![], vec![]);
-    let mut errors = Vec::new();
-    let (mut both, mut union) = (0usize, 0usize);
+    let mut tally = Tally::default();
     let mut triangles = 0u64;
     let plan = gen.plan(0)?;
     let meta = gen.meta(0, &plan);
@@ -201,22 +192,12 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
         let tc = Instant::now();
         let reference = raycast::cast(geom, &bvh, &dirs, gen.sensor.max_range_m);
         t_cast.push(tc.elapsed().as_secs_f64() * 1e3);
-        for (b, r) in reference.iter().enumerate() {
-            let rh = raster.triangle[b] != NO_TRIANGLE;
-            if rh || r.is_hit() {
-                union += 1;
-            }
-            if rh && r.is_hit() {
-                both += 1;
-                errors.push((raster.range_m[b] as f64 - r.range_m).abs());
-            }
-        }
+        tally.add(&raster, &reference);
     }
     drop(writer); // not finished: the temporary files are removed
     let _ = std::fs::remove_dir_all(&out);
     let ms = median(&mut t_total);
-    errors.sort_by(|a, b| a.total_cmp(b));
-    let q = |p: f64| if errors.is_empty() { 0.0 } else { errors[((p * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)] };
+    let errors = ErrorStats::from(&mut tally.errors);
     let build = median(&mut t_build);
     let cast = median(&mut t_cast);
     Ok(Point {
@@ -224,9 +205,9 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
         frames_per_s: 1e3 / ms.max(1e-9),
         ms_per_frame: ms,
         peak_rss_mb: peak_rss_mb(),
-        human_beam_agreement: if union == 0 { 1.0 } else { both as f64 / union as f64 },
-        median_range_error_m: q(0.5),
-        p99_range_error_m: q(0.99),
+        human_beam_agreement: tally.agreement(),
+        median_range_error_m: errors.median,
+        p99_range_error_m: errors.p99,
         triangles_per_frame: triangles as f64 / plan.times_s.len().max(1) as f64,
         raycast: RaycastTiming { frames_per_s: 1e3 / (build + cast).max(1e-9), build_ms: build, cast_ms: cast },
         stage_ms: StageMs { pose: median(&mut t_pose), render_resample: median(&mut t_render), post: median(&mut t_post), write: median(&mut t_write) },

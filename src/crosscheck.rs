@@ -141,21 +141,43 @@ pub struct FrameRow {
     pub median_error_exact_m: f64,
 }
 
-/// Agreement and median error of one frame's raster hits against the reference.
-fn frame_stats(raster: &BeamHits, reference: &[Hit]) -> (usize, f64, f64) {
-    let (mut both, mut union) = (0usize, 0usize);
-    let mut errors = Vec::new();
-    for (b, r) in reference.iter().enumerate() {
-        let rh = raster.triangle[b] != NO_TRIANGLE && raster.range_m[b] > 0.0;
-        if rh || r.is_hit() {
-            union += 1;
-        }
-        if rh && r.is_hit() {
-            both += 1;
-            errors.push((raster.range_m[b] as f64 - r.range_m).abs());
+/// Counts of one comparison of raster hits against the reference, accumulated over frames.
+#[derive(Clone, Debug, Default)]
+pub struct Tally {
+    /// Beams both paths call a hit.
+    pub both: usize,
+    /// Beams either path calls a hit.
+    pub either: usize,
+    /// |raster - reference| range on the beams both call a hit, metres.
+    pub errors: Vec<f64>,
+}
+
+impl Tally {
+    /// Adds one frame: `raster` hits against the `reference` cast of the same beams.
+    pub fn add(&mut self, raster: &BeamHits, reference: &[Hit]) {
+        for (b, r) in reference.iter().enumerate() {
+            let rh = raster.triangle[b] != NO_TRIANGLE && raster.range_m[b] > 0.0;
+            if rh || r.is_hit() {
+                self.either += 1;
+            }
+            if rh && r.is_hit() {
+                self.both += 1;
+                self.errors.push((raster.range_m[b] as f64 - r.range_m).abs());
+            }
         }
     }
-    (union, if union == 0 { 1.0 } else { both as f64 / union as f64 }, median(&mut errors))
+
+    /// both / either (1 when neither path hit anything).
+    pub fn agreement(&self) -> f64 {
+        if self.either == 0 { 1.0 } else { self.both as f64 / self.either as f64 }
+    }
+}
+
+/// Beams either path calls human, agreement and median error of one frame.
+fn frame_stats(raster: &BeamHits, reference: &[Hit]) -> (usize, f64, f64) {
+    let mut t = Tally::default();
+    t.add(raster, reference);
+    (t.either, t.agreement(), median(&mut t.errors))
 }
 
 /// Median milliseconds per frame of each path.
@@ -241,7 +263,8 @@ impl ModeAcc {
     }
 }
 
-fn median(v: &mut [f64]) -> f64 {
+/// The median (upper for even counts) of `v`, sorting it; 0 when empty.
+pub fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
