@@ -40,8 +40,9 @@ pub fn generate(cfg: Config, validation: bool, progress: bool, export_geometry: 
     if out.exists() && !out.is_dir() {
         return Err(Error::input(out.display(), "output path exists and is not a folder"));
     }
-    std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
+    // Inputs are checked (and the GPU started) before anything is created on disk.
     let mut gen = Generator::new(cfg, validation)?;
+    std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
     gen.export_geometry = export_geometry;
     let total = (gen.cfg.sequences * gen.cfg.frames) as u64;
     let bar = if progress { indicatif::ProgressBar::new(total) } else { indicatif::ProgressBar::hidden() };
