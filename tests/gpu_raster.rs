@@ -10,9 +10,11 @@
 
 mod common;
 
+use common::{context, finish};
+
 use glam::{DVec3, Vec3};
 use pedscan::geometry::FrameGeometry;
-use pedscan::gpu::{Context, ContextOptions, DeviceChoice};
+use pedscan::gpu::{Context, ContextOptions};
 use pedscan::projection::{CubeFaces, Face};
 use pedscan::raster::{FaceImage, Renderer};
 use pedscan::sensor::Sensor;
@@ -22,25 +24,11 @@ use std::sync::Arc;
 const REL_TOL: f64 = 1e-4;
 const MAX_BAD_FRACTION: f64 = 0.005;
 
-fn context() -> Arc<Context> {
-    let ctx = Context::new(&ContextOptions { validation: true, device: DeviceChoice::Auto })
-        .expect("Vulkan context with validation (install vulkan-validationlayers, mesa-vulkan-drivers)");
-    assert!(ctx.validation_enabled());
-    Arc::new(ctx)
-}
 
 fn cube() -> CubeFaces {
     CubeFaces::new(&Sensor::hdl32e(), 1.0)
 }
 
-/// Drops renderer and context, then asserts the validation layer reported no error at all.
-fn finish(renderer: Renderer, ctx: Arc<Context>) {
-    let errors = ctx.validation_counter();
-    drop(renderer);
-    assert_eq!(Arc::strong_count(&ctx), 1, "the context outlives everything else");
-    drop(ctx);
-    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
-}
 
 /// An axis-aligned box [lo, hi] as 12 triangles, wound so that normals point outward
 /// (`outward`) or inward, in f32 for a `FrameGeometry`.

@@ -14,11 +14,12 @@
 
 mod common;
 
+use common::{context, finish};
+
 use common::box_f64;
 use glam::{DMat4, DVec2, DVec3, Mat4, Vec3};
 use pedscan::config::{Config, Refine};
 use pedscan::geometry::{Adjacency, FrameGeometry};
-use pedscan::gpu::{Context, ContextOptions, DeviceChoice};
 use pedscan::human::{stride_length_m, HumanModel, MotionMode, MODEL_TO_BODY};
 use pedscan::pipeline::Generator;
 use pedscan::projection::CubeFaces;
@@ -44,21 +45,7 @@ const EXACT_ABS_TOL_M: f64 = 1e-5;
 // Helpers
 // ------------------------------------------------------------------------------------------
 
-fn context() -> Arc<Context> {
-    let ctx = Context::new(&ContextOptions { validation: true, device: DeviceChoice::Auto })
-        .expect("Vulkan context with validation (install vulkan-validationlayers, mesa-vulkan-drivers)");
-    assert!(ctx.validation_enabled());
-    Arc::new(ctx)
-}
 
-/// Drops renderer and context, then asserts the validation layer reported no error at all.
-fn finish(renderer: Renderer, ctx: Arc<Context>) {
-    let errors = ctx.validation_counter();
-    drop(renderer);
-    assert_eq!(Arc::strong_count(&ctx), 1, "the context outlives everything else");
-    drop(ctx);
-    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
-}
 
 /// A custom sensor (no validation: tests may use column counts below the CLI's minimum).
 fn custom_sensor(name: &str, elevation_deg: Vec<f64>, columns: usize) -> Sensor {

@@ -1,6 +1,28 @@
 //! Helpers shared by the integration tests.
 
 use glam::DVec3;
+use pedscan::gpu::{Context, ContextOptions, DeviceChoice};
+use pedscan::raster::Renderer;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+/// A Vulkan context with the Khronos validation layer on (its absence is a failure, not a skip).
+pub fn context() -> Arc<Context> {
+    let ctx = Context::new(&ContextOptions { validation: true, device: DeviceChoice::Auto })
+        .expect("Vulkan context with validation (install vulkan-validationlayers, mesa-vulkan-drivers)");
+    assert!(ctx.validation_enabled());
+    Arc::new(ctx)
+}
+
+/// Drops renderer and context, then asserts the validation layer reported no error at all
+/// (leaks are reported when the device is destroyed).
+pub fn finish(renderer: Renderer, ctx: Arc<Context>) {
+    let errors = ctx.validation_counter();
+    drop(renderer);
+    assert_eq!(Arc::strong_count(&ctx), 1, "the context outlives everything else");
+    drop(ctx);
+    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
+}
 
 /// An axis-aligned box [lo, hi] as 12 triangles (each side its own 4 vertices), wound so the
 /// normals point outward (`outward`) or inward. f64 positions (world or sensor frame).
