@@ -6,6 +6,7 @@
 //! `resample` (beam grid) -> `post` (composite, labels, velocity) -> `output` (HDF5, XML, PNG).
 //! `raycast` is the independent CPU reference over the same triangles.
 
+pub mod background;
 pub mod bench;
 pub mod config;
 pub mod crosscheck;
