@@ -1,1 +1,1124 @@
-//! See the module docs of `background`.
+//! PCD files (Point Cloud Library format, header `VERSION` 0.6 or 0.7).
+//!
+//! # What is read
+//!
+//! * Header keys `VERSION FIELDS SIZE TYPE COUNT WIDTH HEIGHT VIEWPOINT POINTS DATA`, one per
+//!   line, `DATA` last; lines starting with `#` are comments. `FIELDS SIZE TYPE WIDTH HEIGHT
+//!   POINTS DATA` are required; `VERSION` (when present it must be 0.6 or 0.7), `COUNT`
+//!   (default 1 per field) and `VIEWPOINT` (default identity) are optional. Any other key, a
+//!   key given twice or a missing required key is an error.
+//! * `DATA ascii` (one point per line, `#`-free, blank lines ignored), `DATA binary` (records of
+//!   little-endian values, point after point) and `DATA binary_compressed` (`u32` compressed
+//!   size, `u32` uncompressed size, then LZF-compressed data that holds the fields column-wise:
+//!   every point's first field, then every point's second field, ...).
+//! * Fields `x y z` must exist with `TYPE F`, `SIZE 4` or `8` and `COUNT 1`. An optional
+//!   `ring` field (`TYPE U` or `I`, `SIZE 1 2 4 8`, `COUNT 1`, values 0..=65535) goes to
+//!   [`Scan::ring`]; a PCD carries no ring elevations, so [`Scan::ring_elevation_deg`] stays
+//!   `None`. Every other field (intensity, `t`, `rgb`, padding `_`, normals, any `COUNT`) is
+//!   skipped by its size.
+//!
+//! # Frame
+//!
+//! `VIEWPOINT tx ty tz qw qx qy qz` is the acquisition pose: the sensor's position `t` and
+//! orientation `q` in the frame the points are stored in (PCL keeps it as `sensor_origin_` /
+//! `sensor_orientation_` and does not apply it on load). A [`Scan`] is in the sensor frame, so
+//! when the viewpoint is not the identity every point is mapped as `p_sensor = R(q)^T (p - t)`
+//! (in `f64`, before rounding to `f32`). The quaternion must have a norm within 1 % of 1; it is
+//! normalised.
+//!
+//! Points with a non-finite coordinate (organised clouds mark holes with NaN) and points stored
+//! as all zero (no return) are dropped, together with their ring.
+//!
+//! # Errors
+//!
+//! Bad input is an [`Error::input`] naming the file, and `FILE:LINE` for header lines and ascii
+//! data lines: unknown, repeated or missing header keys, unsupported `VERSION` or `DATA`,
+//! `SIZE`/`TYPE`/`COUNT` lists whose length differs from `FIELDS`, an unsupported `TYPE` or
+//! `SIZE` for `x y z ring`, `POINTS` != `WIDTH` × `HEIGHT`, data shorter than the header says, an
+//! ascii line with the wrong number of values or an unparsable value, LZF data that does not
+//! decompress to the declared size, and a ring value outside 0..=65535.
+
+use super::Scan;
+use crate::error::{Error, Result};
+use glam::{DMat3, DQuat, DVec3};
+use std::path::Path;
+
+/// Reads one PCD file into a [`Scan`] in the sensor frame (see the module docs).
+pub fn read_pcd(path: &Path) -> Result<Scan> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
+    parse_pcd(&bytes, &path.display().to_string())
+}
+
+/// How the data section is stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum DataKind {
+    Ascii,
+    Binary,
+    BinaryCompressed,
+}
+
+/// One header field.
+#[derive(Clone, Debug)]
+struct Field {
+    name: String,
+    size: usize,
+    ty: u8,
+    count: usize,
+}
+
+/// Where a used field sits in a point: byte offset within a binary record, value index within
+/// an ascii line, the field's size and type.
+#[derive(Clone, Copy, Debug)]
+struct Slot {
+    field: usize,
+    byte_offset: usize,
+    value_index: usize,
+    size: usize,
+    ty: u8,
+}
+
+/// The parsed header.
+struct Header {
+    fields: Vec<Field>,
+    points: usize,
+    /// Sensor pose in the stored frame: `(t, R)`, `None` when it is the identity.
+    viewpoint: Option<(DVec3, DMat3)>,
+    data: DataKind,
+    /// Line number (1-based) of the `DATA` line.
+    data_line: usize,
+    /// Byte offset of the first data byte.
+    data_offset: usize,
+}
+
+/// The parsed header key values, with the line each came from.
+#[derive(Default)]
+struct RawHeader {
+    fields: Option<(usize, Vec<String>)>,
+    size: Option<(usize, Vec<usize>)>,
+    ty: Option<(usize, Vec<u8>)>,
+    count: Option<(usize, Vec<usize>)>,
+    width: Option<(usize, usize)>,
+    height: Option<(usize, usize)>,
+    points: Option<(usize, usize)>,
+    viewpoint: Option<(usize, [f64; 7])>,
+    version: Option<usize>,
+}
+
+fn parse_header(bytes: &[u8], name: &str) -> Result<Header> {
+    let at = |line: usize| format!("{name}:{line}");
+    let mut raw = RawHeader::default();
+    let mut pos = 0usize;
+    let mut line_no = 0usize;
+    loop {
+        if pos >= bytes.len() {
+            return Err(Error::input(name, "header ends without a DATA line"));
+        }
+        let end = bytes[pos..].iter().position(|&b| b == b'\n').map_or(bytes.len(), |i| pos + i);
+        line_no += 1;
+        let line_bytes = &bytes[pos..end];
+        pos = (end + 1).min(bytes.len());
+        let line = std::str::from_utf8(line_bytes)
+            .map_err(|_| Error::input(at(line_no), "header line is not text"))?
+            .trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut tok = line.split_whitespace();
+        let key = tok.next().unwrap_or_default();
+        let vals: Vec<&str> = tok.collect();
+        let l = line_no;
+        let dup = |set: bool| -> Result<()> {
+            if set {
+                Err(Error::input(at(l), format!("header key {key} appears twice")))
+            } else {
+                Ok(())
+            }
+        };
+        let one = || one_value(&vals, key, &at(l));
+        let uint = |v: &str, what: &str| -> Result<usize> {
+            v.parse::<usize>().map_err(|_| {
+                Error::input(at(l), format!("{what} `{v}` is not a non-negative integer"))
+            })
+        };
+        match key {
+            "VERSION" => {
+                dup(raw.version.is_some())?;
+                let v = one()?;
+                if !matches!(v, "0.7" | ".7" | "0.6" | ".6") {
+                    return Err(Error::input(
+                        at(l),
+                        format!("VERSION {v} is not supported (0.6 or 0.7)"),
+                    ));
+                }
+                raw.version = Some(l);
+            }
+            "FIELDS" => {
+                dup(raw.fields.is_some())?;
+                if vals.is_empty() {
+                    return Err(Error::input(at(l), "FIELDS lists no field"));
+                }
+                raw.fields = Some((l, vals.iter().map(|s| s.to_string()).collect()));
+            }
+            "SIZE" => {
+                dup(raw.size.is_some())?;
+                let mut v = Vec::with_capacity(vals.len());
+                for s in &vals {
+                    let n = uint(s, "SIZE")?;
+                    if n == 0 {
+                        return Err(Error::input(at(l), "SIZE 0 is not a field size"));
+                    }
+                    v.push(n);
+                }
+                raw.size = Some((l, v));
+            }
+            "TYPE" => {
+                dup(raw.ty.is_some())?;
+                let mut v = Vec::with_capacity(vals.len());
+                for s in &vals {
+                    match *s {
+                        "F" | "I" | "U" => v.push(s.as_bytes()[0]),
+                        _ => {
+                            return Err(Error::input(
+                                at(l),
+                                format!("TYPE `{s}` is not one of F, I, U"),
+                            ))
+                        }
+                    }
+                }
+                raw.ty = Some((l, v));
+            }
+            "COUNT" => {
+                dup(raw.count.is_some())?;
+                let mut v = Vec::with_capacity(vals.len());
+                for s in &vals {
+                    let n = uint(s, "COUNT")?;
+                    if n == 0 {
+                        return Err(Error::input(at(l), "COUNT 0 is not a field count"));
+                    }
+                    v.push(n);
+                }
+                raw.count = Some((l, v));
+            }
+            "WIDTH" => {
+                dup(raw.width.is_some())?;
+                raw.width = Some((l, uint(one()?, "WIDTH")?));
+            }
+            "HEIGHT" => {
+                dup(raw.height.is_some())?;
+                raw.height = Some((l, uint(one()?, "HEIGHT")?));
+            }
+            "POINTS" => {
+                dup(raw.points.is_some())?;
+                raw.points = Some((l, uint(one()?, "POINTS")?));
+            }
+            "VIEWPOINT" => {
+                dup(raw.viewpoint.is_some())?;
+                if vals.len() != 7 {
+                    return Err(Error::input(
+                        at(l),
+                        format!(
+                            "VIEWPOINT takes 7 values (tx ty tz qw qx qy qz), found {}",
+                            vals.len()
+                        ),
+                    ));
+                }
+                let mut v = [0.0; 7];
+                for (d, s) in v.iter_mut().zip(&vals) {
+                    *d = s.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
+                        Error::input(at(l), format!("VIEWPOINT value `{s}` is not a finite number"))
+                    })?;
+                }
+                raw.viewpoint = Some((l, v));
+            }
+            "DATA" => {
+                let data = match one()? {
+                    "ascii" => DataKind::Ascii,
+                    "binary" => DataKind::Binary,
+                    "binary_compressed" => DataKind::BinaryCompressed,
+                    other => {
+                        return Err(Error::input(
+                            at(l),
+                            format!("DATA {other} is not one of ascii, binary, binary_compressed"),
+                        ))
+                    }
+                };
+                return finish_header(raw, name, data, l, pos);
+            }
+            _ => return Err(Error::input(at(l), format!("unknown header key `{key}`"))),
+        }
+    }
+}
+
+/// The single value of a header line.
+fn one_value<'a>(vals: &[&'a str], key: &str, at: &str) -> Result<&'a str> {
+    match vals {
+        [v] => Ok(v),
+        _ => Err(Error::input(at, format!("{key} takes one value, found {}", vals.len()))),
+    }
+}
+
+fn finish_header(
+    raw: RawHeader,
+    name: &str,
+    data: DataKind,
+    data_line: usize,
+    data_offset: usize,
+) -> Result<Header> {
+    let at = |line: usize| format!("{name}:{line}");
+    let missing = |k: &str| Error::input(name, format!("header has no {k} line"));
+    let (_, names) = raw.fields.ok_or_else(|| missing("FIELDS"))?;
+    let (size_line, sizes) = raw.size.ok_or_else(|| missing("SIZE"))?;
+    let (type_line, types) = raw.ty.ok_or_else(|| missing("TYPE"))?;
+    let (_, width) = raw.width.ok_or_else(|| missing("WIDTH"))?;
+    let (_, height) = raw.height.ok_or_else(|| missing("HEIGHT"))?;
+    let (points_line, points) = raw.points.ok_or_else(|| missing("POINTS"))?;
+    let n = names.len();
+    let counts = match raw.count {
+        Some((l, c)) => {
+            if c.len() != n {
+                return Err(Error::input(
+                    at(l),
+                    format!("COUNT has {} entries but FIELDS has {n}", c.len()),
+                ));
+            }
+            c
+        }
+        None => vec![1; n],
+    };
+    if sizes.len() != n {
+        return Err(Error::input(
+            at(size_line),
+            format!("SIZE has {} entries but FIELDS has {n}", sizes.len()),
+        ));
+    }
+    if types.len() != n {
+        return Err(Error::input(
+            at(type_line),
+            format!("TYPE has {} entries but FIELDS has {n}", types.len()),
+        ));
+    }
+    if width.checked_mul(height) != Some(points) {
+        return Err(Error::input(
+            at(points_line),
+            format!("POINTS {points} is not WIDTH {width} x HEIGHT {height}"),
+        ));
+    }
+    let viewpoint = match raw.viewpoint {
+        None => None,
+        Some((l, [tx, ty, tz, qw, qx, qy, qz])) => {
+            let q = DQuat::from_xyzw(qx, qy, qz, qw);
+            let norm = q.length();
+            if (norm - 1.0).abs() > 0.01 {
+                return Err(Error::input(
+                    at(l),
+                    format!("VIEWPOINT quaternion (qw qx qy qz) has norm {norm}, not 1"),
+                ));
+            }
+            let t = DVec3::new(tx, ty, tz);
+            if t == DVec3::ZERO && qx == 0.0 && qy == 0.0 && qz == 0.0 {
+                None
+            } else {
+                Some((t, DMat3::from_quat(q / norm)))
+            }
+        }
+    };
+    let fields = names
+        .into_iter()
+        .zip(sizes)
+        .zip(types)
+        .zip(counts)
+        .map(|(((name, size), ty), count)| Field { name, size, ty, count })
+        .collect();
+    Ok(Header { fields, points, viewpoint, data, data_line, data_offset })
+}
+
+/// Finds field `want` and lays out where it sits; checks it appears at most once.
+fn slot(fields: &[Field], want: &str, name: &str) -> Result<Option<Slot>> {
+    let mut found = None;
+    let (mut byte_offset, mut value_index) = (0usize, 0usize);
+    for (i, f) in fields.iter().enumerate() {
+        if f.name == want {
+            if found.is_some() {
+                return Err(Error::input(name, format!("field {want} appears twice in FIELDS")));
+            }
+            found = Some(Slot { field: i, byte_offset, value_index, size: f.size, ty: f.ty });
+        }
+        byte_offset = f
+            .size
+            .checked_mul(f.count)
+            .and_then(|b| b.checked_add(byte_offset))
+            .ok_or_else(|| Error::input(name, "the point record size overflows"))?;
+        value_index += f.count;
+    }
+    Ok(found)
+}
+
+fn parse_pcd(bytes: &[u8], name: &str) -> Result<Scan> {
+    let h = parse_header(bytes, name)?;
+    let mut xyz = [None; 3];
+    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+        let s = slot(&h.fields, axis, name)?.ok_or_else(|| {
+            Error::input(name, format!("FIELDS has no {axis}; x, y and z are required"))
+        })?;
+        let f = &h.fields[s.field];
+        if f.ty != b'F' || !(f.size == 4 || f.size == 8) {
+            return Err(Error::input(
+                name,
+                format!(
+                    "field {axis} has TYPE {} SIZE {}; only TYPE F with SIZE 4 or 8 is supported",
+                    f.ty as char, f.size
+                ),
+            ));
+        }
+        if f.count != 1 {
+            return Err(Error::input(
+                name,
+                format!("field {axis} has COUNT {}; it must be 1", f.count),
+            ));
+        }
+        xyz[k] = Some(s);
+    }
+    let xyz = xyz.map(|s| s.expect("set above"));
+    let ring = slot(&h.fields, "ring", name)?;
+    if let Some(s) = ring {
+        let f = &h.fields[s.field];
+        if f.ty == b'F' || !matches!(f.size, 1 | 2 | 4 | 8) {
+            return Err(Error::input(
+                name,
+                format!(
+                    "field ring has TYPE {} SIZE {}; only an integer TYPE (U or I) of SIZE 1, 2, 4 or 8 is supported",
+                    f.ty as char, f.size
+                ),
+            ));
+        }
+        if f.count != 1 {
+            return Err(Error::input(
+                name,
+                format!("field ring has COUNT {}; it must be 1", f.count),
+            ));
+        }
+    }
+    let mut out = Collector::new(h.viewpoint, ring.is_some());
+    let data = &bytes[h.data_offset.min(bytes.len())..];
+    match h.data {
+        DataKind::Ascii => read_ascii(data, &h, xyz, ring, name, &mut out)?,
+        DataKind::Binary => {
+            let step = record_bytes(&h.fields, name)?;
+            let need = need_bytes(h.points, step, name)?;
+            if data.len() < need {
+                return Err(lying(name, &h, step, need, data.len()));
+            }
+            let get = |s: &Slot, i: usize| &data[i * step + s.byte_offset..][..s.size];
+            for i in 0..h.points {
+                let p = [get(&xyz[0], i), get(&xyz[1], i), get(&xyz[2], i)].map(float);
+                let r = ring.map(|s| int(get(&s, i), s.ty));
+                out.push(p, r).map_err(|m| Error::input(name, format!("point {i}: {m}")))?;
+            }
+        }
+        DataKind::BinaryCompressed => {
+            let step = record_bytes(&h.fields, name)?;
+            let need = need_bytes(h.points, step, name)?;
+            if data.len() < 8 {
+                return Err(Error::input(
+                    name,
+                    format!("lying header: DATA binary_compressed but only {} data bytes follow, not even the 8-byte size prefix", data.len()),
+                ));
+            }
+            let comp = u32::from_le_bytes(data[0..4].try_into().expect("4 bytes")) as usize;
+            let uncomp = u32::from_le_bytes(data[4..8].try_into().expect("4 bytes")) as usize;
+            let body = &data[8..];
+            if body.len() < comp {
+                return Err(Error::input(
+                    name,
+                    format!(
+                        "lying header: compressed size is {comp} bytes but only {} bytes follow",
+                        body.len()
+                    ),
+                ));
+            }
+            if uncomp != need {
+                return Err(Error::input(
+                    name,
+                    format!(
+                        "lying header: uncompressed size is {uncomp} bytes but POINTS {} x {step}-byte records is {need} bytes",
+                        h.points
+                    ),
+                ));
+            }
+            if uncomp > comp.saturating_mul(LZF_MAX_RATIO) {
+                return Err(Error::input(
+                    name,
+                    format!(
+                        "{comp} bytes of LZF data cannot decompress to the declared {uncomp} bytes"
+                    ),
+                ));
+            }
+            let mut raw = Vec::new();
+            lzf_decompress(&body[..comp], uncomp, &mut raw)
+                .map_err(|m| Error::input(name, format!("LZF data: {m}")))?;
+            // Column-wise: field f's column starts at POINTS x (offset of f in a record).
+            let n = h.points;
+            let col = |s: &Slot, i: usize| {
+                let stride = h.fields[s.field].size * h.fields[s.field].count;
+                &raw[n * s.byte_offset + i * stride..][..s.size]
+            };
+            for i in 0..n {
+                let p = [col(&xyz[0], i), col(&xyz[1], i), col(&xyz[2], i)].map(float);
+                let r = ring.map(|s| int(col(&s, i), s.ty));
+                out.push(p, r).map_err(|m| Error::input(name, format!("point {i}: {m}")))?;
+            }
+        }
+    }
+    Ok(out.finish())
+}
+
+fn record_bytes(fields: &[Field], name: &str) -> Result<usize> {
+    fields
+        .iter()
+        .try_fold(0usize, |a, f| f.size.checked_mul(f.count).and_then(|b| a.checked_add(b)))
+        .ok_or_else(|| Error::input(name, "the point record size overflows"))
+}
+
+fn need_bytes(points: usize, step: usize, name: &str) -> Result<usize> {
+    points.checked_mul(step).ok_or_else(|| {
+        Error::input(name, format!("lying header: POINTS {points} x {step}-byte records overflows"))
+    })
+}
+
+fn lying(name: &str, h: &Header, step: usize, need: usize, have: usize) -> Error {
+    Error::input(
+        name,
+        format!(
+            "lying header: POINTS {} x {step}-byte records needs {need} bytes of data but only {have} follow",
+            h.points
+        ),
+    )
+}
+
+/// An `f32` or `f64` little-endian value (the caller checked the size is 4 or 8).
+fn float(b: &[u8]) -> f64 {
+    match b.len() {
+        4 => f32::from_le_bytes(b.try_into().expect("4 bytes")) as f64,
+        _ => f64::from_le_bytes(b.try_into().expect("8 bytes")),
+    }
+}
+
+/// A little-endian integer of 1, 2, 4 or 8 bytes, signed when `ty` is `I`.
+fn int(b: &[u8], ty: u8) -> i128 {
+    let signed = ty == b'I';
+    match b.len() {
+        1 if signed => b[0] as i8 as i128,
+        1 => b[0] as i128,
+        2 if signed => i16::from_le_bytes([b[0], b[1]]) as i128,
+        2 => u16::from_le_bytes([b[0], b[1]]) as i128,
+        4 if signed => i32::from_le_bytes(b.try_into().expect("4 bytes")) as i128,
+        4 => u32::from_le_bytes(b.try_into().expect("4 bytes")) as i128,
+        _ if signed => i64::from_le_bytes(b.try_into().expect("8 bytes")) as i128,
+        _ => u64::from_le_bytes(b.try_into().expect("8 bytes")) as i128,
+    }
+}
+
+fn read_ascii(
+    data: &[u8],
+    h: &Header,
+    xyz: [Slot; 3],
+    ring: Option<Slot>,
+    name: &str,
+    out: &mut Collector,
+) -> Result<()> {
+    let values_per_point: usize = h.fields.iter().map(|f| f.count).sum();
+    let mut read = 0usize;
+    for (i, raw_line) in data.split(|&b| b == b'\n').enumerate() {
+        let line_no = h.data_line + 1 + i;
+        let at = || format!("{name}:{line_no}");
+        let line = std::str::from_utf8(raw_line)
+            .map_err(|_| Error::input(at(), "data line is not text"))?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        if read == h.points {
+            return Err(Error::input(at(), format!("more data lines than POINTS {}", h.points)));
+        }
+        let mut p = [0.0f64; 3];
+        let mut r = None;
+        let mut n = 0usize;
+        for (k, tok) in line.split_whitespace().enumerate() {
+            n += 1;
+            if k >= values_per_point {
+                continue; // counted, reported below
+            }
+            let v: f64 = tok.parse().map_err(|_| {
+                Error::input(at(), format!("value {} `{tok}` is not a number", k + 1))
+            })?;
+            for (a, s) in xyz.iter().enumerate() {
+                if s.value_index == k {
+                    p[a] = v;
+                }
+            }
+            if ring.is_some_and(|s| s.value_index == k) {
+                r = Some(v);
+            }
+        }
+        if n != values_per_point {
+            return Err(Error::input(
+                at(),
+                format!("expected {values_per_point} values (the FIELDS x COUNT of the header), found {n}"),
+            ));
+        }
+        let r = match r {
+            None => None,
+            Some(v) if v.fract() == 0.0 && v.abs() < 1e30 => Some(v as i128),
+            // Not an integer: passed on as out of range (reported only for a kept point).
+            Some(_) => Some(-1),
+        };
+        out.push(p, r).map_err(|m| Error::input(at(), m))?;
+        read += 1;
+    }
+    if read < h.points {
+        return Err(Error::input(
+            name,
+            format!("lying header: POINTS {} but only {read} data lines follow", h.points),
+        ));
+    }
+    Ok(())
+}
+
+/// Accumulates kept points (and rings) in the sensor frame.
+struct Collector {
+    viewpoint: Option<(DVec3, DMat3)>,
+    points: Vec<[f32; 3]>,
+    ring: Option<Vec<u16>>,
+}
+
+impl Collector {
+    fn new(viewpoint: Option<(DVec3, DMat3)>, has_ring: bool) -> Self {
+        Collector { viewpoint, points: Vec::new(), ring: has_ring.then(Vec::new) }
+    }
+
+    /// Adds one stored point; NaN and all-zero points are dropped. A ring value outside
+    /// 0..=65535 of a kept point is an error (the message only).
+    fn push(&mut self, p: [f64; 3], ring: Option<i128>) -> std::result::Result<(), String> {
+        if p == [0.0; 3] || !p.iter().all(|v| v.is_finite()) {
+            return Ok(());
+        }
+        let q = match self.viewpoint {
+            None => DVec3::from(p),
+            Some((t, r)) => r.transpose() * (DVec3::from(p) - t),
+        };
+        let q = [q.x as f32, q.y as f32, q.z as f32];
+        if !q.iter().all(|v| v.is_finite()) {
+            return Ok(());
+        }
+        if let (Some(rings), Some(r)) = (self.ring.as_mut(), ring) {
+            let r = u16::try_from(r)
+                .map_err(|_| "ring value is not an integer in 0..=65535".to_string())?;
+            rings.push(r);
+        }
+        self.points.push(q);
+        Ok(())
+    }
+
+    fn finish(self) -> Scan {
+        Scan { points: self.points, ring: self.ring, ring_elevation_deg: None, time_s: None }
+    }
+}
+
+/// The most output bytes one LZF input byte can give: a 3-byte back-reference copies up to
+/// 7 + 255 + 2 = 264 bytes.
+const LZF_MAX_RATIO: usize = 88;
+
+/// Decompresses LZF (liblzf's format, as written by PCL) into `out`, which must come out at
+/// exactly `expected` bytes. A control byte below 32 starts a literal run of `ctrl + 1` bytes;
+/// otherwise its top 3 bits are a length (7 = read one more length byte), and its low 5 bits
+/// with the next byte are a distance back into the output: copy `length + 2` bytes from
+/// `distance + 1` bytes back (the copy may overlap itself).
+fn lzf_decompress(
+    input: &[u8],
+    expected: usize,
+    out: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
+    out.clear();
+    out.reserve_exact(expected);
+    let mut ip = 0usize;
+    let too_long = || format!("decompresses past the declared {expected} bytes");
+    while ip < input.len() {
+        let ctrl = input[ip] as usize;
+        ip += 1;
+        if ctrl < 32 {
+            let len = ctrl + 1;
+            let lit = input.get(ip..ip + len).ok_or_else(|| {
+                format!("a literal run at byte {} runs past the end of the data", ip - 1)
+            })?;
+            if out.len() + len > expected {
+                return Err(too_long());
+            }
+            out.extend_from_slice(lit);
+            ip += len;
+        } else {
+            let mut len = ctrl >> 5;
+            if len == 7 {
+                len += *input.get(ip).ok_or("the data ends inside a back-reference")? as usize;
+                ip += 1;
+            }
+            let low = *input.get(ip).ok_or("the data ends inside a back-reference")? as usize;
+            ip += 1;
+            let back = ((ctrl & 0x1f) << 8) + low + 1;
+            len += 2;
+            if back > out.len() {
+                return Err(format!(
+                    "a back-reference at byte {} points {back} bytes back but only {} bytes are decompressed",
+                    ip - 2,
+                    out.len()
+                ));
+            }
+            if out.len() + len > expected {
+                return Err(too_long());
+            }
+            let start = out.len() - back;
+            if back >= len {
+                out.extend_from_within(start..start + len);
+            } else {
+                for k in 0..len {
+                    let b = out[start + k];
+                    out.push(b);
+                }
+            }
+        }
+    }
+    if out.len() != expected {
+        return Err(format!("decompresses to {} bytes, not the declared {expected}", out.len()));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    #[allow(clippy::too_many_arguments)]
+    fn header(
+        fields: &str,
+        size: &str,
+        ty: &str,
+        count: &str,
+        w: usize,
+        h: usize,
+        vp: &str,
+        data: &str,
+    ) -> String {
+        format!(
+            "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS {fields}\nSIZE {size}\nTYPE {ty}\nCOUNT {count}\nWIDTH {w}\nHEIGHT {h}\nVIEWPOINT {vp}\nPOINTS {}\nDATA {data}\n",
+            w * h
+        )
+    }
+
+    const ID: &str = "0 0 0 1 0 0 0";
+
+    fn write(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> PathBuf {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    }
+
+    /// LZF made of literal runs only (valid LZF, no compression).
+    fn lzf_literals(data: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        for chunk in data.chunks(32) {
+            out.push((chunk.len() - 1) as u8);
+            out.extend_from_slice(chunk);
+        }
+        out
+    }
+
+    fn compressed_file(head: &str, lzf: &[u8], uncompressed: usize) -> Vec<u8> {
+        let mut b = head.as_bytes().to_vec();
+        b.extend_from_slice(&(lzf.len() as u32).to_le_bytes());
+        b.extend_from_slice(&(uncompressed as u32).to_le_bytes());
+        b.extend_from_slice(lzf);
+        b
+    }
+
+    fn err(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> String {
+        let e = read_pcd(&write(dir, name, bytes)).unwrap_err();
+        assert!(e.is_input(), "{e}");
+        e.to_string()
+    }
+
+    fn sample() -> Vec<[f32; 3]> {
+        (0..50)
+            .map(|i| [i as f32 * 0.5 + 1.0, -(i as f32) * 0.25, (i as f32 * 0.1).sin()])
+            .collect()
+    }
+
+    #[test]
+    fn ascii_with_comments_nan_and_zero() {
+        let d = tempfile::tempdir().unwrap();
+        let mut s = header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 1", 5, 1, ID, "ascii");
+        s.push_str("1 2 3 10\nnan nan nan 0\n\n0 0 0 5\n-1.5 2.5e1 -3 7\n4 5 6 1\n");
+        let scan = read_pcd(&write(&d, "a.pcd", s.as_bytes())).unwrap();
+        assert_eq!(scan.points, vec![[1.0, 2.0, 3.0], [-1.5, 25.0, -3.0], [4.0, 5.0, 6.0]]);
+        assert!(scan.ring.is_none() && scan.ring_elevation_deg.is_none());
+    }
+
+    #[test]
+    fn binary_f32_and_f64() {
+        let d = tempfile::tempdir().unwrap();
+        let pts = sample();
+        let mut b =
+            header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 1", pts.len(), 1, ID, "binary")
+                .into_bytes();
+        for p in &pts {
+            for v in p {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+            b.extend_from_slice(&7.0f32.to_le_bytes());
+        }
+        assert_eq!(read_pcd(&write(&d, "b.pcd", &b)).unwrap().points, pts);
+
+        // Doubles, with the fields in another order.
+        let mut b =
+            header("intensity z y x", "4 8 8 8", "F F F F", "1 1 1 1", pts.len(), 1, ID, "binary")
+                .into_bytes();
+        for p in &pts {
+            b.extend_from_slice(&1.0f32.to_le_bytes());
+            for v in [p[2], p[1], p[0]] {
+                b.extend_from_slice(&(v as f64).to_le_bytes());
+            }
+        }
+        assert_eq!(read_pcd(&write(&d, "b64.pcd", &b)).unwrap().points, pts);
+    }
+
+    #[test]
+    fn binary_compressed_with_literal_runs() {
+        let d = tempfile::tempdir().unwrap();
+        let pts = sample();
+        let n = pts.len();
+        // Column-wise: all x, all y, all z, all intensity.
+        let mut raw = Vec::new();
+        for a in 0..3 {
+            for p in &pts {
+                raw.extend_from_slice(&p[a].to_le_bytes());
+            }
+        }
+        for i in 0..n {
+            raw.extend_from_slice(&(i as f32).to_le_bytes());
+        }
+        let head = header(
+            "x y z intensity",
+            "4 4 4 4",
+            "F F F F",
+            "1 1 1 1",
+            n,
+            1,
+            ID,
+            "binary_compressed",
+        );
+        let b = compressed_file(&head, &lzf_literals(&raw), raw.len());
+        assert_eq!(read_pcd(&write(&d, "c.pcd", &b)).unwrap().points, pts);
+    }
+
+    #[test]
+    fn binary_compressed_with_a_back_reference() {
+        let d = tempfile::tempdir().unwrap();
+        // 3 points, z = 2.0 everywhere: the z column is one literal float then a
+        // back-reference 4 bytes back, 8 bytes long (overlapping copy).
+        let xs = [1.0f32, 2.0, 3.0];
+        let ys = [-1.0f32, -2.0, -3.0];
+        let mut lit = Vec::new();
+        for v in xs.iter().chain(&ys).chain(&[2.0f32]) {
+            lit.extend_from_slice(&v.to_le_bytes());
+        }
+        let mut lzf = lzf_literals(&lit); // 28 bytes: one run
+                                          // ctrl: length field 6 (6 + 2 = 8 bytes), distance high bits 0; then low byte 3 (4 back).
+        lzf.extend_from_slice(&[6 << 5, 3]);
+        let head = header("x y z", "4 4 4", "F F F", "1 1 1", 3, 1, ID, "binary_compressed");
+        let b = compressed_file(&head, &lzf, 36);
+        let scan = read_pcd(&write(&d, "br.pcd", &b)).unwrap();
+        assert_eq!(scan.points, vec![[1.0, -1.0, 2.0], [2.0, -2.0, 2.0], [3.0, -3.0, 2.0]]);
+    }
+
+    #[test]
+    fn lzf_back_references_short_and_long() {
+        let mut out = Vec::new();
+        // "abc", then 6 bytes from 3 back.
+        lzf_decompress(&[2, b'a', b'b', b'c', 4 << 5, 2], 9, &mut out).unwrap();
+        assert_eq!(out, b"abcabcabc");
+        // "a", then the long form: 7 + 11 + 2 = 20 bytes from 1 back.
+        lzf_decompress(&[0, b'a', 7 << 5, 11, 0], 21, &mut out).unwrap();
+        assert_eq!(out, vec![b'a'; 21]);
+        // A distance beyond what is decompressed, and data ending inside a reference.
+        assert!(lzf_decompress(&[0, b'a', 1 << 5, 5], 4, &mut out).is_err());
+        assert!(lzf_decompress(&[0, b'a', 7 << 5], 4, &mut out).is_err());
+        // A literal run past the end of the input.
+        assert!(lzf_decompress(&[5, b'a'], 6, &mut out).is_err());
+    }
+
+    #[test]
+    fn ring_field_binary_and_ascii() {
+        let d = tempfile::tempdir().unwrap();
+        let mut b = header(
+            "x y z intensity ring time",
+            "4 4 4 4 2 4",
+            "F F F F U F",
+            "1 1 1 1 1 1",
+            3,
+            1,
+            ID,
+            "binary",
+        )
+        .into_bytes();
+        for (i, p) in [[1.0f32, 0.0, 0.0], [f32::NAN, 0.0, 0.0], [0.0, 2.0, 0.5]].iter().enumerate()
+        {
+            for v in p {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+            b.extend_from_slice(&9.0f32.to_le_bytes());
+            b.extend_from_slice(&(30 - i as u16).to_le_bytes());
+            b.extend_from_slice(&0.01f32.to_le_bytes());
+        }
+        let scan = read_pcd(&write(&d, "r.pcd", &b)).unwrap();
+        assert_eq!(scan.points, vec![[1.0, 0.0, 0.0], [0.0, 2.0, 0.5]]);
+        assert_eq!(scan.ring, Some(vec![30, 28]));
+        assert!(scan.ring_elevation_deg.is_none());
+
+        let mut s = header("x y z ring", "4 4 4 1", "F F F I", "1 1 1 1", 2, 1, ID, "ascii");
+        s.push_str("1 2 3 5\n4 5 6 0\n");
+        assert_eq!(read_pcd(&write(&d, "ra.pcd", s.as_bytes())).unwrap().ring, Some(vec![5, 0]));
+
+        // A negative ring of a kept point, and a float ring.
+        let mut s = header("x y z ring", "4 4 4 1", "F F F I", "1 1 1 1", 1, 1, ID, "ascii");
+        s.push_str("1 2 3 -1\n");
+        let m = err(&d, "neg.pcd", s.as_bytes());
+        assert!(m.contains("neg.pcd:12") && m.contains("ring"), "{m}");
+        let s = header("x y z ring", "4 4 4 4", "F F F F", "1 1 1 1", 0, 1, ID, "ascii");
+        let m = err(&d, "fr.pcd", s.as_bytes());
+        assert!(m.contains("fr.pcd") && m.contains("ring"), "{m}");
+    }
+
+    #[test]
+    fn extra_fields_padding_and_count_are_skipped() {
+        let d = tempfile::tempdir().unwrap();
+        let pts = sample();
+        // normal: 3 floats; _: 3 padding bytes; rgb: a packed u32; x y z between them.
+        let head = header(
+            "normal x _ y rgb z",
+            "4 4 1 4 4 4",
+            "F F U F U F",
+            "3 1 3 1 1 1",
+            pts.len(),
+            1,
+            ID,
+            "binary",
+        );
+        let mut b = head.into_bytes();
+        for p in &pts {
+            for v in [0.1f32, 0.2, 0.3, p[0]] {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+            b.extend_from_slice(&[0xAA; 3]);
+            b.extend_from_slice(&p[1].to_le_bytes());
+            b.extend_from_slice(&0xFF00FFu32.to_le_bytes());
+            b.extend_from_slice(&p[2].to_le_bytes());
+        }
+        assert_eq!(read_pcd(&write(&d, "e.pcd", &b)).unwrap().points, pts);
+
+        // The same layout compressed (columns of width SIZE x COUNT).
+        let n = pts.len();
+        let mut raw = Vec::new();
+        for _ in 0..n {
+            for v in [0.1f32, 0.2, 0.3] {
+                raw.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        for p in &pts {
+            raw.extend_from_slice(&p[0].to_le_bytes());
+        }
+        raw.extend(vec![0xAAu8; 3 * n]);
+        for p in &pts {
+            raw.extend_from_slice(&p[1].to_le_bytes());
+        }
+        raw.extend(vec![0u8; 4 * n]);
+        for p in &pts {
+            raw.extend_from_slice(&p[2].to_le_bytes());
+        }
+        let head = header(
+            "normal x _ y rgb z",
+            "4 4 1 4 4 4",
+            "F F U F U F",
+            "3 1 3 1 1 1",
+            n,
+            1,
+            ID,
+            "binary_compressed",
+        );
+        let b = compressed_file(&head, &lzf_literals(&raw), raw.len());
+        assert_eq!(read_pcd(&write(&d, "ec.pcd", &b)).unwrap().points, pts);
+
+        // ascii: COUNT 3 takes three values.
+        let mut s = header("normal x y z", "4 4 4 4", "F F F F", "3 1 1 1", 1, 1, ID, "ascii");
+        s.push_str("0.1 0.2 0.3 1 2 3\n");
+        assert_eq!(
+            read_pcd(&write(&d, "ea.pcd", s.as_bytes())).unwrap().points,
+            vec![[1.0, 2.0, 3.0]]
+        );
+    }
+
+    #[test]
+    fn organised_cloud_holes_are_dropped() {
+        let d = tempfile::tempdir().unwrap();
+        let mut b = header("x y z", "4 4 4", "F F F", "1 1 1", 2, 2, ID, "binary").into_bytes();
+        for p in [[1.0f32, 1.0, 1.0], [f32::NAN; 3], [2.0, 2.0, 2.0], [0.0; 3]] {
+            for v in p {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        assert_eq!(read_pcd(&write(&d, "o.pcd", &b)).unwrap().points, vec![[1.0; 3], [2.0; 3]]);
+    }
+
+    #[test]
+    fn viewpoint_maps_points_into_the_sensor_frame() {
+        let d = tempfile::tempdir().unwrap();
+        // Sensor at (1, 2, 3), yawed +90 deg: sensor x = world y.
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let vp = format!("1 2 3 {h} 0 0 {h}");
+        let sensor_pts = [[5.0f64, 0.0, 0.0], [0.0, 2.0, -1.0], [1.0, 1.0, 1.0]];
+        let q = DQuat::from_xyzw(0.0, 0.0, h, h);
+        let t = DVec3::new(1.0, 2.0, 3.0);
+        let mut s = header("x y z", "8 8 8", "F F F", "1 1 1", 3, 1, &vp, "ascii");
+        for p in sensor_pts {
+            let w = q * DVec3::from(p) + t;
+            s.push_str(&format!("{} {} {}\n", w.x, w.y, w.z));
+        }
+        // The first point lies 5 m ahead of the sensor, i.e. at world (1, 7, 3).
+        let first = s.lines().nth(11).unwrap();
+        let w: Vec<f64> = first.split_whitespace().map(|v| v.parse().unwrap()).collect();
+        assert!(
+            (w[0] - 1.0).abs() < 1e-12 && (w[1] - 7.0).abs() < 1e-12 && (w[2] - 3.0).abs() < 1e-12,
+            "{first}"
+        );
+        let scan = read_pcd(&write(&d, "v.pcd", s.as_bytes())).unwrap();
+        for (a, e) in scan.points.iter().zip(sensor_pts) {
+            for k in 0..3 {
+                assert!((a[k] as f64 - e[k]).abs() < 1e-5, "{a:?} vs {e:?}");
+            }
+        }
+        // A quaternion far from unit norm.
+        let s = header("x y z", "4 4 4", "F F F", "1 1 1", 0, 1, "0 0 0 2 0 0 0", "ascii");
+        let m = err(&d, "vq.pcd", s.as_bytes());
+        assert!(m.contains("vq.pcd:9") && m.contains("norm"), "{m}");
+    }
+
+    #[test]
+    fn header_errors_name_file_and_line() {
+        let d = tempfile::tempdir().unwrap();
+        // Missing key.
+        let s =
+            "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nHEIGHT 1\nPOINTS 0\nDATA ascii\n";
+        let m = err(&d, "m.pcd", s.as_bytes());
+        assert!(m.contains("m.pcd") && m.contains("WIDTH"), "{m}");
+        // Unknown key.
+        let s = "VERSION 0.7\nFIELDS x y z\nCOLOR red\nDATA ascii\n";
+        let m = err(&d, "u.pcd", s.as_bytes());
+        assert!(m.contains("u.pcd:3") && m.contains("COLOR"), "{m}");
+        // No DATA line.
+        let m = err(&d, "nd.pcd", b"VERSION 0.7\nFIELDS x y z\n");
+        assert!(m.contains("nd.pcd") && m.contains("DATA"), "{m}");
+        // Unsupported version and data kind.
+        let m = err(&d, "v.pcd", b"VERSION 0.5\n");
+        assert!(m.contains("v.pcd:1") && m.contains("0.5"), "{m}");
+        let s = header("x y z", "4 4 4", "F F F", "1 1 1", 0, 1, ID, "binary_lz4");
+        let m = err(&d, "dk.pcd", s.as_bytes());
+        assert!(m.contains("dk.pcd:11") && m.contains("binary_lz4"), "{m}");
+        // Unsupported TYPE / SIZE for x y z.
+        let s = header("x y z", "4 4 4", "F U F", "1 1 1", 0, 1, ID, "binary");
+        let m = err(&d, "t.pcd", s.as_bytes());
+        assert!(m.contains("t.pcd") && m.contains("field y has TYPE U"), "{m}");
+        let s = header("x y z", "4 4 2", "F F F", "1 1 1", 0, 1, ID, "binary");
+        let m = err(&d, "s.pcd", s.as_bytes());
+        assert!(m.contains("field z has TYPE F SIZE 2"), "{m}");
+        // Missing z, and list lengths.
+        let s = header("x y intensity", "4 4 4", "F F F", "1 1 1", 0, 1, ID, "binary");
+        assert!(err(&d, "nz.pcd", s.as_bytes()).contains("no z"));
+        let s = header("x y z", "4 4", "F F F", "1 1 1", 0, 1, ID, "binary");
+        let m = err(&d, "sl.pcd", s.as_bytes());
+        assert!(m.contains("sl.pcd:4") && m.contains("SIZE has 2 entries"), "{m}");
+        // POINTS != WIDTH * HEIGHT.
+        let s = header("x y z", "4 4 4", "F F F", "1 1 1", 10, 1, ID, "binary")
+            .replace("POINTS 10", "POINTS 12");
+        let m = err(&d, "p.pcd", s.as_bytes());
+        assert!(
+            m.contains("p.pcd:10") && m.contains("POINTS 12 is not WIDTH 10 x HEIGHT 1"),
+            "{m}"
+        );
+        // A repeated key.
+        let s = header("x y z", "4 4 4", "F F F", "1 1 1", 0, 1, ID, "binary")
+            .replace("HEIGHT 1\n", "HEIGHT 1\nHEIGHT 1\n");
+        let m = err(&d, "r.pcd", s.as_bytes());
+        assert!(m.contains("r.pcd:9") && m.contains("twice"), "{m}");
+    }
+
+    #[test]
+    fn lying_headers_are_errors() {
+        let d = tempfile::tempdir().unwrap();
+        // binary: 10 points promised, 3 given.
+        let mut b = header("x y z", "4 4 4", "F F F", "1 1 1", 10, 1, ID, "binary").into_bytes();
+        b.extend_from_slice(&[0x3f; 36]);
+        let m = err(&d, "lb.pcd", &b);
+        assert!(
+            m.contains("lb.pcd") && m.contains("lying header") && m.contains("120 bytes"),
+            "{m}"
+        );
+        // ascii: 3 lines promised, 2 given.
+        let mut s = header("x y z", "4 4 4", "F F F", "1 1 1", 3, 1, ID, "ascii");
+        s.push_str("1 2 3\n4 5 6\n");
+        let m = err(&d, "la.pcd", s.as_bytes());
+        assert!(m.contains("la.pcd") && m.contains("only 2 data lines"), "{m}");
+        // ascii: one line too many.
+        let mut s = header("x y z", "4 4 4", "F F F", "1 1 1", 1, 1, ID, "ascii");
+        s.push_str("1 2 3\n4 5 6\n");
+        let m = err(&d, "lm.pcd", s.as_bytes());
+        assert!(m.contains("lm.pcd:13") && m.contains("more data lines"), "{m}");
+        // compressed: uncompressed size disagrees with POINTS.
+        let head = header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, ID, "binary_compressed");
+        let raw = [0u8; 12];
+        let m = err(&d, "lc.pcd", &compressed_file(&head, &lzf_literals(&raw), raw.len()));
+        assert!(m.contains("lc.pcd") && m.contains("lying header"), "{m}");
+        // compressed: fewer bytes than the compressed size says.
+        let mut b = compressed_file(&head, &lzf_literals(&[0u8; 24]), 24);
+        b.truncate(b.len() - 5);
+        let m = err(&d, "lt.pcd", &b);
+        assert!(m.contains("lying header") && m.contains("compressed size"), "{m}");
+        // compressed: LZF that decompresses to fewer bytes than declared.
+        let m = err(&d, "lz.pcd", &compressed_file(&head, &lzf_literals(&[1u8; 20]), 24));
+        assert!(
+            m.contains("lz.pcd")
+                && m.contains("LZF")
+                && m.contains("20 bytes, not the declared 24"),
+            "{m}"
+        );
+        // ... or more.
+        let m = err(&d, "lz2.pcd", &compressed_file(&head, &lzf_literals(&[1u8; 30]), 24));
+        assert!(m.contains("LZF") && m.contains("past the declared 24"), "{m}");
+    }
+
+    #[test]
+    fn ascii_line_errors() {
+        let d = tempfile::tempdir().unwrap();
+        let mut s = header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 1", 2, 1, ID, "ascii");
+        s.push_str("1 2 3 4\n1 2 3\n");
+        let m = err(&d, "w.pcd", s.as_bytes());
+        assert!(
+            m.contains("w.pcd:13") && m.contains("expected 4 values") && m.contains("found 3"),
+            "{m}"
+        );
+        let mut s = header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 1", 2, 1, ID, "ascii");
+        s.push_str("1 2 3 4\n1 2 3 4 5\n");
+        assert!(err(&d, "w2.pcd", s.as_bytes()).contains("found 5"));
+        let mut s = header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 1", 2, 1, ID, "ascii");
+        s.push_str("1 2 3 4\n1 two 3 4\n");
+        let m = err(&d, "n.pcd", s.as_bytes());
+        assert!(m.contains("n.pcd:13") && m.contains("`two` is not a number"), "{m}");
+    }
+}
