@@ -1,1 +1,964 @@
-//! See the module docs of `background`.
+//! Raw Velodyne captures (`.pcap`): HDL-32E and VLP-16 data packets decoded into one [`Scan`]
+//! per full turn of the sensor.
+//!
+//! # Container
+//! Classic libpcap files in either byte order, with microsecond (`a1b2c3d4`) or nanosecond
+//! (`a1b23c4d`) timestamps. Link types: Ethernet (1, with any number of 802.1Q / 802.1ad VLAN
+//! tags), Linux cooked capture SLL (113) and raw IPv4 (101, 228). pcapng files are rejected
+//! with a message saying so (`editcap -F pcap in.pcapng out.pcap` converts them). The file is
+//! streamed through a buffered reader, one reused packet buffer, so captures of many GB only
+//! cost the memory of the decoded scans.
+//!
+//! # Packets
+//! Only unfragmented IPv4 UDP is looked at; the UDP port is not checked. A Velodyne data packet
+//! is a UDP payload of exactly 1206 bytes: 12 blocks of 100 bytes (flag `0xFF 0xEE`, azimuth
+//! u16 little endian in 0.01 degree below 36000, then 32 returns of distance u16 LE in 2 mm
+//! units and reflectivity u8), a 4-byte sensor timestamp (ignored: the pcap timestamps are
+//! used) and two factory bytes, return mode (`0x37` strongest, `0x38` last, `0x39` dual) and
+//! product id (`0x21` HDL-32E, `0x22` VLP-16). Every other packet (position/GPS packets of
+//! 512 bytes, other sizes, TCP, non-IPv4, IP fragments, bad block flags, an azimuth of 360
+//! degrees or more, an unknown return mode or product id, frames cut short by the capture's
+//! snap length) is skipped and counted in [`PcapRecording::foreign_packets`].
+//!
+//! # Decoding
+//! - HDL-32E: the 32 returns of a block are lasers 0..31 in firing order, fired 1.152 us
+//!   apart; a block (one firing of all lasers) lasts 46.08 us. VLP-16: returns 0..15 are the
+//!   first firing sequence and 16..31 the second, laser id = return % 16, lasers 2.304 us
+//!   apart, sequences 55.296 us apart, a block lasts 110.592 us. Vertical angles per laser id
+//!   are [`VelodyneModel::elevation_deg`] (the factory tables; no per-unit calibration).
+//! - Each return's azimuth is interpolated between its block's azimuth and the next firing's
+//!   by its firing time (as the ROS `velodyne_pointcloud` decoder does for the VLP-16, so the
+//!   VLP-16's second sequence sits halfway to the next block). The last firing of a packet
+//!   uses the step of the one before; a step of more than 2 degrees per firing is a glitch
+//!   and replaced by a neighbouring step of the same packet.
+//! - Dual return (`0x39`): blocks come in pairs of one firing with the same azimuth; both
+//!   returns are kept (the projection onto a beam grid keeps the nearest per cell).
+//! - A distance of 0 means no return and is skipped.
+//! - Velodyne azimuth `a` is clockwise from straight ahead seen from above, so in pedscan's
+//!   frame (x forward, y left, z up), for elevation `el` and distance `d`:
+//!   `x = d cos(el) cos(a)`, `y = -d cos(el) sin(a)`, `z = d sin(el)` (the same axes as the
+//!   ROS decoder's `x = xy cos(a)`, `y = -xy sin(a)`).
+//! - [`Scan::ring`] is the laser's rank by elevation, 0 = lowest (the ROS convention), and
+//!   [`Scan::ring_elevation_deg`] the elevations sorted ascending, so
+//!   `ring_elevation_deg[ring[i]]` is the elevation of point `i`'s laser.
+//!
+//! # Rotations
+//! A rotation is cut where the (interpolated) azimuth crosses 180 degrees, straight behind
+//! the sensor, which is the edge of pedscan's column 0: every scan is one full turn with its
+//! seam behind. A crossing is a step back of more than half a turn in the azimuth measured
+//! from 180 degrees; after a cut the next one is only accepted once the sensor has turned a
+//! quarter turn on, so jitter at the seam cannot cut twice. The partial turn before the first
+//! cut and the one after the last cut are dropped and counted in
+//! [`PcapRecording::partial_rotations`] (a capture whose very first return lies exactly at
+//! 180 degrees has no leading partial turn). [`Scan::time_s`] is the pcap timestamp, in
+//! seconds, of the packet holding the rotation's first return. Gaps in the capture are not
+//! detected: a turn with lost packets is still one scan, with fewer points.
+//!
+//! # Errors
+//! Bad input is an [`Error::input`] naming the file, and the packet (numbered from 1, as
+//! Wireshark does) with the byte offset of its record header where one is at fault: a file
+//! that is not classic pcap, an unsupported link type, a record header or packet cut short
+//! (a truncated file: nothing partial is returned), an implausible record length, data
+//! packets of two different product ids (the first packet of the second kind is named), and
+//! a capture without one complete rotation (`no complete rotation: N data packets, M foreign`).
+
+use super::Scan;
+use crate::error::{Error, Result};
+use std::io::{BufReader, Read};
+use std::path::Path;
+
+/// The Velodyne sensors whose data packets [`read_pcap`] decodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VelodyneModel {
+    /// HDL-32E: 32 lasers, product id `0x21`.
+    Hdl32e,
+    /// VLP-16 (Puck): 16 lasers fired twice per block, product id `0x22`.
+    Vlp16,
+}
+
+/// HDL-32E vertical angle per laser id (firing order), degrees.
+const HDL32E_ELEVATION_DEG: [f64; 32] = [
+    -30.67, -9.33, -29.33, -8.00, -28.00, -6.67, -26.67, -5.33, -25.33, -4.00, -24.00, -2.67,
+    -22.67, -1.33, -21.33, 0.00, -20.00, 1.33, -18.67, 2.67, -17.33, 4.00, -16.00, 5.33, -14.67,
+    6.67, -13.33, 8.00, -12.00, 9.33, -10.67, 10.67,
+];
+
+/// VLP-16 vertical angle per laser id (firing order), degrees.
+const VLP16_ELEVATION_DEG: [f64; 16] =
+    [-15.0, 1.0, -13.0, 3.0, -11.0, 5.0, -9.0, 7.0, -7.0, 9.0, -5.0, 11.0, -3.0, 13.0, -1.0, 15.0];
+
+impl VelodyneModel {
+    /// Vertical angle of each laser id in firing order, degrees.
+    pub fn elevation_deg(&self) -> &'static [f64] {
+        match self {
+            VelodyneModel::Hdl32e => &HDL32E_ELEVATION_DEG,
+            VelodyneModel::Vlp16 => &VLP16_ELEVATION_DEG,
+        }
+    }
+
+    /// The sensor's name as Velodyne writes it (`HDL-32E`, `VLP-16`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            VelodyneModel::Hdl32e => "HDL-32E",
+            VelodyneModel::Vlp16 => "VLP-16",
+        }
+    }
+
+    fn from_product_id(id: u8) -> Option<VelodyneModel> {
+        match id {
+            0x21 => Some(VelodyneModel::Hdl32e),
+            0x22 => Some(VelodyneModel::Vlp16),
+            _ => None,
+        }
+    }
+
+    /// Firing time of return slot `ch` (0..32) of a block as a fraction of the time between
+    /// two firings (one block; a block pair in dual-return mode).
+    fn firing_fraction(&self, ch: usize) -> f64 {
+        match self {
+            VelodyneModel::Hdl32e => ch as f64 * HDL32E_LASER_US / HDL32E_FIRING_US,
+            VelodyneModel::Vlp16 => {
+                ((ch / 16) as f64 * VLP16_SEQUENCE_US + (ch % 16) as f64 * VLP16_LASER_US)
+                    / VLP16_FIRING_US
+            }
+        }
+    }
+}
+
+/// Everything decoded from one capture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PcapRecording {
+    /// The sensor, from the data packets' product id.
+    pub model: VelodyneModel,
+    /// One scan per complete turn, seam straight behind, in capture order.
+    pub scans: Vec<Scan>,
+    /// Velodyne data packets decoded (partial turns included).
+    pub data_packets: usize,
+    /// Packets skipped as not Velodyne data (GPS/position packets, other traffic).
+    pub foreign_packets: usize,
+    /// Partial turns dropped at the start and end of the capture.
+    pub partial_rotations: usize,
+}
+
+const HDL32E_LASER_US: f64 = 1.152;
+const HDL32E_FIRING_US: f64 = 46.08;
+const VLP16_LASER_US: f64 = 2.304;
+const VLP16_SEQUENCE_US: f64 = 55.296;
+const VLP16_FIRING_US: f64 = 110.592;
+
+const PACKET_LEN: usize = 1206;
+const BLOCKS: usize = 12;
+const BLOCK_LEN: usize = 100;
+const RETURNS: usize = 32;
+const RETURN_MODE_DUAL: u8 = 0x39;
+/// Distance unit, metres.
+const DISTANCE_M: f64 = 0.002;
+/// Azimuth units (0.01 degree) per turn.
+const TURN: f64 = 36000.0;
+/// A larger azimuth step between two firings (2 degrees) is a glitch, not rotation.
+const MAX_FIRING_STEP: u32 = 200;
+/// Longest record accepted (pcap snap lengths are at most 256 KiB in practice).
+const MAX_RECORD_LEN: usize = 1 << 24;
+
+/// Reads a raw Velodyne capture into one scan per complete turn; see the module docs.
+pub fn read_pcap(path: &Path) -> Result<PcapRecording> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = BufReader::with_capacity(1 << 20, file);
+    let name = path.display();
+
+    let mut header = [0u8; 24];
+    let got = read_full(&mut reader, &mut header).map_err(|e| Error::io(path, e))?;
+    if got >= 4 && header[..4] == [0x0A, 0x0D, 0x0D, 0x0A] {
+        return Err(Error::input(
+            &name,
+            "pcapng captures are not supported, only classic pcap \
+             (convert with `editcap -F pcap in.pcapng out.pcap`)",
+        ));
+    }
+    if got == 0 {
+        return Err(Error::input(&name, "empty file, not a pcap capture"));
+    }
+    let (big_endian, nanos) = match header[..4.min(got)] {
+        [0xD4, 0xC3, 0xB2, 0xA1] => (false, false),
+        [0xA1, 0xB2, 0xC3, 0xD4] => (true, false),
+        [0x4D, 0x3C, 0xB2, 0xA1] => (false, true),
+        [0xA1, 0xB2, 0x3C, 0x4D] => (true, true),
+        _ => {
+            return Err(Error::input(
+                &name,
+                format!("not a pcap capture (first bytes {:02x?})", &header[..4.min(got)]),
+            ))
+        }
+    };
+    if got < 24 {
+        return Err(Error::input(&name, format!("truncated pcap header ({got} of 24 bytes)")));
+    }
+    let u16_at = |b: &[u8], i: usize| {
+        let v = [b[i], b[i + 1]];
+        if big_endian { u16::from_be_bytes(v) } else { u16::from_le_bytes(v) }
+    };
+    let u32_at = |b: &[u8], i: usize| {
+        let v = [b[i], b[i + 1], b[i + 2], b[i + 3]];
+        if big_endian { u32::from_be_bytes(v) } else { u32::from_le_bytes(v) }
+    };
+    let major = u16_at(&header, 4);
+    if major != 2 {
+        return Err(Error::input(&name, format!("pcap version {major} is not supported (2 is)")));
+    }
+    let link = match u32_at(&header, 20) & 0xFFFF {
+        1 => Link::Ethernet,
+        113 => Link::LinuxSll,
+        101 | 228 => Link::RawIpv4,
+        other => {
+            return Err(Error::input(
+                &name,
+                format!(
+                    "link type {other} is not supported (Ethernet 1, Linux cooked 113, \
+                     raw IPv4 101 or 228 are)"
+                ),
+            ))
+        }
+    };
+    let frac_s = if nanos { 1e-9 } else { 1e-6 };
+
+    let mut rec = [0u8; 16];
+    let mut buf = vec![0u8; 65536];
+    let mut packet: usize = 0;
+    let mut offset: u64 = 24;
+    let mut model: Option<(VelodyneModel, usize)> = None;
+    let mut decoder: Option<Decoder> = None;
+    let mut data_packets = 0usize;
+    let mut foreign_packets = 0usize;
+    let mut rotations = Rotations::new();
+    loop {
+        let got = read_full(&mut reader, &mut rec).map_err(|e| Error::io(path, e))?;
+        if got == 0 {
+            break;
+        }
+        packet += 1;
+        let at = || format!("{name}: packet {packet} (byte {offset})");
+        if got < 16 {
+            return Err(Error::input(at(), format!("truncated record header ({got} of 16 bytes)")));
+        }
+        let ts_sec = u32_at(&rec, 0);
+        let ts_frac = u32_at(&rec, 4);
+        let len = u32_at(&rec, 8) as usize;
+        if len > MAX_RECORD_LEN {
+            return Err(Error::input(at(), format!("implausible record length {len} bytes")));
+        }
+        if buf.len() < len {
+            buf.resize(len, 0);
+        }
+        let frame = &mut buf[..len];
+        let got = read_full(&mut reader, frame).map_err(|e| Error::io(path, e))?;
+        if got < len {
+            return Err(Error::input(at(), format!("packet cut short ({got} of {len} bytes)")));
+        }
+        let payload = udp_payload(link, frame);
+        match payload.and_then(velodyne_packet) {
+            None => foreign_packets += 1,
+            Some((m, dual)) => {
+                match model {
+                    None => {
+                        model = Some((m, packet));
+                        decoder = Some(Decoder::new(m));
+                    }
+                    Some((first, first_packet)) if first != m => {
+                        return Err(Error::input(
+                            at(),
+                            format!(
+                                "{} data packet in a capture of {} data (from packet \
+                                 {first_packet}); mixed sensors are not supported",
+                                m.name(),
+                                first.name()
+                            ),
+                        ));
+                    }
+                    Some(_) => {}
+                }
+                data_packets += 1;
+                let time = ts_sec as f64 + ts_frac as f64 * frac_s;
+                let dec = decoder.as_ref().expect("decoder is set with the model");
+                rotations.packet(dec, payload.expect("a data packet has a payload"), dual, time);
+            }
+        }
+        offset += 16 + len as u64;
+    }
+
+    let Some((model, _)) = model.filter(|_| !rotations.scans.is_empty()) else {
+        return Err(Error::input(
+            &name,
+            format!("no complete rotation: {data_packets} data packets, {foreign_packets} foreign"),
+        ));
+    };
+    let partial_rotations = rotations.partial + 1; // the turn after the last cut
+    Ok(PcapRecording { model, scans: rotations.scans, data_packets, foreign_packets, partial_rotations })
+}
+
+/// Fills `buf` as far as the stream allows; returns the bytes read (short only at the end).
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+#[derive(Clone, Copy)]
+enum Link {
+    Ethernet,
+    LinuxSll,
+    RawIpv4,
+}
+
+fn be16(b: &[u8], i: usize) -> Option<u16> {
+    Some(u16::from_be_bytes([*b.get(i)?, *b.get(i + 1)?]))
+}
+
+/// The UDP payload of an unfragmented IPv4 packet in `frame`, if it is one.
+fn udp_payload(link: Link, frame: &[u8]) -> Option<&[u8]> {
+    const IPV4: u16 = 0x0800;
+    let ip = match link {
+        Link::Ethernet => {
+            let mut at = 12;
+            let mut ethertype = be16(frame, at)?;
+            while ethertype == 0x8100 || ethertype == 0x88A8 {
+                at += 4;
+                ethertype = be16(frame, at)?;
+            }
+            if ethertype != IPV4 {
+                return None;
+            }
+            &frame[at + 2..]
+        }
+        Link::LinuxSll => {
+            if be16(frame, 14)? != IPV4 {
+                return None;
+            }
+            &frame[16..]
+        }
+        Link::RawIpv4 => frame,
+    };
+    if ip.len() < 20 || ip[0] >> 4 != 4 {
+        return None;
+    }
+    let header_len = (ip[0] & 0x0F) as usize * 4;
+    let total_len = be16(ip, 2)? as usize;
+    let fragment = be16(ip, 6)? & 0x3FFF; // more-fragments flag and fragment offset
+    if header_len < 20 || total_len < header_len + 8 || total_len > ip.len() || fragment != 0 || ip[9] != 17 {
+        return None;
+    }
+    let udp = &ip[header_len..total_len];
+    let udp_len = be16(udp, 4)? as usize;
+    if udp_len < 8 || udp_len > udp.len() {
+        return None;
+    }
+    Some(&udp[8..udp_len])
+}
+
+/// The sensor and dual-return flag of a Velodyne data packet, `None` for anything else.
+fn velodyne_packet(p: &[u8]) -> Option<(VelodyneModel, bool)> {
+    if p.len() != PACKET_LEN {
+        return None;
+    }
+    for b in 0..BLOCKS {
+        let blk = &p[b * BLOCK_LEN..];
+        if blk[0] != 0xFF || blk[1] != 0xEE || u16::from_le_bytes([blk[2], blk[3]]) >= 36000 {
+            return None;
+        }
+    }
+    let dual = match p[PACKET_LEN - 2] {
+        0x37 | 0x38 => false,
+        RETURN_MODE_DUAL => true,
+        _ => return None,
+    };
+    Some((VelodyneModel::from_product_id(p[PACKET_LEN - 1])?, dual))
+}
+
+/// Per return slot of a block: the laser's elevation, ring and firing time.
+#[derive(Clone, Copy, Default)]
+struct Slot {
+    sin_el: f64,
+    cos_el: f64,
+    ring: u16,
+    /// Firing time as a fraction of the time between two firings.
+    fraction: f64,
+}
+
+struct Decoder {
+    slots: [Slot; RETURNS],
+    ring_elevation_deg: Vec<f64>,
+}
+
+impl Decoder {
+    fn new(model: VelodyneModel) -> Decoder {
+        let el = model.elevation_deg();
+        let mut ring_elevation_deg = el.to_vec();
+        ring_elevation_deg.sort_by(f64::total_cmp);
+        let mut slots = [Slot::default(); RETURNS];
+        for (ch, slot) in slots.iter_mut().enumerate() {
+            let laser = ch % el.len();
+            let rad = el[laser].to_radians();
+            *slot = Slot {
+                sin_el: rad.sin(),
+                cos_el: rad.cos(),
+                ring: el.iter().filter(|&&e| e < el[laser]).count() as u16,
+                fraction: model.firing_fraction(ch),
+            };
+        }
+        Decoder { slots, ring_elevation_deg }
+    }
+}
+
+/// Cuts the stream of returns into turns at 180 degrees.
+struct Rotations {
+    scans: Vec<Scan>,
+    /// The turn being filled (only once the first cut has been seen).
+    points: Vec<[f32; 3]>,
+    ring: Vec<u16>,
+    time_s: f64,
+    started: bool,
+    /// Azimuth of the last return slot measured from 180 degrees, 0.01 degree, in [0, 36000).
+    last_s: Option<f64>,
+    /// False right after a cut until the sensor has turned a quarter turn on.
+    armed: bool,
+    /// Partial turns dropped so far (the leading one).
+    partial: usize,
+}
+
+impl Rotations {
+    fn new() -> Rotations {
+        Rotations {
+            scans: Vec::new(),
+            points: Vec::new(),
+            ring: Vec::new(),
+            time_s: 0.0,
+            started: false,
+            last_s: None,
+            armed: true,
+            partial: 0,
+        }
+    }
+
+    /// Decodes one data packet (already validated).
+    fn packet(&mut self, dec: &Decoder, p: &[u8], dual: bool, time: f64) {
+        let per_firing = if dual { 2 } else { 1 };
+        let firings = BLOCKS / per_firing;
+        let azimuth = |f: usize| {
+            let blk = &p[f * per_firing * BLOCK_LEN..];
+            u16::from_le_bytes([blk[2], blk[3]]) as u32
+        };
+        // Azimuth step from each firing to the next, 0.01 degree; the last firing and glitches
+        // take the nearest valid step before (else after) them in this packet.
+        let mut step = [None::<u32>; BLOCKS];
+        for (f, s) in step.iter_mut().enumerate().take(firings - 1) {
+            let d = (azimuth(f + 1) + 36000 - azimuth(f)) % 36000;
+            *s = (d <= MAX_FIRING_STEP).then_some(d);
+        }
+        let mut last = None;
+        for s in step.iter_mut().take(firings) {
+            *s = s.or(last);
+            last = *s;
+        }
+        let mut next = None;
+        for s in step[..firings].iter_mut().rev() {
+            *s = s.or(next);
+            next = *s;
+        }
+
+        let rad_per_h = std::f64::consts::PI / 18000.0;
+        let mut cos_a = [0f64; RETURNS];
+        let mut sin_a = [0f64; RETURNS];
+        for f in 0..firings {
+            let a0 = azimuth(f) as f64;
+            let da = step[f].unwrap_or(0) as f64;
+            let (sin0, cos0) = (a0 * rad_per_h).sin_cos();
+            // Where this firing crosses 180 degrees, if it does, and whether that crossing is
+            // the very first return of the capture (then there is no leading partial turn).
+            let mut cut = None;
+            for (ch, slot) in dec.slots.iter().enumerate() {
+                // a0 < 36000 and the step is at most 200: one wrap at most (no fmod).
+                let mut s = a0 + da * slot.fraction - 18000.0;
+                if s < 0.0 {
+                    s += TURN;
+                } else if s >= TURN {
+                    s -= TURN;
+                }
+                let crossing = match self.last_s {
+                    None => s == 0.0,
+                    Some(prev) => self.armed && s + 18000.0 < prev,
+                };
+                if crossing {
+                    cut = Some((ch, self.last_s.is_none()));
+                    self.armed = false;
+                } else if !self.armed && (9000.0..27000.0).contains(&s) {
+                    self.armed = true;
+                }
+                self.last_s = Some(s);
+                // sin/cos of a0 + delta by the angle sum, delta (at most 2 degrees) by its
+                // series: exact to about 1e-14, one sin_cos per firing instead of per return.
+                let delta = da * slot.fraction * rad_per_h;
+                let d2 = delta * delta;
+                let cos_d = 1.0 - d2 * (1.0 / 2.0 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)));
+                let sin_d = delta * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0 - d2 * (1.0 / 5040.0))));
+                cos_a[ch] = cos0 * cos_d - sin0 * sin_d;
+                sin_a[ch] = sin0 * cos_d + cos0 * sin_d;
+            }
+            let blocks = &p[f * per_firing * BLOCK_LEN..(f + 1) * per_firing * BLOCK_LEN];
+            match cut {
+                None => self.emit(dec, blocks, 0..RETURNS, &cos_a, &sin_a),
+                Some((k, at_start)) => {
+                    self.emit(dec, blocks, 0..k, &cos_a, &sin_a);
+                    self.cut(dec, time, at_start);
+                    self.emit(dec, blocks, k..RETURNS, &cos_a, &sin_a);
+                }
+            }
+        }
+    }
+
+    /// Appends the returns of slots `chs` of the blocks of one firing to the current turn.
+    fn emit(
+        &mut self,
+        dec: &Decoder,
+        blocks: &[u8],
+        chs: std::ops::Range<usize>,
+        cos_a: &[f64; RETURNS],
+        sin_a: &[f64; RETURNS],
+    ) {
+        if !self.started {
+            return;
+        }
+        for ch in chs {
+            let slot = &dec.slots[ch];
+            for blk in blocks.chunks_exact(BLOCK_LEN) {
+                let i = 4 + 3 * ch;
+                let raw = u16::from_le_bytes([blk[i], blk[i + 1]]);
+                if raw == 0 {
+                    continue;
+                }
+                let d = raw as f64 * DISTANCE_M;
+                let xy = d * slot.cos_el;
+                self.points.push([
+                    (xy * cos_a[ch]) as f32,
+                    (-xy * sin_a[ch]) as f32,
+                    (d * slot.sin_el) as f32,
+                ]);
+                self.ring.push(slot.ring);
+            }
+        }
+    }
+
+    /// Closes the current turn (or drops the leading partial one, unless the crossing is the
+    /// capture's very first return) at a 180-degree crossing in the packet captured at `time`.
+    fn cut(&mut self, dec: &Decoder, time: f64, at_start: bool) {
+        if self.started {
+            let cap = self.points.len() + self.points.len() / 8;
+            self.scans.push(Scan {
+                points: std::mem::replace(&mut self.points, Vec::with_capacity(cap)),
+                ring: Some(std::mem::replace(&mut self.ring, Vec::with_capacity(cap))),
+                ring_elevation_deg: Some(dec.ring_elevation_deg.clone()),
+                time_s: Some(self.time_s),
+            });
+        } else if !at_start {
+            self.partial += 1;
+        }
+        self.started = true;
+        self.time_s = time;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HDL: u8 = 0x21;
+    const VLP: u8 = 0x22;
+    const STRONGEST: u8 = 0x37;
+    const DUAL: u8 = 0x39;
+
+    /// A classic pcap file being written.
+    struct PcapWriter {
+        big_endian: bool,
+        nanos: bool,
+        bytes: Vec<u8>,
+    }
+
+    impl PcapWriter {
+        fn new(big_endian: bool, nanos: bool, link: u32) -> PcapWriter {
+            let mut w = PcapWriter { big_endian, nanos, bytes: Vec::new() };
+            w.u32(if nanos { 0xA1B2_3C4D } else { 0xA1B2_C3D4 });
+            w.u16(2);
+            w.u16(4);
+            w.u32(0);
+            w.u32(0);
+            w.u32(65535);
+            w.u32(link);
+            w
+        }
+        fn u16(&mut self, v: u16) {
+            let b = if self.big_endian { v.to_be_bytes() } else { v.to_le_bytes() };
+            self.bytes.extend_from_slice(&b);
+        }
+        fn u32(&mut self, v: u32) {
+            let b = if self.big_endian { v.to_be_bytes() } else { v.to_le_bytes() };
+            self.bytes.extend_from_slice(&b);
+        }
+        /// One record at `sec` + `micros` microseconds.
+        fn record(&mut self, sec: u32, micros: u32, frame: &[u8]) {
+            self.u32(sec);
+            self.u32(if self.nanos { micros * 1000 } else { micros });
+            self.u32(frame.len() as u32);
+            self.u32(frame.len() as u32);
+            self.bytes.extend_from_slice(frame);
+        }
+    }
+
+    fn write_file(bytes: &[u8]) -> tempfile::NamedTempFile {
+        let mut f = tempfile::Builder::new().suffix(".pcap").tempfile().unwrap();
+        std::io::Write::write_all(&mut f, bytes).unwrap();
+        f
+    }
+
+    /// An IPv4 packet carrying `payload` as protocol `proto` (17 = UDP gets a UDP header).
+    fn ipv4(proto: u8, payload: &[u8], fragment: u16) -> Vec<u8> {
+        let mut l4 = Vec::new();
+        match proto {
+            17 => {
+                l4.extend_from_slice(&2368u16.to_be_bytes());
+                l4.extend_from_slice(&2368u16.to_be_bytes());
+                l4.extend_from_slice(&((payload.len() + 8) as u16).to_be_bytes());
+                l4.extend_from_slice(&[0, 0]);
+            }
+            6 => {
+                let mut tcp = [0u8; 20];
+                tcp[12] = 5 << 4;
+                l4.extend_from_slice(&tcp);
+            }
+            _ => {}
+        }
+        l4.extend_from_slice(payload);
+        let mut ip = vec![0x45, 0];
+        ip.extend_from_slice(&((20 + l4.len()) as u16).to_be_bytes());
+        ip.extend_from_slice(&[0, 0]);
+        ip.extend_from_slice(&fragment.to_be_bytes());
+        ip.extend_from_slice(&[64, proto, 0, 0, 192, 168, 1, 201, 255, 255, 255, 255]);
+        ip.extend_from_slice(&l4);
+        ip
+    }
+
+    fn ethernet(ethertype: u16, body: &[u8]) -> Vec<u8> {
+        let mut f = vec![0xFF; 6];
+        f.extend_from_slice(&[0x60, 0x76, 0x88, 0x20, 0x12, 0x6E]);
+        f.extend_from_slice(&ethertype.to_be_bytes());
+        f.extend_from_slice(body);
+        f
+    }
+
+    fn udp_frame(payload: &[u8]) -> Vec<u8> {
+        ethernet(0x0800, &ipv4(17, payload, 0))
+    }
+
+    /// A data packet: block azimuths (0.01 deg) and distances (2 mm units) per block and slot.
+    fn data_packet(product: u8, mode: u8, azimuth: [u16; 12], dist: impl Fn(usize, usize) -> u16) -> Vec<u8> {
+        let mut p = Vec::with_capacity(PACKET_LEN);
+        for (b, az) in azimuth.iter().enumerate() {
+            p.extend_from_slice(&[0xFF, 0xEE]);
+            p.extend_from_slice(&az.to_le_bytes());
+            for ch in 0..32 {
+                p.extend_from_slice(&dist(b, ch).to_le_bytes());
+                p.push(100);
+            }
+        }
+        p.extend_from_slice(&[0x10, 0x20, 0x30, 0x00, mode, product]);
+        assert_eq!(p.len(), PACKET_LEN);
+        p
+    }
+
+    /// `packets` data packets of a sensor turning `step` (0.01 deg) per firing from azimuth
+    /// `a0`; `dist(firing, block_of_firing, slot)` with firings counted over the whole capture.
+    fn spin(
+        product: u8,
+        mode: u8,
+        a0: u32,
+        step: u32,
+        packets: usize,
+        dist: impl Fn(usize, usize, usize) -> u16,
+    ) -> Vec<Vec<u8>> {
+        let per = if mode == DUAL { 2 } else { 1 };
+        (0..packets)
+            .map(|k| {
+                let firing = |b: usize| k * 12 / per + b / per;
+                let az = std::array::from_fn(|b| ((a0 + step * firing(b) as u32) % 36000) as u16);
+                data_packet(product, mode, az, |b, ch| dist(firing(b), b % per, ch))
+            })
+            .collect()
+    }
+
+    /// Packet `k` is captured at 1000 s + k ms.
+    fn capture(packets: &[Vec<u8>]) -> PcapWriter {
+        let mut w = PcapWriter::new(false, false, 1);
+        for (k, p) in packets.iter().enumerate() {
+            w.record(1000, 1000 * k as u32, &udp_frame(p));
+        }
+        w
+    }
+
+    fn expected(d: f64, el_deg: f64, az_deg: f64) -> [f64; 3] {
+        let (el, az) = (el_deg.to_radians(), az_deg.to_radians());
+        [d * el.cos() * az.cos(), -d * el.cos() * az.sin(), d * el.sin()]
+    }
+
+    fn assert_point(p: [f32; 3], want: [f64; 3]) {
+        for i in 0..3 {
+            assert!((p[i] as f64 - want[i]).abs() < 2e-5, "{p:?} vs {want:?}");
+        }
+    }
+
+    fn read(bytes: &[u8]) -> Result<PcapRecording> {
+        let f = write_file(bytes);
+        read_pcap(f.path())
+    }
+
+    /// Velodyne azimuth of a decoded point, degrees in [0, 360).
+    fn azimuth_deg(p: [f32; 3]) -> f64 {
+        (-p[1] as f64).atan2(p[0] as f64).to_degrees().rem_euclid(360.0)
+    }
+
+    #[test]
+    fn hdl32e_returns_decode_to_exact_xyz_with_ring() {
+        // 1 degree per firing from 90 degrees: turns start at firings 90 and 450.
+        let dist = |f: usize, _: usize, ch: usize| match (f, ch) {
+            (100, 0) => 5000,  // 10 m, laser 0 (-30.67 deg), azimuth 190
+            (100, 31) => 2500, // 5 m, laser 31 (10.67 deg), 31 * 1.152 us later
+            (107, 20) => 1000, // 2 m, last block of packet 8: extrapolated step
+            (360, 15) => 500,  // 1 m at azimuth 90 (to the right), laser 15 (0 deg)
+            _ => 0,
+        };
+        let rec = read(&capture(&spin(HDL, STRONGEST, 9000, 100, 70, dist)).bytes).unwrap();
+        assert_eq!(rec.model, VelodyneModel::Hdl32e);
+        assert_eq!(rec.model.name(), "HDL-32E");
+        assert_eq!((rec.data_packets, rec.foreign_packets, rec.partial_rotations), (70, 0, 2));
+        assert_eq!(rec.scans.len(), 2);
+        let s = &rec.scans[0];
+        assert_eq!(s.points.len(), 4);
+        assert_point(s.points[0], expected(10.0, -30.67, 190.0));
+        assert_point(s.points[1], expected(5.0, 10.67, 190.0 + 31.0 * 1.152 / 46.08));
+        assert_point(s.points[2], expected(2.0, -17.33, 197.0 + 20.0 * 1.152 / 46.08));
+        assert_point(s.points[3], expected(1.0, 0.0, 90.0 + 15.0 * 1.152 / 46.08));
+        // Clockwise from ahead: 90 degrees is to the right, -y in pedscan's frame.
+        assert!(s.points[3][1] < -0.99 && s.points[3][0].abs() < 0.01);
+        let ring = s.ring.as_ref().unwrap();
+        assert_eq!(ring, &vec![0, 31, 10, 23]);
+        let re = s.ring_elevation_deg.as_ref().unwrap();
+        assert_eq!(re.len(), 32);
+        assert!(re.windows(2).all(|w| w[0] < w[1]));
+        for (i, el) in [-30.67, 10.67, -17.33, 0.0].iter().enumerate() {
+            assert_eq!(re[ring[i] as usize], *el);
+        }
+        // The second turn has no returns at all: still a turn.
+        assert!(rec.scans[1].points.is_empty());
+        assert_eq!(rec.scans[1].ring_elevation_deg.as_ref(), Some(re));
+    }
+
+    #[test]
+    fn vlp16_second_firing_sequence_is_halfway_to_the_next_block() {
+        let dist = |f: usize, _: usize, ch: usize| match (f, ch) {
+            (100, 3) => 5000,  // laser 3 (3 deg), first sequence
+            (100, 16) => 4000, // laser 0 (-15 deg), second sequence: halfway
+            (100, 21) => 3000, // laser 5 (5 deg), second sequence
+            _ => 0,
+        };
+        let rec = read(&capture(&spin(VLP, STRONGEST, 9000, 100, 70, dist)).bytes).unwrap();
+        assert_eq!(rec.model, VelodyneModel::Vlp16);
+        assert_eq!(rec.model.name(), "VLP-16");
+        assert_eq!(rec.scans.len(), 2);
+        let s = &rec.scans[0];
+        assert_eq!(s.points.len(), 3);
+        assert_point(s.points[0], expected(10.0, 3.0, 190.0 + 3.0 * 2.304 / 110.592));
+        assert_point(s.points[1], expected(8.0, -15.0, 190.5));
+        assert_point(s.points[2], expected(6.0, 5.0, 190.5 + 5.0 * 2.304 / 110.592));
+        assert_eq!(s.ring.as_ref().unwrap(), &vec![9, 0, 10]);
+        let re = s.ring_elevation_deg.as_ref().unwrap();
+        assert_eq!(re, &(0..16).map(|i| -15.0 + 2.0 * i as f64).collect::<Vec<_>>());
+        assert_eq!(VelodyneModel::Vlp16.elevation_deg().len(), 16);
+        assert_eq!(VelodyneModel::Hdl32e.elevation_deg().len(), 32);
+    }
+
+    #[test]
+    fn turns_are_cut_at_180_degrees_and_partial_turns_counted() {
+        // Blocks at ...51: the crossing falls inside a block, at slot 20 (17951 + 20 * 2.5).
+        // Slot 7 never returns: zero distances are skipped.
+        let dist = |f: usize, _: usize, ch: usize| if ch == 7 { 0 } else { 1000 + (f % 100) as u16 };
+        let rec = read(&capture(&spin(HDL, STRONGEST, 9051, 100, 80, dist)).bytes).unwrap();
+        // Crossings at firings 89, 449 and 809 (packets 7, 37, 67): two whole turns.
+        assert_eq!(rec.scans.len(), 2);
+        assert_eq!(rec.partial_rotations, 2);
+        assert_eq!(rec.data_packets, 80);
+        let times: Vec<f64> = rec.scans.iter().map(|s| s.time_s.unwrap()).collect();
+        assert!((times[0] - 1000.007).abs() < 1e-9 && (times[1] - 1000.037).abs() < 1e-9, "{times:?}");
+        for s in &rec.scans {
+            assert_eq!(s.points.len(), 360 * 31);
+            assert!(s.points.iter().all(|p| p[0] != 0.0 || p[1] != 0.0));
+            assert!(!s.ring.as_ref().unwrap().contains(&ring_of_laser7()));
+            // One full turn clockwise from straight behind: the azimuth measured from 180
+            // degrees rises from 0 to just under 360.
+            let from_behind: Vec<f64> =
+                s.points.iter().map(|&p| (azimuth_deg(p) - 180.0).rem_euclid(360.0)).collect();
+            assert!((from_behind[0] - 0.01).abs() < 1e-4, "{}", from_behind[0]);
+            assert!(*from_behind.last().unwrap() > 359.9);
+            assert!(from_behind.windows(2).all(|w| w[1] >= w[0] - 1e-6));
+        }
+    }
+
+    #[test]
+    fn jitter_back_across_the_seam_does_not_cut_twice() {
+        // Firing 90 sits at 180.00 degrees (the cut); firing 91 steps back to 179.99.
+        let mut packets = spin(HDL, STRONGEST, 9000, 100, 70, |_, _, _| 1000);
+        let block = &mut packets[91 / 12][(91 % 12) * BLOCK_LEN..];
+        block[2..4].copy_from_slice(&17999u16.to_le_bytes());
+        let rec = read(&capture(&packets).bytes).unwrap();
+        assert_eq!((rec.scans.len(), rec.partial_rotations), (2, 2));
+        assert_eq!(rec.scans[0].points.len(), 360 * 32);
+        assert!((rec.scans[0].time_s.unwrap() - 1000.007).abs() < 1e-9);
+    }
+
+    fn ring_of_laser7() -> u16 {
+        let el = VelodyneModel::Hdl32e.elevation_deg();
+        el.iter().filter(|&&e| e < el[7]).count() as u16
+    }
+
+    #[test]
+    fn dual_return_keeps_both_returns_at_the_same_azimuth() {
+        let dist = |f: usize, b: usize, ch: usize| match (f, ch) {
+            (100, 4) => [3000, 4000][b],
+            (101, 4) => [2000, 0][b], // one return only
+            _ => 0,
+        };
+        let rec = read(&capture(&spin(HDL, DUAL, 9000, 100, 140, dist)).bytes).unwrap();
+        assert_eq!(rec.scans.len(), 2);
+        let s = &rec.scans[0];
+        assert_eq!(s.points.len(), 3);
+        let az = 190.0 + 4.0 * 1.152 / 46.08;
+        assert_point(s.points[0], expected(6.0, -28.0, az));
+        assert_point(s.points[1], expected(8.0, -28.0, az));
+        assert_point(s.points[2], expected(4.0, -28.0, az + 1.0));
+    }
+
+    #[test]
+    fn foreign_packets_are_skipped_and_counted() {
+        let packets = spin(HDL, STRONGEST, 9000, 100, 70, |_, _, ch| 1000 + ch as u16);
+        let clean = read(&capture(&packets).bytes).unwrap();
+        let mut w = PcapWriter::new(false, false, 1);
+        let mut bad_flag = packets[0].clone();
+        bad_flag[500] = 0xDD; // block 5's flag
+        let mut unknown_product = packets[0].clone();
+        unknown_product[PACKET_LEN - 1] = 0x28;
+        let foreign: Vec<Vec<u8>> = vec![
+            udp_frame(&[0u8; 512]),                        // position (GPS) packet
+            ethernet(0x0800, &ipv4(6, &packets[0], 0)),    // TCP carrying a data payload
+            udp_frame(b"not a lidar"),                     // other UDP traffic
+            udp_frame(&bad_flag),                          // 1206 bytes, bad block flag
+            udp_frame(&unknown_product),                   // unknown product id
+            ethernet(0x0800, &ipv4(17, &packets[0], 0x2000)), // IP fragment (more fragments)
+            ethernet(0x0806, &[0u8; 28]),                  // ARP
+            udp_frame(&packets[0])[..600].to_vec(),        // cut by the snap length
+        ];
+        for (k, p) in packets.iter().enumerate() {
+            w.record(1000, 1000 * k as u32, &udp_frame(p));
+            if k % 9 == 0 {
+                w.record(1000, 1000 * k as u32 + 1, &foreign[(k / 9) % foreign.len()]);
+            }
+        }
+        let rec = read(&w.bytes).unwrap();
+        assert_eq!(rec.foreign_packets, 8);
+        assert_eq!(rec.data_packets, 70);
+        assert_eq!(rec.scans, clean.scans);
+    }
+
+    #[test]
+    fn byte_orders_nanoseconds_and_link_types_decode_alike() {
+        let packets = spin(VLP, STRONGEST, 20000, 100, 95, |f, _, ch| (500 + f + ch) as u16);
+        let reference = read(&capture(&packets).bytes).unwrap();
+        assert_eq!(reference.scans.len(), 2);
+        let sll = |ip: &[u8]| {
+            let mut f = vec![0, 0, 0, 1, 0, 6, 1, 2, 3, 4, 5, 6, 0, 0, 0x08, 0x00];
+            f.extend_from_slice(ip);
+            f
+        };
+        let vlan = |ip: &[u8]| {
+            let mut body = vec![0x00, 0x05, 0x08, 0x00];
+            body.extend_from_slice(ip);
+            ethernet(0x8100, &body)
+        };
+        type Framing = Box<dyn Fn(&[u8]) -> Vec<u8>>;
+        let variants: Vec<(bool, bool, u32, Framing)> = vec![
+            (true, false, 1, Box::new(|ip: &[u8]| ethernet(0x0800, ip))),
+            (false, true, 1, Box::new(|ip: &[u8]| ethernet(0x0800, ip))),
+            (true, true, 1, Box::new(|ip: &[u8]| ethernet(0x0800, ip))),
+            (false, false, 1, Box::new(vlan)),
+            (true, false, 113, Box::new(sll)),
+            (false, false, 101, Box::new(|ip: &[u8]| ip.to_vec())),
+            (false, true, 228, Box::new(|ip: &[u8]| ip.to_vec())),
+        ];
+        for (be, nanos, link, frame) in variants {
+            let mut w = PcapWriter::new(be, nanos, link);
+            for (k, p) in packets.iter().enumerate() {
+                w.record(1000, 1000 * k as u32, &frame(&ipv4(17, p, 0)));
+            }
+            let rec = read(&w.bytes).unwrap();
+            assert_eq!(rec, reference, "big endian {be}, nanoseconds {nanos}, link {link}");
+        }
+    }
+
+    #[test]
+    fn a_truncated_file_names_the_packet_and_its_offset() {
+        let w = capture(&spin(HDL, STRONGEST, 9000, 100, 70, |_, _, _| 1000));
+        let record = 16 + 42 + PACKET_LEN;
+        // Cut inside packet 70's data, then inside its record header.
+        for (cut, what) in [(10, "packet cut short"), (record - 5, "truncated record header")] {
+            let e = read(&w.bytes[..w.bytes.len() - cut]).unwrap_err();
+            assert!(e.is_input());
+            let want = format!(".pcap: packet 70 (byte {}): {what}", 24 + 69 * record);
+            assert!(e.to_string().contains(&want), "{e}");
+        }
+        let e = read(&w.bytes[..10]).unwrap_err();
+        assert!(e.to_string().contains("truncated pcap header"), "{e}");
+    }
+
+    #[test]
+    fn no_complete_rotation_is_an_error() {
+        let mut w = capture(&spin(HDL, STRONGEST, 9000, 100, 20, |_, _, _| 1000));
+        w.record(2000, 0, &udp_frame(&[0u8; 512]));
+        let f = write_file(&w.bytes);
+        let e = read_pcap(f.path()).unwrap_err();
+        assert!(e.is_input());
+        let want = format!("{}: no complete rotation: 20 data packets, 1 foreign", f.path().display());
+        assert_eq!(e.to_string(), want);
+    }
+
+    #[test]
+    fn mixed_product_ids_are_an_error_naming_the_packet() {
+        let mut packets = spin(HDL, STRONGEST, 9000, 100, 70, |_, _, _| 1000);
+        packets[40][PACKET_LEN - 1] = VLP;
+        let e = read(&capture(&packets).bytes).unwrap_err();
+        assert!(e.is_input());
+        let s = e.to_string();
+        let at = format!("packet 41 (byte {})", 24 + 40 * (16 + 42 + PACKET_LEN));
+        assert!(s.contains(&at) && s.contains("VLP-16") && s.contains("HDL-32E"), "{s}");
+    }
+
+    #[test]
+    fn pcapng_and_other_files_are_rejected() {
+        let e = read(&[0x0A, 0x0D, 0x0D, 0x0A, 0x1C, 0, 0, 0, 0x4D, 0x3C, 0x2B, 0x1A]).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("pcapng"), "{e}");
+        let e = read(b"# not a capture at all\n").unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("not a pcap"), "{e}");
+        let e = read(&PcapWriter::new(false, false, 105).bytes).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("link type 105"), "{e}");
+    }
+}
