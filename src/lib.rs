@@ -16,6 +16,7 @@ pub mod gpu;
 pub mod human;
 pub mod output;
 pub mod pipeline;
+pub mod planner;
 pub mod plot;
 pub mod post;
 pub mod projection;
