@@ -165,7 +165,7 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     for k in 0..plan.times_s.len() {
         let t0 = Instant::now();
         let state = gen.frame_state(&plan, k);
-        gen.pose_frame(&plan, &state);
+        gen.pose_frame(&plan, &state)?;
         let t1 = Instant::now();
         gen.render_posed()?;
         let t2 = Instant::now();
@@ -183,7 +183,7 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
         let raster = gen.scratch.human_hits.clone();
         let lod = gen.cfg.render.lod_max_error_mrad;
         gen.cfg.render.lod_max_error_mrad = 0.0;
-        gen.pose_frame(&plan, &state);
+        gen.pose_frame(&plan, &state)?;
         gen.cfg.render.lod_max_error_mrad = lod;
         let geom = &gen.scratch.humans;
         let tb = Instant::now();

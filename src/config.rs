@@ -4,6 +4,8 @@
 
 use crate::error::{Error, Result};
 use crate::human::MotionMode;
+pub use crate::sequence::WalkMode;
+use crate::tracks::{TrackFormat, Transform2};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -100,13 +102,32 @@ pub struct HumansConfig {
     pub min_separation_m: f64,
     /// People keep at least this clearance from obstacles, m.
     pub clearance_m: f64,
+    /// Synthetic people: `goals` (planned start-to-goal walks through the walkable area) or
+    /// `arcs` (constant yaw rate). Without a walkable area (no environment) people walk arcs.
+    pub walk: WalkMode,
+    /// Recorded pedestrian tracks to walk along instead of synthetic paths; empty = none.
+    pub tracks: PathBuf,
+    pub tracks_format: TrackFormat,
+    /// Seconds per frame number of `eth` / `eth4` track files.
+    pub tracks_frame_period_s: f64,
+    /// `world_from_track`: places the tracks in the background's world frame.
+    pub tracks_transform: Transform2,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SceneConfig {
-    /// The static environment glTF rendered as background; empty = none (no background).
-    pub environment: PathBuf,
+    /// The background: an environment glTF (`.glb` / `.gltf`, rendered), a Velodyne `.pcap`,
+    /// or a folder of `.bin` / `.pcd` frames (recorded); empty = none (an empty world).
+    #[serde(alias = "environment")]
+    pub background: PathBuf,
+    /// Sensor poses (KITTI `poses.txt` or TUM): the sensor follows them; required to know the
+    /// motion of a recorded background (without, it is taken as static).
+    pub poses: PathBuf,
+    /// World z of the floor people stand on under a recorded background; unset = estimated
+    /// from the recorded points of each window.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub floor_z_m: Option<f64>,
     pub sensor_height_m: f64,
     pub sensor_speed_mps: [f64; 2],
     pub sensor_yaw_rate_rps: [f64; 2],
@@ -170,6 +191,11 @@ impl Default for HumansConfig {
             spawn_radius_m: 12.0,
             min_separation_m: 0.7,
             clearance_m: 0.35,
+            walk: WalkMode::Goals,
+            tracks: PathBuf::new(),
+            tracks_format: TrackFormat::Csv,
+            tracks_frame_period_s: crate::tracks::DEFAULT_FRAME_PERIOD_S,
+            tracks_transform: Transform2::default(),
         }
     }
 }
@@ -177,7 +203,9 @@ impl Default for HumansConfig {
 impl Default for SceneConfig {
     fn default() -> Self {
         SceneConfig {
-            environment: data_dir().join("scene").join("hall.glb"),
+            background: data_dir().join("scene").join("hall.glb"),
+            poses: PathBuf::new(),
+            floor_z_m: None,
             sensor_height_m: 0.8,
             sensor_speed_mps: [0.3, 1.0],
             sensor_yaw_rate_rps: [-0.15, 0.15],
@@ -219,7 +247,9 @@ impl Config {
         for m in &mut cfg.humans.models {
             fix(m);
         }
-        fix(&mut cfg.scene.environment);
+        fix(&mut cfg.scene.background);
+        fix(&mut cfg.scene.poses);
+        fix(&mut cfg.humans.tracks);
         fix(&mut cfg.out);
         if cfg.sensor.ends_with(".toml") {
             let mut p = PathBuf::from(&cfg.sensor);
@@ -278,6 +308,16 @@ impl Config {
             return bad("render.oversample", format!("{} must be in [0.25, 16]", self.render.oversample));
         }
         non_negative("render.lod_max_error_mrad", self.render.lod_max_error_mrad)?;
+        positive("humans.tracks_frame_period_s", self.humans.tracks_frame_period_s)?;
+        let tf = &self.humans.tracks_transform;
+        if !(tf.rotation_deg.is_finite() && tf.translation_m.iter().all(|v| v.is_finite()) && tf.scale.is_finite() && tf.scale > 0.0) {
+            return bad("humans.tracks_transform", format!("{tf:?} must be finite with a positive scale"));
+        }
+        if let Some(z) = self.scene.floor_z_m {
+            if !(z.is_finite() && z.abs() < 1e4) {
+                return bad("scene.floor_z_m", format!("{z} is not a usable height"));
+            }
+        }
         if self.humans.models.is_empty() && hi > 0 {
             return bad("humans.models", "no model given but people are requested".into());
         }

@@ -309,7 +309,7 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
         for k in 0..plan.times_s.len() {
             let t0 = Instant::now();
             let state = gen.frame_state(&plan, k);
-            gen.pose_frame(&plan, &state);
+            gen.pose_frame(&plan, &state)?;
             t_pose.push(t0.elapsed().as_secs_f64() * 1e3);
             let n = dirs.len();
             // Humans: one render, three resamplings.

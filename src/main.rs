@@ -109,9 +109,28 @@ struct GenerateArgs {
     /// Sensor preset (`hdl32e`, `vlp16`) or a sensor TOML file.
     #[arg(long)]
     sensor: Option<String>,
-    /// Static environment glTF rendered as background (`none` for an empty world).
+    /// Background: an environment glTF (.glb/.gltf, rendered), a Velodyne .pcap, or a folder
+    /// of KITTI .bin / PCD frames (recorded); `none` for an empty world.
+    #[arg(long, visible_alias = "environment")]
+    background: Option<PathBuf>,
+    /// Sensor poses, KITTI poses.txt (3x4 per line) or TUM (t x y z qx qy qz qw).
     #[arg(long)]
-    environment: Option<PathBuf>,
+    poses: Option<PathBuf>,
+    /// Recorded pedestrian tracks to walk along (see --tracks-format).
+    #[arg(long)]
+    tracks: Option<PathBuf>,
+    /// Format of --tracks: eth (obsmat.txt), eth4 (frame id x y), atc (CSV), csv (pedscan).
+    #[arg(long, value_enum)]
+    tracks_format: Option<pedscan::tracks::TrackFormat>,
+    /// Seconds per frame number of eth / eth4 tracks (default 0.04).
+    #[arg(long)]
+    tracks_frame_period: Option<f64>,
+    /// Places the tracks in the world: `X,Y,YAW_DEG[,SCALE]` (p_world = (X,Y) + SCALE R(YAW) p).
+    #[arg(long, value_parser = parse_transform, allow_hyphen_values = true)]
+    tracks_transform: Option<pedscan::tracks::Transform2>,
+    /// Synthetic people walk to goals through the walkable area, or on arcs.
+    #[arg(long, value_enum)]
+    walk: Option<pedscan::config::WalkMode>,
     /// Human models: a folder of .glb files or files (repeatable).
     #[arg(long)]
     models: Vec<PathBuf>,
@@ -156,6 +175,21 @@ fn parse_count(s: &str) -> Result<[usize; 2], String> {
     }
 }
 
+fn parse_transform(s: &str) -> Result<pedscan::tracks::Transform2, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().map_err(|_| format!("`{s}`: `{t}` is not a number (want X,Y,YAW_DEG[,SCALE])")))
+        .collect::<Result<_, _>>()?;
+    if !(v.len() == 3 || v.len() == 4) || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!("`{s}`: want 3 or 4 finite numbers X,Y,YAW_DEG[,SCALE]"));
+    }
+    let scale = v.get(3).copied().unwrap_or(1.0);
+    if scale <= 0.0 {
+        return Err(format!("`{s}`: scale {scale} must be positive"));
+    }
+    Ok(pedscan::tracks::Transform2 { rotation_deg: v[2], translation_m: [v[0], v[1]], scale })
+}
+
 fn build_config(a: &GenerateArgs) -> pedscan::Result<Config> {
     let mut cfg = match &a.config {
         Some(p) => Config::from_file(p)?,
@@ -187,8 +221,26 @@ fn build_config(a: &GenerateArgs) -> pedscan::Result<Config> {
     if let Some(v) = &a.sensor {
         cfg.sensor = v.clone();
     }
-    if let Some(v) = &a.environment {
-        cfg.scene.environment = if v.as_os_str() == "none" { PathBuf::new() } else { v.clone() };
+    if let Some(v) = &a.background {
+        cfg.scene.background = if v.as_os_str() == "none" { PathBuf::new() } else { v.clone() };
+    }
+    if let Some(v) = &a.poses {
+        cfg.scene.poses = v.clone();
+    }
+    if let Some(v) = &a.tracks {
+        cfg.humans.tracks = v.clone();
+    }
+    if let Some(v) = a.tracks_format {
+        cfg.humans.tracks_format = v;
+    }
+    if let Some(v) = a.tracks_frame_period {
+        cfg.humans.tracks_frame_period_s = v;
+    }
+    if let Some(v) = a.tracks_transform {
+        cfg.humans.tracks_transform = v;
+    }
+    if let Some(v) = a.walk {
+        cfg.humans.walk = v;
     }
     if !a.models.is_empty() {
         cfg.humans.models = a.models.clone();

@@ -19,7 +19,10 @@ use crate::raycast::BvhCache;
 use crate::resample::{resample, BeamHits, BeamLookup};
 use crate::scene::{Environment, WalkableGrid};
 use crate::sensor::Sensor;
-use crate::sequence::{sample_plan, SequencePlan};
+use crate::background::recording::is_recording;
+use crate::background::Recording;
+use crate::sequence::{sample_plan, PlanInputs, PoseTrack, SequencePlan};
+use crate::tracks::{read_tracks, Track, TrackOptions};
 use glam::{DMat3, DMat4, DVec3, Mat4};
 use rand::SeedableRng;
 use std::path::{Path, PathBuf};
@@ -38,6 +41,13 @@ pub struct Generator {
     pub models: Vec<HumanModel>,
     pub environment: Option<Environment>,
     pub grid: Option<WalkableGrid>,
+    /// A recorded background sequence (instead of an environment).
+    pub recording: Option<Recording>,
+    /// Recorded sensor poses with their times (from `scene.poses`, or a static sensor under a
+    /// recording without poses): the sensor follows them.
+    pub sensor_poses: Option<(Vec<f64>, Vec<DMat4>)>,
+    /// Recorded pedestrian tracks (world frame), when `humans.tracks` is set.
+    pub tracks: Vec<Arc<Track>>,
     pub cube: CubeFaces,
     pub lookup: BeamLookup,
     pub renderer: Renderer,
@@ -64,6 +74,8 @@ pub struct Scratch {
     pub humans: FrameGeometry,
     pub bg_hits: BeamHits,
     pub human_hits: BeamHits,
+    /// The recorded background of the current frame (target grid ranges), when there is one.
+    pub recorded: Option<Vec<f32>>,
     joints: Vec<Mat4>,
     skinned: Vec<[f32; 3]>,
     env_sensor: Vec<[f32; 3]>,
@@ -82,6 +94,8 @@ pub struct FrameState {
     pub sensor_yaw_rate_rps: f64,
     pub humans: Vec<HumanState>,
     pub human_velocity_mps: Vec<DVec3>,
+    /// Index of the recorded background frame shown at this frame.
+    pub recorded_frame: Option<usize>,
 }
 
 /// Lists model files: a folder gives its `.glb` / `.gltf` files in name order.
@@ -133,16 +147,67 @@ impl Generator {
         } else {
             Vec::new()
         };
-        let (environment, grid) = if cfg.scene.environment.as_os_str().is_empty() {
-            (None, None)
+        let bg = &cfg.scene.background;
+        let (environment, grid, recording) = if bg.as_os_str().is_empty() {
+            (None, None, None)
+        } else if is_recording(bg) {
+            let poses = (!cfg.scene.poses.as_os_str().is_empty()).then_some(cfg.scene.poses.as_path());
+            (None, None, Some(Recording::open(bg, poses, &sensor)?))
         } else {
-            let env = Environment::load(&cfg.scene.environment)?;
+            let env = Environment::load(bg)?;
             let grid = WalkableGrid::from_environment(&env, WALKABLE_CELL_M)?;
             if grid.free_fraction(cfg.humans.clearance_m) <= 0.0 {
-                return Err(Error::input(cfg.scene.environment.display(), "environment has no walkable floor at z = 0"));
+                return Err(Error::input(bg.display(), "environment has no walkable floor at z = 0"));
             }
-            (Some(env), Some(grid))
+            (Some(env), Some(grid), None)
         };
+        let sensor_poses = match &recording {
+            Some(rec) => Some((rec.times_s.clone(), (0..rec.len()).map(|k| rec.pose(k)).collect::<Vec<_>>())),
+            None if !cfg.scene.poses.as_os_str().is_empty() => {
+                let p = crate::background::poses::read_poses(&cfg.scene.poses)?;
+                let times = match p.times_s {
+                    Some(t) => t,
+                    None => (0..p.world_from_sensor.len()).map(|k| k as f64 / sensor.rate_hz).collect(),
+                };
+                Some((times, p.world_from_sensor))
+            }
+            None => None,
+        };
+        if let Some((times, _)) = &sensor_poses {
+            if times.len() < cfg.frames {
+                let what = if recording.is_some() { bg.display().to_string() } else { cfg.scene.poses.display().to_string() };
+                return Err(Error::input(
+                    what,
+                    format!("{} recorded frames are fewer than frames = {} per sequence", times.len(), cfg.frames),
+                ));
+            }
+        }
+        let tracks: Vec<Arc<Track>> = if cfg.humans.tracks.as_os_str().is_empty() {
+            Vec::new()
+        } else {
+            let opts = TrackOptions { frame_period_s: cfg.humans.tracks_frame_period_s, transform: cfg.humans.tracks_transform };
+            let all = read_tracks(&cfg.humans.tracks, cfg.humans.tracks_format, &opts)?;
+            // Only tracks that can cover a whole sequence (frames at the recording's or the
+            // sensor's rate) are kept.
+            let duration = match &sensor_poses {
+                Some((t, _)) => (0..=t.len() - cfg.frames).map(|s| t[s + cfg.frames - 1] - t[s]).fold(f64::INFINITY, f64::min),
+                None => (cfg.frames - 1) as f64 / sensor.rate_hz,
+            };
+            let n = all.len();
+            let kept = crate::tracks::drop_short(all, duration);
+            if kept.is_empty() && cfg.humans.count[1] > 0 {
+                return Err(Error::input(
+                    cfg.humans.tracks.display(),
+                    format!("none of its {n} tracks lasts {duration:.2} s, the length of a sequence; lower frames"),
+                ));
+            }
+            kept.into_iter().map(Arc::new).collect()
+        };
+        if let Some(rec) = &recording {
+            if rec.poses.is_none() {
+                eprintln!("warning: {}: no poses given (--poses), so the sensor is taken as static; background velocities are 0", bg.display());
+            }
+        }
         let env_meshes = environment.as_ref().map_or_else(Vec::new, |env| {
             env.meshes
                 .iter()
@@ -166,7 +231,22 @@ impl Generator {
             scratch.bvh_background = BvhCache::disabled();
             scratch.bvh_humans = BvhCache::disabled();
         }
-        Ok(Generator { cfg, sensor, models, environment, grid, cube, lookup, renderer, scratch, env_meshes, export_geometry: None })
+        Ok(Generator {
+            cfg,
+            sensor,
+            models,
+            environment,
+            grid,
+            recording,
+            sensor_poses,
+            tracks,
+            cube,
+            lookup,
+            renderer,
+            scratch,
+            env_meshes,
+            export_geometry: None,
+        })
     }
 
     /// The random stream of sequence `index`.
@@ -178,7 +258,31 @@ impl Generator {
 
     /// Samples sequence `index`.
     pub fn plan(&self, index: usize) -> Result<SequencePlan> {
-        sample_plan(&mut self.rng(index), &self.cfg, self.sensor.rate_hz, self.grid.as_ref(), &self.models)
+        let mut rng = self.rng(index);
+        let frames = self.cfg.frames;
+        // A recorded sensor path: a window of `frames` consecutive poses at a random start.
+        let (sensor, start) = match &self.sensor_poses {
+            Some((times, poses)) => {
+                let starts = times.len() - frames + 1;
+                let start = ((rand::RngExt::random::<f64>(&mut rng) * starts as f64) as usize).min(starts - 1);
+                (Some(PoseTrack::from_poses(times, poses, start..start + frames)), Some(start))
+            }
+            None => (None, None),
+        };
+        let recorded_grid;
+        let (grid, floor_z_m) = match (&self.recording, start) {
+            (Some(rec), Some(s)) if self.cfg.humans.count[1] > 0 => {
+                let (z, g) = rec.walkable(s..s + frames, self.cfg.scene.floor_z_m)?;
+                recorded_grid = g;
+                (Some(&recorded_grid), z)
+            }
+            _ => (self.grid.as_ref(), self.cfg.scene.floor_z_m.unwrap_or(0.0)),
+        };
+        let inputs = PlanInputs { rate_hz: self.sensor.rate_hz, grid, models: &self.models, tracks: &self.tracks, sensor, floor_z_m };
+        let mut plan = sample_plan(&mut rng, &self.cfg, &inputs)?;
+        plan.recording_start = if self.recording.is_some() { start } else { None };
+        plan.floor_z_m = floor_z_m;
+        Ok(plan)
     }
 
     /// Which outputs are computed.
@@ -206,17 +310,23 @@ impl Generator {
             t_s: t,
             world_from_sensor: plan.sensor.pose(t),
             sensor_velocity_mps: plan.sensor.velocity(t),
-            sensor_yaw_rate_rps: plan.sensor.yaw_rate_rps,
+            sensor_yaw_rate_rps: plan.sensor.yaw_rate_rps(t),
             humans,
             human_velocity_mps: vel,
+            recorded_frame: plan.recording_start.map(|s| s + k),
         }
     }
 
     /// Poses the background and the people of a frame into the sensor frame (f64 -> f32),
-    /// skipping people no beam can reach. Fills `scratch.background` and `scratch.humans`.
-    pub fn pose_frame(&mut self, plan: &SequencePlan, state: &FrameState) {
+    /// skipping people no beam can reach. Fills `scratch.background` and `scratch.humans`, and
+    /// `scratch.recorded` with the recorded background frame, if any.
+    pub fn pose_frame(&mut self, plan: &SequencePlan, state: &FrameState) -> Result<()> {
         let sensor_from_world = state.world_from_sensor.inverse();
         let s = &mut self.scratch;
+        match (&self.recording, state.recorded_frame) {
+            (Some(rec), Some(k)) => rec.frame_ranges(k, s.recorded.get_or_insert_with(Vec::new))?,
+            _ => s.recorded = None,
+        }
         s.background.clear();
         if let Some(env) = &self.environment {
             s.env_sensor.clear();
@@ -251,6 +361,7 @@ impl Generator {
             let l = &model.lods[lod];
             s.humans.push_mesh_with_adjacency(&s.skinned, &l.indices, k as u32 + 1, false, Some(l.adjacency.clone()));
         }
+        Ok(())
     }
 
     /// Renders and resamples the posed frame into `scratch.bg_hits` / `scratch.human_hits`.
@@ -281,6 +392,9 @@ impl Generator {
                 }
             }
         }
+        if let Some(r) = &s.recorded {
+            s.bg_hits.range_m.clone_from(r);
+        }
         Ok(())
     }
 
@@ -309,7 +423,7 @@ impl Generator {
     /// Everything of one frame: pose, render, resample, composite.
     pub fn frame(&mut self, plan: &SequencePlan, k: usize, out: &mut FrameOutput) -> Result<FrameState> {
         let state = self.frame_state(plan, k);
-        self.pose_frame(plan, &state);
+        self.pose_frame(plan, &state)?;
         self.render_posed()?;
         self.post(&state, out);
         Ok(state)
@@ -332,7 +446,44 @@ impl Generator {
                 })
                 .collect(),
             outputs: self.outputs(),
+            provenance: self.provenance(plan),
         }
+    }
+
+    /// Where the background and the people of a plan come from (see [`SequenceMeta`]).
+    pub fn provenance(&self, plan: &SequencePlan) -> Vec<(String, String)> {
+        let name = |p: &Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
+        let bg = &self.cfg.scene.background;
+        let mut v = vec![(
+            "background".to_string(),
+            match (&self.recording, &self.environment) {
+                (Some(_), _) => format!("recording {}", name(bg)),
+                (None, Some(_)) => format!("environment {}", name(bg)),
+                _ => "none".into(),
+            },
+        )];
+        if let (Some(rec), Some(s)) = (&self.recording, plan.recording_start) {
+            v.push(("recording_first_frame".into(), s.to_string()));
+            v.push(("recording_frames".into(), rec.len().to_string()));
+        }
+        if !self.cfg.scene.poses.as_os_str().is_empty() {
+            v.push(("poses".into(), name(&self.cfg.scene.poses)));
+        }
+        v.push(("floor_z_m".into(), format!("{:.4}", plan.floor_z_m)));
+        if !self.cfg.humans.tracks.as_os_str().is_empty() {
+            v.push(("tracks".into(), name(&self.cfg.humans.tracks)));
+            let mut ids = Vec::new();
+            for h in &plan.humans {
+                if let crate::sequence::HumanPath::Track(t) = &h.trajectory {
+                    ids.push(t.track.id.to_string());
+                    if ids.len() == 1 {
+                        v.push(("tracks_window_start_s".into(), format!("{}", t.t0_s)));
+                    }
+                }
+            }
+            v.push(("track_ids".into(), ids.join(",")));
+        }
+        v
     }
 
     /// Generates and writes sequence `index` into `out_dir`; returns the files written.
@@ -347,17 +498,56 @@ impl Generator {
                 CompressionChoice::Deflate => Compression::Deflate(1),
             },
         };
-        let mut writer = SequenceWriter::create(out_dir, &meta, &opts)?;
-        let mut out = FrameOutput::default();
-        for k in 0..plan.times_s.len() {
-            self.frame(&plan, k, &mut out)?;
-            writer.write_frame(&out)?;
-            if let Some(dir) = &self.export_geometry {
-                let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
-                crate::output::ply::write_humans_ply(&path, &self.scratch.humans)?;
-            }
-            on_frame();
+        let writer = SequenceWriter::create(out_dir, &meta, &opts)?;
+        // The writer runs on its own thread, one frame behind: frame k+1 is posed, rendered
+        // and composited while frame k is compressed and written. Two frame buffers travel
+        // between the threads (no per-frame allocation). The writer finishes the files only
+        // on `Done`; if this thread fails first, the channel closes, the writer is dropped
+        // and removes its temporary files.
+        enum Msg {
+            Frame(FrameOutput),
+            Done,
         }
-        writer.finish()
+        let (to_writer, from_main) = std::sync::mpsc::sync_channel::<Msg>(1);
+        let (to_main, spare) = std::sync::mpsc::channel::<FrameOutput>();
+        to_main.send(FrameOutput::default()).ok();
+        to_main.send(FrameOutput::default()).ok();
+        std::thread::scope(|scope| {
+            let write = scope.spawn(move || -> Result<Option<Vec<PathBuf>>> {
+                let mut writer = writer;
+                for msg in from_main {
+                    match msg {
+                        Msg::Frame(out) => {
+                            writer.write_frame(&out)?;
+                            let _ = to_main.send(out);
+                        }
+                        Msg::Done => return writer.finish().map(Some),
+                    }
+                }
+                Ok(None)
+            });
+            let computed = (|| -> Result<()> {
+                for k in 0..plan.times_s.len() {
+                    // A buffer comes back once the writer is done with it; none means the
+                    // writer stopped on an error, reported below.
+                    let Ok(mut out) = spare.recv() else { return Ok(()) };
+                    self.frame(&plan, k, &mut out)?;
+                    if let Some(dir) = &self.export_geometry {
+                        let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
+                        crate::output::ply::write_humans_ply(&path, &self.scratch.humans)?;
+                    }
+                    if to_writer.send(Msg::Frame(out)).is_err() {
+                        return Ok(());
+                    }
+                    on_frame();
+                }
+                let _ = to_writer.send(Msg::Done);
+                Ok(())
+            })();
+            drop(to_writer);
+            let written = write.join().map_err(|_| Error::Internal("the writer thread panicked".into()))?;
+            computed?;
+            written?.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))
+        })
     }
 }

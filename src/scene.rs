@@ -181,6 +181,12 @@ impl WalkableGrid {
                 }
             }
         }
+        Ok(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked))
+    }
+
+    /// The walkable area from per-cell observations: `floor` cells one can stand on, minus
+    /// `blocked` cells. Cell (i, j) has its corner at `origin + cell_m * (i, j)`, index j * nx + i.
+    pub fn from_cells(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], mut blocked: Vec<bool>) -> WalkableGrid {
         // Only the largest connected walkable region counts: the hollow inside of a closed
         // obstacle (a box, a pillar) is floor but nobody can get there.
         let open: Vec<bool> = (0..nx * ny).map(|k| floor[k] && !blocked[k]).collect();
@@ -266,7 +272,7 @@ impl WalkableGrid {
                 if d.is_finite() { ((d - 0.5).max(0.0) * cell_m) as f32 } else { f32::INFINITY }
             })
             .collect();
-        Ok(WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m })
+        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m }
     }
 
     /// Clearance at a world xy point (0 outside the grid).

@@ -5,16 +5,257 @@
 use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::human::{stride_length_m, HumanModel, MotionMode};
+use crate::planner::WalkPath;
 use crate::scene::{Trajectory, WalkableGrid};
-use glam::{DVec2, DVec3};
+use crate::tracks::Track;
+use glam::{DMat4, DQuat, DVec2, DVec3};
 use rand::RngExt;
+use std::sync::Arc;
+
+/// How a person moves through the world (floor plane, world frame).
+#[derive(Clone, Debug, PartialEq)]
+pub enum HumanPath {
+    /// A circular arc at constant speed and yaw rate.
+    Arc(Trajectory),
+    /// A planned walk from a start to a goal through the walkable area, on a floor at z (m).
+    Walk(WalkPath, f64),
+    /// A recorded track; sequence time 0 is track time `t0_s`.
+    Track(TrackPath),
+}
+
+impl From<Trajectory> for HumanPath {
+    fn from(t: Trajectory) -> Self {
+        HumanPath::Arc(t)
+    }
+}
+
+impl HumanPath {
+    /// Position at sequence time `t_s` (z = the floor the person stands on).
+    pub fn position(&self, t_s: f64) -> DVec3 {
+        match self {
+            HumanPath::Arc(a) => a.position(t_s),
+            HumanPath::Walk(w, z) => w.position(t_s) + DVec3::Z * *z,
+            HumanPath::Track(k) => k.state(t_s).0.extend(k.z_m),
+        }
+    }
+    pub fn velocity(&self, t_s: f64) -> DVec3 {
+        match self {
+            HumanPath::Arc(a) => a.velocity(t_s),
+            HumanPath::Walk(w, _) => w.velocity(t_s),
+            HumanPath::Track(k) => k.state(t_s).1.extend(0.0),
+        }
+    }
+    /// Facing direction, radians counter-clockwise from +x.
+    pub fn heading_rad(&self, t_s: f64) -> f64 {
+        match self {
+            HumanPath::Arc(a) => a.heading_rad(t_s),
+            HumanPath::Walk(w, _) => w.heading_rad(t_s),
+            HumanPath::Track(k) => k.state(t_s).2,
+        }
+    }
+    /// Distance walked since time 0, m (drives the gait phase).
+    pub fn distance(&self, t_s: f64) -> f64 {
+        match self {
+            HumanPath::Arc(a) => a.distance(t_s),
+            HumanPath::Walk(w, _) => w.distance(t_s),
+            HumanPath::Track(k) => k.distance(t_s),
+        }
+    }
+}
+
+/// A recorded pedestrian track as a person's path: the track's smooth interpolant, shifted so
+/// that sequence time 0 is track time `t0_s`, standing on the floor at height `z_m`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackPath {
+    pub track: Arc<Track>,
+    pub t0_s: f64,
+    pub z_m: f64,
+}
+
+/// Step of the distance integral along a track, s.
+const TRACK_DISTANCE_STEP_S: f64 = 0.01;
+
+impl TrackPath {
+    /// Position, velocity and heading at sequence time `t_s`. Outside the track's span the
+    /// end state is held (a window is only ever cut inside the span).
+    fn state(&self, t_s: f64) -> (DVec2, DVec2, f64) {
+        let tr = &self.track;
+        let (a, b) = (tr.times_s[0], *tr.times_s.last().unwrap_or(&tr.times_s[0]));
+        let t = (self.t0_s + t_s).clamp(a, b);
+        match tr.sample(t) {
+            Some(s) => (s.position_m, if t == self.t0_s + t_s { s.velocity_mps } else { DVec2::ZERO }, s.heading_rad),
+            None => (tr.xy_m[0], DVec2::ZERO, 0.0),
+        }
+    }
+
+    /// Arc length walked from time 0 to `t_s`: Simpson's rule on the speed of the interpolant,
+    /// in steps of at most 10 ms (the interpolant is a piecewise cubic, so this is exact to
+    /// well under a millimetre per metre).
+    fn distance(&self, t_s: f64) -> f64 {
+        if t_s == 0.0 {
+            return 0.0;
+        }
+        let n = ((t_s.abs() / TRACK_DISTANCE_STEP_S).ceil() as usize).max(1);
+        let h = t_s / n as f64;
+        let speed = |t: f64| self.state(t).1.length();
+        let mut sum = 0.0;
+        for i in 0..n {
+            let t0 = i as f64 * h;
+            sum += speed(t0) + 4.0 * speed(t0 + 0.5 * h) + speed(t0 + h);
+        }
+        sum * h / 6.0
+    }
+}
+
+/// How the sensor moves: a sampled arc, or recorded poses.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SensorPath {
+    Arc(Trajectory),
+    Poses(PoseTrack),
+}
+
+impl From<Trajectory> for SensorPath {
+    fn from(t: Trajectory) -> Self {
+        SensorPath::Arc(t)
+    }
+}
+
+impl SensorPath {
+    /// `world_from_sensor` at sequence time `t_s`.
+    pub fn pose(&self, t_s: f64) -> DMat4 {
+        match self {
+            SensorPath::Arc(a) => a.pose(t_s),
+            SensorPath::Poses(p) => p.pose(t_s),
+        }
+    }
+    pub fn position(&self, t_s: f64) -> DVec3 {
+        self.pose(t_s).w_axis.truncate()
+    }
+    /// World velocity, m/s.
+    pub fn velocity(&self, t_s: f64) -> DVec3 {
+        match self {
+            SensorPath::Arc(a) => a.velocity(t_s),
+            SensorPath::Poses(p) => p.sample(t_s).1,
+        }
+    }
+    /// Yaw rate about the world z axis, rad/s.
+    pub fn yaw_rate_rps(&self, t_s: f64) -> f64 {
+        match self {
+            SensorPath::Arc(a) => a.yaw_rate_rps,
+            SensorPath::Poses(p) => p.sample(t_s).2,
+        }
+    }
+    /// Heading of the sensor's x axis, radians counter-clockwise from world +x.
+    pub fn heading_rad(&self, t_s: f64) -> f64 {
+        match self {
+            SensorPath::Arc(a) => a.heading_rad(t_s),
+            SensorPath::Poses(p) => {
+                let x = p.pose(t_s).x_axis;
+                x.y.atan2(x.x)
+            }
+        }
+    }
+    /// The start position in the floor plane.
+    pub fn start_xy(&self) -> DVec2 {
+        self.position(0.0).truncate()
+    }
+}
+
+/// Recorded sensor poses of a window, with velocities and yaw rates from the poses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseTrack {
+    /// Sequence times of the poses, s (the first is 0), strictly increasing.
+    pub times_s: Vec<f64>,
+    pub world_from_sensor: Vec<DMat4>,
+    pub velocity_mps: Vec<DVec3>,
+    pub yaw_rate_rps: Vec<f64>,
+}
+
+impl PoseTrack {
+    /// Velocities and yaw rates by the three-point derivative for uneven steps over each pose's
+    /// neighbours (one-sided at the ends), so a window cut from a longer recording can use the
+    /// poses just outside it: pass them as `before` / `after`.
+    pub fn from_poses(times_s: &[f64], poses: &[DMat4], window: std::ops::Range<usize>) -> PoseTrack {
+        let n = poses.len();
+        let pos = |k: usize| poses[k].w_axis.truncate();
+        let yaw = |k: usize| {
+            let x = poses[k].x_axis;
+            x.y.atan2(x.x)
+        };
+        let wrap = |a: f64| (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let deriv = |k: usize| -> (DVec3, f64) {
+            if n < 2 {
+                return (DVec3::ZERO, 0.0);
+            }
+            let (a, b) = if k == 0 { (0, 1) } else if k + 1 == n { (n - 2, n - 1) } else { (k - 1, k + 1) };
+            if k == 0 || k + 1 == n {
+                let dt = times_s[b] - times_s[a];
+                return ((pos(b) - pos(a)) / dt, wrap(yaw(b) - yaw(a)) / dt);
+            }
+            // f'(t_k) of the parabola through (a, k, b).
+            let (h1, h2) = (times_s[k] - times_s[a], times_s[b] - times_s[k]);
+            let (wa, wk, wb) = (-h2 / (h1 * (h1 + h2)), (h2 - h1) / (h1 * h2), h1 / (h2 * (h1 + h2)));
+            let v = pos(a) * wa + pos(k) * wk + pos(b) * wb;
+            // Yaw differences relative to frame k, so the wrap at +-pi never enters.
+            let (ya, yb) = (wrap(yaw(a) - yaw(k)), wrap(yaw(b) - yaw(k)));
+            (v, ya * wa + yb * wb)
+        };
+        let t0 = times_s[window.start];
+        let mut out = PoseTrack { times_s: Vec::new(), world_from_sensor: Vec::new(), velocity_mps: Vec::new(), yaw_rate_rps: Vec::new() };
+        for k in window {
+            let (v, w) = deriv(k);
+            out.times_s.push(times_s[k] - t0);
+            out.world_from_sensor.push(poses[k]);
+            out.velocity_mps.push(v);
+            out.yaw_rate_rps.push(w);
+        }
+        out
+    }
+
+    /// Index and fraction of `t_s` between poses (clamped to the window).
+    fn locate(&self, t_s: f64) -> (usize, f64) {
+        let n = self.times_s.len();
+        if n < 2 || t_s <= self.times_s[0] {
+            return (0, 0.0);
+        }
+        if t_s >= self.times_s[n - 1] {
+            return (n - 1, 0.0);
+        }
+        let i = self.times_s.partition_point(|&t| t <= t_s) - 1;
+        (i, (t_s - self.times_s[i]) / (self.times_s[i + 1] - self.times_s[i]))
+    }
+
+    /// Pose at `t_s`: the recorded pose at a recorded time, else translation interpolated
+    /// linearly and rotation by slerp.
+    pub fn pose(&self, t_s: f64) -> DMat4 {
+        let (i, f) = self.locate(t_s);
+        if f == 0.0 {
+            return self.world_from_sensor[i];
+        }
+        let (s0, r0, p0) = self.world_from_sensor[i].to_scale_rotation_translation();
+        let (_, r1, p1) = self.world_from_sensor[i + 1].to_scale_rotation_translation();
+        let r: DQuat = r0.slerp(r1, f);
+        DMat4::from_scale_rotation_translation(s0, r, p0.lerp(p1, f))
+    }
+
+    /// (pose, velocity, yaw rate) at `t_s`; velocity and yaw rate interpolated linearly.
+    fn sample(&self, t_s: f64) -> (DMat4, DVec3, f64) {
+        let (i, f) = self.locate(t_s);
+        if f == 0.0 {
+            return (self.world_from_sensor[i], self.velocity_mps[i], self.yaw_rate_rps[i]);
+        }
+        let v = self.velocity_mps[i].lerp(self.velocity_mps[i + 1], f);
+        let w = self.yaw_rate_rps[i] + f * (self.yaw_rate_rps[i + 1] - self.yaw_rate_rps[i]);
+        (self.pose(t_s), v, w)
+    }
+}
 
 /// One person of a sequence.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HumanPlan {
     /// Index into the loaded models.
     pub model: usize,
-    pub trajectory: Trajectory,
+    pub trajectory: HumanPath,
     /// Gait phase at t = 0, in [0, 1).
     pub phase0: f64,
     /// Stride length used to advance the gait, m.
@@ -54,41 +295,168 @@ impl HumanPlan {
 /// Everything sampled for one sequence.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SequencePlan {
-    pub sensor: Trajectory,
+    pub sensor: SensorPath,
     pub humans: Vec<HumanPlan>,
     /// Frame times, seconds from the start of the sequence.
     pub times_s: Vec<f64>,
+    /// Index of the recorded background frame shown at frame 0, under a recording.
+    pub recording_start: Option<usize>,
+    /// World z of the floor the people stand on.
+    pub floor_z_m: f64,
 }
 
+/// What a sequence is sampled from besides the configuration.
+pub struct PlanInputs<'a> {
+    /// Frame rate of a synthetic sensor path, Hz.
+    pub rate_hz: f64,
+    /// The walkable area (None: an empty, unbounded floor).
+    pub grid: Option<&'a WalkableGrid>,
+    pub models: &'a [HumanModel],
+    /// Recorded pedestrian tracks (world frame); empty: synthetic people.
+    pub tracks: &'a [Arc<Track>],
+    /// The recorded sensor path of this sequence's window (its times are the frame times);
+    /// None: a sampled arc.
+    pub sensor: Option<PoseTrack>,
+    /// Height of the floor people stand on, world z, m.
+    pub floor_z_m: f64,
+}
+
+/// How synthetic people choose where to walk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum WalkMode {
+    /// From a start to a goal through the walkable area, on smooth planned paths.
+    Goals,
+    /// Circular arcs at constant speed and yaw rate (`humans.yaw_rate_rps`).
+    Arcs,
+}
+
+/// Tries per person (synthetic) or per window (tracks) before giving up.
+const TRIES: usize = 2000;
+const TRACK_WINDOW_TRIES: usize = 200;
+
 /// Samples the sensor trajectory and the people of one sequence.
-/// `grid` is the environment's walkable area (None: an empty, unbounded floor).
-pub fn sample_plan(
+pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Result<SequencePlan> {
+    let times_s: Vec<f64> = match &inp.sensor {
+        Some(p) => p.times_s.clone(),
+        None => (0..cfg.frames).map(|k| k as f64 / inp.rate_hz).collect(),
+    };
+    let duration = *times_s.last().unwrap_or(&0.0);
+    let hc = &cfg.humans;
+    let [lo, hi] = hc.count;
+    let count = lo + (rng.random::<f64>() * (hi - lo + 1) as f64).floor().min((hi - lo) as f64) as usize;
+    if inp.tracks.is_empty() {
+        let sensor = match &inp.sensor {
+            Some(p) => SensorPath::Poses(p.clone()),
+            None => sample_sensor_arc(rng, cfg, inp.grid, &times_s, None)?,
+        };
+        let humans = sample_synthetic_people(rng, cfg, inp, &sensor, &times_s, count)?;
+        return Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m });
+    }
+
+    // Recorded tracks: a random window of the tracks' time span, the tracks that cover it
+    // (and keep clear of obstacles and the sensor), `count` of them at random.
+    let t_lo = inp.tracks.iter().map(|t| t.times_s[0]).fold(f64::INFINITY, f64::min);
+    let t_hi = inp.tracks.iter().map(|t| *t.times_s.last().unwrap_or(&t.times_s[0])).fold(f64::NEG_INFINITY, f64::max);
+    let mut best: Option<(SensorPath, Vec<HumanPlan>)> = None;
+    for _ in 0..TRACK_WINDOW_TRIES {
+        let t0 = t_lo + rng.random::<f64>() * (t_hi - duration - t_lo).max(0.0);
+        let mut covering: Vec<usize> = (0..inp.tracks.len())
+            .filter(|&i| {
+                let t = &inp.tracks[i].times_s;
+                t[0] <= t0 && *t.last().unwrap_or(&t[0]) >= t0 + duration
+            })
+            .collect();
+        if covering.is_empty() {
+            continue;
+        }
+        // A fixed-order shuffle (Fisher-Yates) so the choice depends only on the stream.
+        for i in (1..covering.len()).rev() {
+            let j = ((rng.random::<f64>() * (i + 1) as f64) as usize).min(i);
+            covering.swap(i, j);
+        }
+        let paths: Vec<TrackPath> =
+            covering.iter().map(|&i| TrackPath { track: inp.tracks[i].clone(), t0_s: t0, z_m: inp.floor_z_m }).collect();
+        let sensor = match &inp.sensor {
+            Some(p) => SensorPath::Poses(p.clone()),
+            None => {
+                // The sensor starts among the people of the window.
+                let c = paths.iter().map(|p| p.state(0.0).0).fold(DVec2::ZERO, |a, b| a + b) / paths.len() as f64;
+                match sample_sensor_arc(rng, cfg, inp.grid, &times_s, Some(c)) {
+                    Ok(s) => s,
+                    Err(_) => continue,
+                }
+            }
+        };
+        let mut humans = Vec::new();
+        for path in paths {
+            if humans.len() == count {
+                break;
+            }
+            let path = HumanPath::Track(path);
+            let clear = times_s.iter().all(|&t| {
+                let p = path.position(t).truncate();
+                inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m)
+                    && p.distance(sensor.position(t).truncate()) >= hc.min_separation_m
+            });
+            if !clear {
+                continue;
+            }
+            let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
+            let mean_speed = if duration > 0.0 { path.distance(duration) / duration } else { 0.0 };
+            humans.push(HumanPlan {
+                model,
+                trajectory: path,
+                phase0: rng.random::<f64>(),
+                stride_m: stride_length_m(inp.models[model].height_m as f64, mean_speed.max(0.1)),
+                motion: hc.motion,
+            });
+        }
+        let enough = humans.len() >= lo.max(1).min(count.max(1));
+        if best.as_ref().is_none_or(|b| humans.len() > b.1.len()) {
+            best = Some((sensor, humans));
+        }
+        if enough {
+            break;
+        }
+    }
+    match best {
+        Some((sensor, humans)) if !humans.is_empty() || count == 0 => Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m }),
+        _ => Err(Error::input(
+            "humans.tracks",
+            format!(
+                "no window of {duration:.2} s in which any track walks clear of obstacles and the sensor \
+                 ({TRACK_WINDOW_TRIES} tries); check humans.tracks_transform and the frame period"
+            ),
+        )),
+    }
+}
+
+/// A sensor arc that stays clear of obstacles for the whole window, starting anywhere free or
+/// within `humans.spawn_radius_m` of `near`.
+fn sample_sensor_arc(
     rng: &mut impl rand::Rng,
     cfg: &Config,
-    rate_hz: f64,
     grid: Option<&WalkableGrid>,
-    models: &[HumanModel],
-) -> Result<SequencePlan> {
-    let times_s: Vec<f64> = (0..cfg.frames).map(|k| k as f64 / rate_hz).collect();
+    times_s: &[f64],
+    near: Option<DVec2>,
+) -> Result<SensorPath> {
+    let sc = &cfg.scene;
     let uniform = |rng: &mut dyn FnMut() -> f64, r: [f64; 2]| r[0] + (r[1] - r[0]) * rng();
     let mut u01 = || rng.random::<f64>();
-
-    // The sensor: a free start, an arc that stays clear of obstacles for the whole window.
-    let sc = &cfg.scene;
-    let mut sensor = None;
-    for _ in 0..2000 {
-        let start = match grid {
-            Some(g) => {
-                let x = g.origin.x + u01() * g.nx as f64 * g.cell_m;
-                let y = g.origin.y + u01() * g.ny as f64 * g.cell_m;
-                let p = DVec2::new(x, y);
-                if g.clearance(p) < sc.sensor_clearance_m {
-                    continue;
-                }
-                p
+    for _ in 0..TRIES {
+        let start = match (near, grid) {
+            (Some(c), _) => {
+                let r = cfg.humans.spawn_radius_m * u01().sqrt();
+                let a = u01() * std::f64::consts::TAU;
+                c + r * DVec2::new(a.cos(), a.sin())
             }
-            None => DVec2::ZERO,
+            (None, Some(g)) => DVec2::new(g.origin.x + u01() * g.nx as f64 * g.cell_m, g.origin.y + u01() * g.ny as f64 * g.cell_m),
+            (None, None) => DVec2::ZERO,
         };
+        if grid.is_some_and(|g| g.clearance(start) < sc.sensor_clearance_m) {
+            continue;
+        }
         let tr = Trajectory {
             start_m: start,
             z_m: sc.sensor_height_m,
@@ -96,51 +464,75 @@ pub fn sample_plan(
             speed_mps: uniform(&mut u01, sc.sensor_speed_mps),
             yaw_rate_rps: uniform(&mut u01, sc.sensor_yaw_rate_rps),
         };
-        let clear = grid.map_or(true, |g| times_s.iter().all(|&t| g.clearance(tr.position(t).truncate()) >= sc.sensor_clearance_m));
-        if clear {
-            sensor = Some(tr);
-            break;
+        if grid.is_none_or(|g| times_s.iter().all(|&t| g.clearance(tr.position(t).truncate()) >= sc.sensor_clearance_m)) {
+            return Ok(SensorPath::Arc(tr));
         }
     }
-    let sensor = sensor.ok_or_else(|| {
-        Error::input(
-            "scene.environment",
-            "no room for the sensor's trajectory (tried 2000 starts); lower scene.sensor_speed_mps or scene.sensor_clearance_m",
-        )
-    })?;
+    Err(Error::input(
+        "scene.background",
+        format!(
+            "no room for the sensor's trajectory (tried {TRIES} starts); lower scene.sensor_speed_mps or scene.sensor_clearance_m"
+        ),
+    ))
+}
 
-    // The people.
+/// `count` synthetic people around the sensor's start, clear of obstacles, of the sensor and
+/// of each other at every frame.
+fn sample_synthetic_people(
+    rng: &mut impl rand::Rng,
+    cfg: &Config,
+    inp: &PlanInputs,
+    sensor: &SensorPath,
+    times_s: &[f64],
+    count: usize,
+) -> Result<Vec<HumanPlan>> {
     let hc = &cfg.humans;
-    let [lo, hi] = hc.count;
-    let count = lo + (u01() * (hi - lo + 1) as f64).floor().min((hi - lo) as f64) as usize;
+    let duration = *times_s.last().unwrap_or(&0.0);
+    let uniform = |rng: &mut dyn FnMut() -> f64, r: [f64; 2]| r[0] + (r[1] - r[0]) * rng();
     let mut humans: Vec<HumanPlan> = Vec::with_capacity(count);
-    let s0 = sensor.start_m;
+    let s0 = sensor.start_xy();
+    let mut planner = inp.grid.map(|_| crate::planner::Planner::new());
     for k in 0..count {
-        let model = ((u01() * models.len() as f64) as usize).min(models.len() - 1);
-        let height = models[model].height_m as f64;
+        let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
+        let height = inp.models[model].height_m as f64;
         let mut placed = None;
-        for _ in 0..2000 {
+        for _ in 0..TRIES {
+            let mut u01 = || rng.random::<f64>();
             let r = hc.spawn_radius_m * u01().sqrt();
             let a = u01() * std::f64::consts::TAU;
             let start = s0 + r * DVec2::new(a.cos(), a.sin());
             let speed = uniform(&mut u01, hc.speed_mps);
-            let tr = Trajectory {
-                start_m: start,
-                z_m: 0.0,
-                heading0_rad: (u01() * 2.0 - 1.0) * std::f64::consts::PI,
-                speed_mps: speed,
-                yaw_rate_rps: uniform(&mut u01, hc.yaw_rate_rps),
+            if inp.grid.is_some_and(|g| g.clearance(start) < hc.clearance_m) {
+                continue;
+            }
+            let path: HumanPath = match (hc.walk, inp.grid, planner.as_mut()) {
+                (WalkMode::Goals, Some(grid), Some(planner)) => {
+                    match planner.plan_walk(rng, grid, hc.clearance_m, speed, duration, Some(start)) {
+                        Some(w) => HumanPath::Walk(w, inp.floor_z_m),
+                        None => continue,
+                    }
+                }
+                _ => {
+                    let mut u01 = || rng.random::<f64>();
+                    HumanPath::Arc(Trajectory {
+                        start_m: start,
+                        z_m: inp.floor_z_m,
+                        heading0_rad: (u01() * 2.0 - 1.0) * std::f64::consts::PI,
+                        speed_mps: speed,
+                        yaw_rate_rps: uniform(&mut u01, hc.yaw_rate_rps),
+                    })
+                }
             };
             let plan = HumanPlan {
                 model,
-                trajectory: tr,
-                phase0: u01(),
+                trajectory: path,
+                phase0: rng.random::<f64>(),
                 stride_m: stride_length_m(height, speed.max(0.1)),
                 motion: hc.motion,
             };
             let ok = times_s.iter().all(|&t| {
                 let p = plan.at(t).position_m.truncate();
-                let free = grid.map_or(true, |g| g.clearance(p) >= hc.clearance_m);
+                let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
                 let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
                 let apart = humans.iter().all(|h| h.at(t).position_m.truncate().distance(p) >= hc.min_separation_m);
                 free && off_sensor && apart
@@ -156,14 +548,14 @@ pub fn sample_plan(
                 return Err(Error::input(
                     "humans",
                     format!(
-                        "could place only {k} of {count} people without collisions (2000 tries each); \
+                        "could place only {k} of {count} people without collisions ({TRIES} tries each); \
                          lower humans.count, humans.min_separation_m or raise humans.spawn_radius_m"
                     ),
                 ))
             }
         }
     }
-    Ok(SequencePlan { sensor, humans, times_s })
+    Ok(humans)
 }
 
 #[cfg(test)]
@@ -174,7 +566,7 @@ mod tests {
     fn plan(motion: MotionMode) -> HumanPlan {
         HumanPlan {
             model: 0,
-            trajectory: Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: 0.3, speed_mps: 1.2, yaw_rate_rps: 0.1 },
+            trajectory: Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: 0.3, speed_mps: 1.2, yaw_rate_rps: 0.1 }.into(),
             phase0: 0.25,
             stride_m: 1.2,
             motion,
@@ -213,8 +605,9 @@ mod tests {
         let mut cfg = Config::default();
         cfg.humans.count = [3, 5];
         let model = crate::human::tests_support::tiny_model();
-        let a = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, 10.0, None, std::slice::from_ref(&model)).unwrap();
-        let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, 10.0, None, std::slice::from_ref(&model)).unwrap();
+        let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0 };
+        let a = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
+        let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
         assert_eq!(a, b);
         assert!((3..=5).contains(&a.humans.len()));
         assert_eq!(a.times_s.len(), 32);

@@ -34,6 +34,7 @@ fn meta(index: usize, frames: usize, humans: usize, outputs: OutputSet) -> Seque
             })
             .collect(),
         outputs,
+        provenance: vec![("background".into(), "recording <a&b>.pcap".into()), ("first_frame".into(), "7".into())],
     }
 }
 
@@ -421,6 +422,11 @@ fn xml_is_well_formed_and_matches_the_frames() {
                     models.push(attr(&e, "model"));
                 }
             }
+            "provenance" => {
+                // Escaped on write, unescaped on read: the values round-trip.
+                assert_eq!(attr(&e, "background"), "recording <a&b>.pcap");
+                assert_eq!(attr(&e, "first_frame"), "7");
+            }
             other => panic!("unexpected element {:?}", other),
         }
     }
@@ -498,6 +504,7 @@ fn bench_write_hdl32e() {
             .map(|k| HumanMeta { height_m: 1.7, weight_kg: 70.0, model: format!("h{k}") })
             .collect(),
         outputs: OutputSet::default(),
+        provenance: Vec::new(),
     };
     // Ground plane at -1.8 m, a ring of walls 15..35 m away, humans as blobs.
     let dirs = sensor.beam_dirs();

@@ -201,7 +201,7 @@ fn generator_config() -> Config {
     let mut cfg = Config::default();
     cfg.humans.count = [1, 1];
     cfg.humans.models = vec![PathBuf::from(HUMAN)];
-    cfg.scene.environment = PathBuf::new();
+    cfg.scene.background = PathBuf::new();
     cfg.frames = 1;
     cfg
 }
@@ -215,12 +215,12 @@ fn far_plan(origin: DVec2) -> SequencePlan {
     let in_front = p.truncate() + 5.0 * DVec2::new(h.cos(), h.sin());
     let human = HumanPlan {
         model: 0,
-        trajectory: Trajectory::fixed(in_front, 0.0, 2.0),
+        trajectory: Trajectory::fixed(in_front, 0.0, 2.0).into(),
         phase0: 0.3,
         stride_m: 1.3,
         motion: MotionMode::Static,
     };
-    SequencePlan { sensor, humans: vec![human], times_s: vec![t] }
+    SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0 }
 }
 
 /// The background box of the far test, in the world frame (f64): 5 m from the sensor at 60
@@ -248,7 +248,7 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
     fn run(gen: &mut Generator, origin: DVec2) -> (FrameGeometry, BeamHits, SequencePlan) {
         let plan = far_plan(origin);
         let state = gen.frame_state(&plan, 0);
-        gen.pose_frame(&plan, &state);
+        gen.pose_frame(&plan, &state).unwrap();
         let mut geom = gen.scratch.humans.clone();
         assert_eq!(geom.meshes.len(), 1, "the person is posed");
         let sensor_from_world = state.world_from_sensor.inverse();
@@ -764,7 +764,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
         for motion in [MotionMode::Full, MotionMode::InPlace] {
             let plan = HumanPlan {
                 model: 0,
-                trajectory: Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: -2.0, speed_mps: speed, yaw_rate_rps: w },
+                trajectory: Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: -2.0, speed_mps: speed, yaw_rate_rps: w }.into(),
                 phase0,
                 stride_m: stride,
                 motion,
@@ -789,7 +789,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
     assert!(stride0 > 0.0 && stride0.is_finite(), "stride at 0 m/s: {stride0}");
     let plan = HumanPlan {
         model: 0,
-        trajectory: Trajectory::fixed(DVec2::new(3.0, 4.0), 0.0, 1.0),
+        trajectory: Trajectory::fixed(DVec2::new(3.0, 4.0), 0.0, 1.0).into(),
         phase0: 0.4,
         stride_m: stride0,
         motion: MotionMode::Full,
@@ -828,7 +828,8 @@ fn frame_times_k_over_rate_have_no_drift_unlike_accumulation() {
     cfg.humans.models = Vec::new();
     cfg.frames = 10_001;
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
-    let plan = sample_plan(&mut rng, &cfg, 10.0, None, &[]).expect("plan");
+    let inputs = pedscan::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let plan = sample_plan(&mut rng, &cfg, &inputs).expect("plan");
     assert_eq!(plan.times_s.len(), 10_001);
     let mut acc = 0.0f64;
     let (mut worst_k, mut worst_acc) = (0.0f64, 0.0f64);

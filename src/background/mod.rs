@@ -10,6 +10,9 @@ pub mod pcap;
 pub mod pcd;
 pub mod poses;
 pub mod project;
+pub mod recording;
+
+pub use recording::Recording;
 
 /// One recorded frame (one rotation) in the recording sensor's frame.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -135,6 +135,8 @@ impl H5Writer {
         attr_u64(&file, "rows", h as u64, name)?;
         attr_u64(&file, "columns", w as u64, name)?;
         attr_u64(&file, "index", meta.index as u64, name)?;
+        let prov: String = meta.provenance.iter().map(|(k, v)| format!("{k}={v}\n")).collect();
+        attr_str(&file, "provenance", &prov, name)?;
 
         let mut specs: Vec<(Grid, &str, usize, &str, &str)> = vec![(
             Grid::Range,

@@ -53,6 +53,10 @@ pub fn info(path: &Path) -> Result<String> {
     let _ = writeln!(s, "seed:      {}", u64_attr("seed"));
     let _ = writeln!(s, "frames:    {t}");
     let _ = writeln!(s, "grid:      {h} rows x {w} columns");
+    let prov = str_attr("provenance");
+    if prov != "?" && !prov.is_empty() {
+        let _ = writeln!(s, "source:    {}", prov.lines().collect::<Vec<_>>().join(", "));
+    }
 
     if let Ok(ts) = file.dataset("sensor/time_s").and_then(|d| d.read_raw::<f64>()) {
         if let (Some(a), Some(b)) = (ts.first(), ts.last()) {

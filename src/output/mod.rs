@@ -34,6 +34,10 @@ pub struct SequenceMeta {
     pub humans: Vec<HumanMeta>,
     /// Which optional per-beam outputs are present in every frame.
     pub outputs: OutputSet,
+    /// Where the background and the people come from, as `key=value` lines (root attribute
+    /// `provenance`, XML element `<provenance>`): the recorded frames used, the floor, the
+    /// window of the tracks.
+    pub provenance: Vec<(String, String)>,
 }
 
 /// One person of a sequence.

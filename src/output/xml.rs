@@ -44,6 +44,13 @@ impl XmlWriter {
         seq.push_attribute(("humans", meta.humans.len().to_string().as_str()));
         seq.push_attribute(("pedscan_version", crate::version()));
         x.w.write_event(Event::Start(seq)).map_err(io)?;
+        if !meta.provenance.is_empty() {
+            let mut e = BytesStart::new("provenance");
+            for (k, v) in &meta.provenance {
+                e.push_attribute((k.as_str(), v.as_str()));
+            }
+            x.w.write_event(Event::Empty(e)).map_err(io)?;
+        }
         for (k, h) in meta.humans.iter().enumerate() {
             let mut e = BytesStart::new("human");
             e.push_attribute(("id", (k + 1).to_string().as_str()));

@@ -1,0 +1,276 @@
+//! End to end with the inputs users have: a recorded background (a folder of KITTI `.bin`
+//! frames with KITTI poses and `times.txt`), recorded pedestrian tracks, and their broken
+//! variants. Every input is written by the test itself.
+
+use glam::{DMat4, DVec3};
+use pedscan::sensor::Sensor;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn pedscan(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pedscan"))
+        .args(args)
+        .current_dir(dir)
+        .env("PEDSCAN_VALIDATION", "1")
+        .output()
+        .expect("run pedscan")
+}
+
+fn ok(o: &Output) {
+    assert!(o.status.success(), "pedscan failed ({:?}):\n{}", o.status.code(), String::from_utf8_lossy(&o.stderr));
+}
+
+fn expect_input_error(args: &[&str], dir: &Path, needle: &str) {
+    let o = pedscan(args, dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "exit code for {args:?}: {err}");
+    assert!(err.contains(needle), "message for {args:?} should name `{needle}`: {err}");
+}
+
+const RATE_HZ: f64 = 10.0;
+const SPEED: f64 = 1.0;
+const YAW_RATE: f64 = 0.2;
+const SENSOR_Z: f64 = 1.7;
+const HALF_ROOM: f64 = 20.0;
+
+/// The recording sensor's pose at time t: an arc at 1 m/s turning at 0.2 rad/s, 1.7 m above
+/// the floor (world z = 0).
+fn pose_at(t: f64) -> DMat4 {
+    let h = YAW_RATE * t;
+    let (x, y) = (SPEED / YAW_RATE * h.sin(), SPEED / YAW_RATE * (1.0 - h.cos()));
+    DMat4::from_translation(DVec3::new(x - 3.0, y - 2.0, SENSOR_Z)) * DMat4::from_rotation_z(h)
+}
+
+fn velocity_at(t: f64) -> DVec3 {
+    let h = YAW_RATE * t;
+    DVec3::new(SPEED * h.cos(), SPEED * h.sin(), 0.0)
+}
+
+/// Range of a world ray in the closed room: the floor z = 0, the walls |x|, |y| = 20 m; the
+/// ceiling is open (no return).
+fn room_range(o: DVec3, d: DVec3) -> Option<f64> {
+    let mut best = f64::INFINITY;
+    let mut plane = |num: f64, den: f64| {
+        if den.abs() > 1e-12 {
+            let t = num / den;
+            if t > 0.0 && t < best {
+                best = t;
+            }
+        }
+    };
+    plane(-o.z, d.z);
+    for s in [-1.0, 1.0] {
+        plane(s * HALF_ROOM - o.x, d.x);
+        plane(s * HALF_ROOM - o.y, d.y);
+    }
+    (best.is_finite() && best < 100.0).then_some(best)
+}
+
+/// Writes `n` KITTI frames of the room seen by the HDL-32E beams, the poses and times.
+/// Returns the per-frame ranges on the HDL-32E grid (row-major, 0 = no return).
+fn write_recording(dir: &Path, n: usize) -> Vec<Vec<f32>> {
+    let velo = dir.join("velodyne");
+    std::fs::create_dir_all(&velo).unwrap();
+    let sensor = Sensor::hdl32e();
+    let dirs = sensor.beam_dirs();
+    let mut poses = String::new();
+    let mut times = String::new();
+    let mut all = Vec::new();
+    for k in 0..n {
+        let t = k as f64 / RATE_HZ;
+        let pose = pose_at(t);
+        let o = pose.w_axis.truncate();
+        let mut bytes = Vec::new();
+        let mut ranges = vec![0.0f32; dirs.len()];
+        for (b, d) in dirs.iter().enumerate() {
+            if let Some(r) = room_range(o, pose.transform_vector3(*d)) {
+                let p = (*d * r).as_vec3();
+                // The range the target grid will see is |p| of the stored f32 point.
+                ranges[b] = p.length();
+                for v in [p.x, p.y, p.z, 0.5] {
+                    bytes.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+        }
+        std::fs::write(velo.join(format!("{k:06}.bin")), bytes).unwrap();
+        let m = pose.transpose().to_cols_array(); // rows of the 4x4
+        poses.push_str(&m[..12].iter().map(|v| format!("{v:.12e}")).collect::<Vec<_>>().join(" "));
+        poses.push('\n');
+        times.push_str(&format!("{t:.6e}\n"));
+        all.push(ranges);
+    }
+    std::fs::write(dir.join("poses.txt"), poses).unwrap();
+    std::fs::write(dir.join("times.txt"), times).unwrap();
+    all
+}
+
+fn attr(f: &hdf5::File, key: &str) -> String {
+    f.attr(key).unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap().to_string()
+}
+
+fn provenance(f: &hdf5::File, key: &str) -> String {
+    attr(f, "provenance")
+        .lines()
+        .find_map(|l| l.strip_prefix(&format!("{key}=")).map(str::to_string))
+        .unwrap_or_else(|| panic!("no {key} in provenance"))
+}
+
+#[test]
+fn people_are_composited_into_a_recorded_kitti_sequence() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let frames_total = 12;
+    let recorded = write_recording(dir, frames_total);
+    let o = pedscan(
+        &[
+            "generate", "--out", "out", "--background", "velodyne", "--poses", "poses.txt", "--frames", "6", "--humans", "3",
+            "--seed", "5",
+        ],
+        dir,
+    );
+    ok(&o);
+    let f = hdf5::File::open(dir.join("out/seq_000000.h5")).unwrap();
+    let start: usize = provenance(&f, "recording_first_frame").parse().unwrap();
+    assert!(start + 6 <= frames_total);
+    let floor: f64 = provenance(&f, "floor_z_m").parse().unwrap();
+    assert!(floor.abs() < 1e-3, "estimated floor {floor}");
+    let range: Vec<f32> = f.dataset("range").unwrap().read_raw().unwrap();
+    let bg: Vec<f32> = f.dataset("background/range").unwrap().read_raw().unwrap();
+    let label: Vec<u8> = f.dataset("label").unwrap().read_raw().unwrap();
+    let velocity: Vec<f32> = f.dataset("velocity").unwrap().read_raw().unwrap();
+    let time: Vec<f64> = f.dataset("sensor/time_s").unwrap().read_raw().unwrap();
+    let pose: Vec<f64> = f.dataset("sensor/world_from_sensor").unwrap().read_raw().unwrap();
+    let humans: Vec<f64> = f.dataset("humans/position_m").unwrap().read_raw().unwrap();
+    let hw = 32 * 1024;
+    let mut human_beams = 0;
+    for k in 0..6 {
+        let t_rec = (start + k) as f64 / RATE_HZ;
+        // Frame times are the recording's, from its first frame.
+        assert!((time[k] - k as f64 / RATE_HZ).abs() < 1e-9, "time {} vs {}", time[k], k as f64 / RATE_HZ);
+        // The sensor's pose is the recorded pose.
+        let want = pose_at(t_rec).transpose().to_cols_array();
+        for i in 0..16 {
+            assert!((pose[k * 16 + i] - want[i]).abs() < 1e-9, "pose {k} [{i}]: {} vs {}", pose[k * 16 + i], want[i]);
+        }
+        // -R^T V_s from the poses' known velocity: the three-point derivative of the arc is
+        // off by O(w^2 dt^2 v) = 4e-4 m/s inside the recording, the one-sided one at its ends by O(w dt v).
+        let r = pose_at(t_rec);
+        let vs = r.inverse().transform_vector3(velocity_at(t_rec));
+        let frame_idx = start + k;
+        let tol = if frame_idx == 0 || frame_idx + 1 == frames_total { 2.5e-2 } else { 1e-3 };
+        for b in 0..hw {
+            let i = k * hw + b;
+            // The recorded frame is the background, beam for beam.
+            assert!((bg[i] - recorded[start + k][b]).abs() <= 1e-5 * bg[i].max(1.0), "background beam {b} of frame {k}: {} vs {}", bg[i], recorded[start + k][b]);
+            if label[i] == 1 {
+                human_beams += 1;
+                assert!(range[i] < bg[i] || bg[i] == 0.0);
+            } else {
+                assert_eq!(range[i], bg[i]);
+                if range[i] > 0.0 {
+                    for c in 0..3 {
+                        let v = velocity[3 * i + c] as f64;
+                        assert!((v + vs[c]).abs() < tol, "frame {k} beam {b}: background velocity {v} vs {}", -vs[c]);
+                    }
+                }
+            }
+        }
+    }
+    assert!(human_beams > 50, "people are visible in the recorded scene: {human_beams} beams");
+    // People stand on the estimated floor, inside the room.
+    for p in humans.chunks(3) {
+        assert!(p[2].abs() < 1e-3, "person at height {}", p[2]);
+        assert!(p[0].abs() < HALF_ROOM - 0.3 && p[1].abs() < HALF_ROOM - 0.3, "person outside the room: {p:?}");
+    }
+    // The XML names the window.
+    let xml = std::fs::read_to_string(dir.join("out/seq_000000.xml")).unwrap();
+    assert!(xml.contains(&format!("recording_first_frame=\"{start}\"")), "{xml}");
+}
+
+/// Tracks of three people walking straight lines at different speeds (pedscan CSV).
+fn write_tracks(path: &Path) {
+    let mut s = String::from("# three straight walks\nt_s,id,x_m,y_m\n");
+    for (id, (x0, y0, vx, vy)) in [(-6.0, 4.0, 1.2, 0.0), (6.0, -5.0, 0.0, 1.0), (-4.0, -4.0, 0.7, 0.7)].iter().enumerate() {
+        for k in 0..=25 {
+            let t = k as f64 * 0.4;
+            s.push_str(&format!("{t},{},{},{}\n", id + 7, x0 + vx * t, y0 + vy * t));
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn imported_tracks_are_walked_at_the_frame_times() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_tracks(&dir.join("tracks.csv"));
+    let o = pedscan(
+        &[
+            "generate", "--out", "out", "--background", "none", "--tracks", "tracks.csv", "--tracks-format", "csv",
+            "--tracks-transform", "1.5,-2,90", "--frames", "8", "--humans", "3", "--seed", "2",
+        ],
+        dir,
+    );
+    ok(&o);
+    let f = hdf5::File::open(dir.join("out/seq_000000.h5")).unwrap();
+    let t0: f64 = provenance(&f, "tracks_window_start_s").parse().unwrap();
+    let ids: Vec<i64> = provenance(&f, "track_ids").split(',').map(|s| s.parse().unwrap()).collect();
+    assert_eq!(ids.len(), 3, "all three tracks cover the window");
+    let pos: Vec<f64> = f.dataset("humans/position_m").unwrap().read_raw().unwrap();
+    let vel: Vec<f64> = f.dataset("humans/velocity_mps").unwrap().read_raw::<f32>().unwrap().into_iter().map(f64::from).collect();
+    let heading: Vec<f64> = f.dataset("humans/heading_rad").unwrap().read_raw::<f32>().unwrap().into_iter().map(f64::from).collect();
+    let time: Vec<f64> = f.dataset("sensor/time_s").unwrap().read_raw().unwrap();
+    let lines = [(-6.0, 4.0, 1.2, 0.0), (6.0, -5.0, 0.0, 1.0), (-4.0, -4.0, 0.7, 0.7)];
+    for (k, t) in time.iter().enumerate() {
+        for (h, id) in ids.iter().enumerate() {
+            let (x0, y0, vx, vy) = lines[(*id - 7) as usize];
+            let tt = t0 + t;
+            // world = (1.5, -2) + R(90 deg) p.
+            let (px, py) = (x0 + vx * tt, y0 + vy * tt);
+            let want = [1.5 - py, -2.0 + px];
+            let i = (k * 3 + h) * 3;
+            assert!((pos[i] - want[0]).abs() < 1e-4 && (pos[i + 1] - want[1]).abs() < 1e-4, "frame {k} track {id}: {:?} vs {want:?}", &pos[i..i + 2]);
+            let wv = [-vy, vx];
+            assert!((vel[i] - wv[0]).abs() < 1e-5 && (vel[i + 1] - wv[1]).abs() < 1e-5, "velocity {:?} vs {wv:?}", &vel[i..i + 2]);
+            let dh = (heading[k * 3 + h] - wv[1].atan2(wv[0]) + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            assert!(dh.abs() < 1e-5, "heading faces the motion");
+        }
+    }
+}
+
+#[test]
+fn broken_recordings_and_tracks_are_named_and_exit_2() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_recording(dir, 8);
+    // A truncated frame.
+    std::fs::create_dir(dir.join("cut")).unwrap();
+    for k in 0..8 {
+        let mut b = std::fs::read(dir.join(format!("velodyne/{k:06}.bin"))).unwrap();
+        if k == 5 {
+            b.truncate(b.len() - 3);
+        }
+        std::fs::write(dir.join(format!("cut/{k:06}.bin")), b).unwrap();
+    }
+    expect_input_error(&["generate", "--out", "o1", "--background", "cut", "--frames", "4"], dir, "000005.bin");
+    // Poses that do not match the frames.
+    let poses = std::fs::read_to_string(dir.join("poses.txt")).unwrap();
+    std::fs::write(dir.join("short_poses.txt"), poses.lines().take(5).collect::<Vec<_>>().join("\n")).unwrap();
+    expect_input_error(&["generate", "--out", "o2", "--background", "velodyne", "--poses", "short_poses.txt", "--frames", "4"], dir, "short_poses.txt");
+    // More frames per sequence than recorded.
+    expect_input_error(&["generate", "--out", "o3", "--background", "velodyne", "--frames", "9"], dir, "velodyne");
+    // A track with a NaN, and one with a duplicate time.
+    std::fs::write(dir.join("nan.csv"), "t_s,id,x_m,y_m\n0,1,0,0\n0.4,1,NaN,0\n").unwrap();
+    expect_input_error(&["generate", "--out", "o4", "--background", "none", "--tracks", "nan.csv"], dir, "nan.csv:3");
+    std::fs::write(dir.join("dup.csv"), "t_s,id,x_m,y_m\n0,1,0,0\n0,1,1,0\n").unwrap();
+    expect_input_error(&["generate", "--out", "o5", "--background", "none", "--tracks", "dup.csv"], dir, "dup.csv");
+    // Tracks too short for a sequence.
+    std::fs::write(dir.join("short.csv"), "t_s,id,x_m,y_m\n0,1,0,0\n0.4,1,0.5,0\n").unwrap();
+    expect_input_error(&["generate", "--out", "o6", "--background", "none", "--tracks", "short.csv"], dir, "short.csv");
+    // A background that is neither a recording nor an environment.
+    std::fs::write(dir.join("scan.txt"), "1 2 3\n").unwrap();
+    expect_input_error(&["generate", "--out", "o7", "--background", "scan.txt"], dir, "scan.txt");
+    for o in ["o1", "o2", "o3", "o4", "o5", "o6", "o7"] {
+        assert!(!dir.join(o).exists(), "{o} was created for a run that failed on its input");
+    }
+}
