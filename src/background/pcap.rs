@@ -730,6 +730,30 @@ mod tests {
     }
 
     #[test]
+    fn a_recorded_hdl32e_turn_fills_the_hdl32e_grid_row_to_row() {
+        // 0.2 degree per firing (1800 firings a turn, more than the 1024 columns); laser `ch`
+        // measures 4 m + 0.25 m * ch, so every cell says which laser filled it.
+        let packets = spin(0x21, 0x37, 17_000, 20, 400, |_, _, ch| ((4.0 + 0.25 * ch as f64) / 0.002).round() as u16);
+        let rec = read(&capture(&packets).bytes).unwrap();
+        assert!(!rec.scans.is_empty());
+        let target = crate::sensor::Sensor::hdl32e();
+        let projector = crate::background::project::Projector::new(&target);
+        let mut ranges = Vec::new();
+        let stats = projector.project(&rec.scans[0], &mut ranges);
+        assert!(stats.ring_mapped);
+        assert_eq!(stats.outside_band, 0);
+        let laser_el = VelodyneModel::Hdl32e.elevation_deg();
+        for (row, el) in target.elevation_deg.iter().enumerate() {
+            let ch = laser_el.iter().position(|e| (e - el).abs() < 1e-9).expect("every target row is a laser");
+            let want = (((4.0 + 0.25 * ch as f64) / 0.002).round() * 0.002) as f32;
+            for col in 0..target.columns {
+                let r = ranges[row * target.columns + col];
+                assert!((r - want).abs() < 1e-4, "row {row} col {col}: {r} vs laser {ch}'s {want}");
+            }
+        }
+    }
+
+    #[test]
     fn hdl32e_returns_decode_to_exact_xyz_with_ring() {
         // 1 degree per firing from 90 degrees: turns start at firings 90 and 450.
         let dist = |f: usize, _: usize, ch: usize| match (f, ch) {
