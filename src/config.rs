@@ -35,6 +35,9 @@ pub enum Refine {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Backend {
+    /// Raster on a GPU, the ray caster on a CPU Vulkan device (lavapipe), where the benchmark
+    /// measures the ray caster faster at better accuracy (README, Performance).
+    Auto,
     /// Vulkan rasterization into cube faces, resampled and refined (GPU or lavapipe).
     Raster,
     /// The CPU ray caster (BVH, watertight f64): exact by construction; on a 2-core machine
@@ -216,7 +219,7 @@ impl Default for SceneConfig {
 
 impl Default for RenderConfig {
     fn default() -> Self {
-        RenderConfig { backend: Backend::Raster, oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
+        RenderConfig { backend: Backend::Auto, oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
     }
 }
 

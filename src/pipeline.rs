@@ -48,6 +48,8 @@ pub struct Generator {
     pub sensor_poses: Option<(Vec<f64>, Vec<DMat4>)>,
     /// Recorded pedestrian tracks (world frame), when `humans.tracks` is set.
     pub tracks: Vec<Arc<Track>>,
+    /// The backend that runs: `render.backend` with `auto` resolved for the device.
+    pub backend: Backend,
     pub cube: CubeFaces,
     pub lookup: BeamLookup,
     pub renderer: Renderer,
@@ -225,6 +227,11 @@ impl Generator {
         let lookup = BeamLookup::new(&sensor, &cube);
         let ctx = Arc::new(Context::new(&ContextOptions { validation, device: device_choice(&cfg.device) })?);
         let renderer = Renderer::new(&ctx, &cube)?;
+        let backend = match cfg.render.backend {
+            Backend::Auto if ctx.is_cpu() => Backend::Raycast,
+            Backend::Auto => Backend::Raster,
+            b => b,
+        };
         let mut scratch = Scratch::default();
         // PEDSCAN_BVH_REFIT=0 rebuilds every BVH every frame (for comparison).
         if std::env::var("PEDSCAN_BVH_REFIT").is_ok_and(|v| v == "0") {
@@ -240,6 +247,7 @@ impl Generator {
             recording,
             sensor_poses,
             tracks,
+            backend,
             cube,
             lookup,
             renderer,
@@ -367,7 +375,7 @@ impl Generator {
     /// Renders and resamples the posed frame into `scratch.bg_hits` / `scratch.human_hits`.
     pub fn render_posed(&mut self) -> Result<()> {
         let refine = self.cfg.render.refine;
-        let backend = self.cfg.render.backend;
+        let backend = self.backend;
         let n = self.lookup.dirs.len();
         let s = &mut self.scratch;
         for (geom, hits, cache) in
@@ -378,7 +386,7 @@ impl Generator {
                 continue;
             }
             match backend {
-                Backend::Raster => {
+                Backend::Raster | Backend::Auto => {
                     let frame = self.renderer.render(geom)?;
                     resample(&self.lookup, frame, geom, refine, hits);
                 }
@@ -454,7 +462,8 @@ impl Generator {
     pub fn provenance(&self, plan: &SequencePlan) -> Vec<(String, String)> {
         let name = |p: &Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
         let bg = &self.cfg.scene.background;
-        let mut v = vec![(
+        let backend = if self.backend == Backend::Raycast { "raycast" } else { "raster" };
+        let mut v = vec![("backend".to_string(), backend.to_string()), (
             "background".to_string(),
             match (&self.recording, &self.environment) {
                 (Some(_), _) => format!("recording {}", name(bg)),

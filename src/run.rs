@@ -65,9 +65,9 @@ pub fn generate(cfg: Config, validation: bool, progress: bool, export_geometry: 
         frames: gen.cfg.sequences * gen.cfg.frames,
         files,
         seconds: start.elapsed().as_secs_f64(),
-        device: match gen.cfg.render.backend {
-            crate::config::Backend::Raster => gen.renderer.context().device_name(),
+        device: match gen.backend {
             crate::config::Backend::Raycast => "the CPU ray caster".into(),
+            _ => gen.renderer.context().device_name(),
         },
     };
     // With validation on, any validation error (leaks at device destruction included) fails

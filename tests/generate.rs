@@ -73,7 +73,12 @@ fn read_seq(path: &Path) -> Seq {
 fn generate_writes_consistent_labeled_sequences() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let o = pedscan(&["generate", "--out", "out", "--frames", "5", "--sequences", "2", "--humans", "4..6", "--seed", "11", "--png"], dir, &[]);
+    // The raster path explicitly (the default `auto` picks the ray caster on lavapipe).
+    let o = pedscan(
+        &["generate", "--out", "out", "--frames", "5", "--sequences", "2", "--humans", "4..6", "--seed", "11", "--png", "--backend", "raster"],
+        dir,
+        &[],
+    );
     ok(&o);
     let out = dir.join("out");
     let names = files_in(&out);
@@ -151,13 +156,17 @@ fn generate_writes_consistent_labeled_sequences() {
 fn same_seed_gives_bit_identical_files_whatever_the_thread_count() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let args = |out: &'static str| vec!["generate", "--out", out, "--frames", "3", "--humans", "3..3", "--seed", "3"];
-    ok(&pedscan(&args("a"), dir, &[("RAYON_NUM_THREADS", "1"), ("LP_NUM_THREADS", "1")]));
-    ok(&pedscan(&args("b"), dir, &[("RAYON_NUM_THREADS", "2")]));
-    for f in ["seq_000000.h5", "seq_000000.xml"] {
-        let a = std::fs::read(dir.join("a").join(f)).unwrap();
-        let b = std::fs::read(dir.join("b").join(f)).unwrap();
-        assert!(a == b, "{f} differs between 1 and 2 threads");
+    // Both backends: the ray caster splits beams over threads, the raster path its CPU stages.
+    for backend in ["raster", "raycast"] {
+        let args = |out: &'static str| vec!["generate", "--out", out, "--frames", "3", "--humans", "3..3", "--seed", "3", "--backend", backend];
+        let (a_dir, b_dir) = if backend == "raster" { ("a", "b") } else { ("c", "d") };
+        ok(&pedscan(&args(a_dir), dir, &[("RAYON_NUM_THREADS", "1"), ("LP_NUM_THREADS", "1")]));
+        ok(&pedscan(&args(b_dir), dir, &[("RAYON_NUM_THREADS", "2")]));
+        for f in ["seq_000000.h5", "seq_000000.xml"] {
+            let a = std::fs::read(dir.join(a_dir).join(f)).unwrap();
+            let b = std::fs::read(dir.join(b_dir).join(f)).unwrap();
+            assert!(a == b, "{backend}: {f} differs between 1 and 2 threads");
+        }
     }
 }
 
@@ -239,7 +248,7 @@ fn raycast_backend_agrees_with_the_raster_backend() {
     let dir = tmp.path();
     let args = ["generate", "--frames", "3", "--humans", "12..12", "--seed", "8"];
     let mut raster = args.to_vec();
-    raster.extend(["--out", "raster"]);
+    raster.extend(["--out", "raster", "--backend", "raster"]);
     let mut cast = args.to_vec();
     cast.extend(["--out", "cast", "--backend", "raycast"]);
     ok(&pedscan(&raster, dir, &[]));

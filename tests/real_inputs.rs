@@ -124,7 +124,7 @@ fn people_are_composited_into_a_recorded_kitti_sequence() {
     let o = pedscan(
         &[
             "generate", "--out", "out", "--background", "velodyne", "--poses", "poses.txt", "--frames", "6", "--humans", "3",
-            "--seed", "5",
+            "--seed", "5", "--backend", "raster",
         ],
         dir,
     );

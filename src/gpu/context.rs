@@ -62,6 +62,7 @@ pub struct Context {
     counters: Box<Counters>,
     physical_device: vk::PhysicalDevice,
     device_name: String,
+    device_type: vk::PhysicalDeviceType,
     limits: vk::PhysicalDeviceLimits,
     device: ash::Device,
     queue_family: u32,
@@ -241,6 +242,7 @@ impl Context {
         let chosen = choose(&devices, &options.device)?;
         let physical_device = chosen.handle;
         let device_name = chosen.name.clone();
+        let device_type = chosen.props.device_type;
         let limits = chosen.props.limits;
 
         // SAFETY: valid physical device of `instance`.
@@ -287,6 +289,7 @@ impl Context {
             counters,
             physical_device,
             device_name,
+            device_type,
             limits,
             device,
             queue_family,
@@ -311,6 +314,11 @@ impl Context {
     /// The chosen device's name, e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`.
     pub fn device_name(&self) -> String {
         self.device_name.clone()
+    }
+
+    /// True when the device is a CPU implementation (lavapipe, SwiftShader).
+    pub fn is_cpu(&self) -> bool {
+        self.device_type == vk::PhysicalDeviceType::CPU
     }
 
     /// Whether the validation layer is on.
