@@ -40,6 +40,17 @@ pub enum Backend {
     Raycast,
 }
 
+/// Which raster views the Vulkan backend draws into.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Projection {
+    /// The 4 side faces of a cube, each a band-limited perspective frustum.
+    Cube,
+    /// One cylindrical (equirectangular) panorama: 360 deg of azimuth x the sensor's band,
+    /// beam directions on texel centres.
+    Cylinder,
+}
+
 /// Which velocity definition is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -119,7 +130,10 @@ pub struct SceneConfig {
 pub struct RenderConfig {
     /// Raster (default) or CPU ray cast.
     pub backend: Backend,
-    /// Texels per beam spacing at a face centre.
+    /// Raster views: cube faces (default) or one cylindrical panorama.
+    pub projection: Projection,
+    /// Texels per beam spacing: at a cube-face centre; for the cylinder, texels per column and
+    /// per elevation gap, rounded to a whole number (at least 1) so beams sit on texel centres.
     pub oversample: f64,
     pub refine: Refine,
     /// Level of detail: the coarsest level whose geometric error, seen from the sensor, stays
@@ -188,7 +202,12 @@ impl Default for SceneConfig {
 
 impl Default for RenderConfig {
     fn default() -> Self {
-        RenderConfig { backend: Backend::Raster, oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
+        RenderConfig {
+            backend: Backend::Raster,
+            projection: Projection::Cube,
+            oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0,
+            keep_holes: false,
+        }
     }
 }
 

@@ -272,18 +272,10 @@ pub fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// Which beams lie within `SEAM_TEXELS` texels of a cube-face seam.
+/// Which beams lie within `SEAM_TEXELS` texels of a cube-face seam (the panorama: of its
+/// azimuth wrap).
 fn seam_mask(gen: &Generator) -> Vec<bool> {
-    gen.lookup
-        .dirs
-        .iter()
-        .zip(&gen.lookup.face)
-        .map(|(d, f)| {
-            let face = &gen.cube.faces[*f as usize];
-            let (px, _) = face.pixel(*d).unwrap_or((0.0, 0.0));
-            px < SEAM_TEXELS || px > face.width as f64 - SEAM_TEXELS
-        })
-        .collect()
+    (0..gen.lookup.dirs.len()).map(|b| gen.lookup.seam_distance_texels(b) < SEAM_TEXELS).collect()
 }
 
 /// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames.

@@ -1,6 +1,9 @@
-//! Stage 3: from the rendered cube faces to the sensor's beam grid. A lookup computed once per
-//! sensor maps every beam to its face and texel (nearest by integer index, clamp-to-edge,
-//! deterministic at seams: see `CubeFaces::face_of`). No ranges are ever blended across texels.
+//! Stage 3: from the rendered cube faces (or the panorama) to the sensor's beam grid. A lookup
+//! computed once per sensor maps every beam to its face and texel (nearest by integer index,
+//! clamp-to-edge, deterministic at seams: see `CubeFaces::face_of`). For the panorama the
+//! lookup is direct: one image, column from azimuth (beams on texel centres), row from
+//! elevation, and the 3x3 neighbourhood wraps around in azimuth. No ranges are ever blended
+//! across texels.
 //!
 //! Refinement uses the ID buffer: with the triangle that covers the beam's texel (and those of
 //! the 3x3 texels around it) the beam is re-intersected exactly, in f64, with the same
@@ -8,7 +11,7 @@
 
 use crate::config::Refine;
 use crate::geometry::FrameGeometry;
-use crate::projection::CubeFaces;
+use crate::projection::{CubeFaces, Face, Panorama};
 use crate::raster::RasterFrame;
 use crate::raycast::intersect_triangle;
 use crate::sensor::Sensor;
@@ -35,8 +38,38 @@ pub struct BeamLookup {
     pub texel: Vec<(u32, u32)>,
     /// Width and height of each face.
     pub face_size: Vec<(u32, u32)>,
-    /// The faces themselves (texel directions for the exact refinement).
-    pub faces: Vec<crate::projection::Face>,
+    /// The faces (or the panorama) themselves: texel directions for the exact refinement.
+    pub images: Vec<ImageMap>,
+}
+
+/// The texel mapping of one raster image.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ImageMap {
+    Face(Face),
+    Panorama(Panorama),
+}
+
+impl ImageMap {
+    /// Direction (not necessarily unit) through the centre of texel (u, v).
+    pub fn texel_dir(&self, u: u32, v: u32) -> DVec3 {
+        match self {
+            ImageMap::Face(f) => f.texel_dir(u, v),
+            ImageMap::Panorama(p) => p.texel_dir(u, v),
+        }
+    }
+
+    /// Whether the image wraps around horizontally (the panorama's 360 deg).
+    pub fn wraps(&self) -> bool {
+        matches!(self, ImageMap::Panorama(_))
+    }
+
+    /// Continuous horizontal pixel coordinate of a direction and the image width.
+    fn px(&self, d: DVec3) -> (f64, f64) {
+        match self {
+            ImageMap::Face(f) => (f.pixel(d).map_or(0.0, |p| p.0), f.width as f64),
+            ImageMap::Panorama(p) => (p.pixel(d).0, p.width as f64),
+        }
+    }
 }
 
 impl BeamLookup {
@@ -57,8 +90,31 @@ impl BeamLookup {
             face,
             texel,
             face_size: cube.faces.iter().map(|f| (f.width, f.height)).collect(),
-            faces: cube.faces.clone(),
+            images: cube.faces.iter().cloned().map(ImageMap::Face).collect(),
         }
+    }
+
+    /// The direct lookup into one panorama: every beam in image 0, texel from its azimuth and
+    /// elevation (`Panorama::texel`).
+    pub fn new_panorama(sensor: &Sensor, pano: &Panorama) -> BeamLookup {
+        let dirs = sensor.beam_dirs();
+        let texel = dirs.iter().map(|d| pano.texel(*d)).collect();
+        BeamLookup {
+            rows: sensor.rows(),
+            columns: sensor.columns,
+            face: vec![0; dirs.len()],
+            dirs,
+            texel,
+            face_size: vec![(pano.width, pano.height)],
+            images: vec![ImageMap::Panorama(pano.clone())],
+        }
+    }
+
+    /// Horizontal distance, in texels, of beam `b` from the nearest left or right edge of its
+    /// image: a cube-face seam, or the panorama's azimuth wrap.
+    pub fn seam_distance_texels(&self, b: usize) -> f64 {
+        let (px, w) = self.images[self.face[b] as usize].px(self.dirs[b]);
+        px.min(w - px)
     }
 
     /// Which faces any beam uses.
@@ -118,6 +174,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                 }
                 let (u, v) = lookup.texel[b];
                 let (fw, fh) = (img.width, img.height);
+                let wraps = lookup.images[f].wraps();
                 let at = |u: u32, v: u32| (v * fw + u) as usize;
                 let centre_id = img.id[at(u, v)];
                 let dir = lookup.dirs[b];
@@ -142,7 +199,11 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         let mut any_empty = false;
                         for dv in -1i64..=1 {
                             for du in -1i64..=1 {
-                                let uu = (u as i64 + du).clamp(0, fw as i64 - 1) as u32;
+                                let uu = if wraps {
+                                    (u as i64 + du).rem_euclid(fw as i64) as u32
+                                } else {
+                                    (u as i64 + du).clamp(0, fw as i64 - 1) as u32
+                                };
                                 let vv = (v as i64 + dv).clamp(0, fh as i64 - 1) as u32;
                                 let id = img.id[at(uu, vv)];
                                 let r = img.range_m[at(uu, vv)];
@@ -162,7 +223,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                             continue;
                         }
                         cand[..nc].sort_unstable_by_key(|c| c.triangle);
-                        match refine_exact(dir, geom, &lookup.faces[f], &cand[..nc], &mut bufs) {
+                        match refine_exact(dir, geom, &lookup.images[f], &cand[..nc], &mut bufs) {
                             Some(hit) => hit,
                             // The beam misses every nearby triangle. Next to an empty texel this
                             // is a silhouette: no hit. Inside a covered patch (no adjacency to
@@ -256,7 +317,7 @@ struct Cand {
 ///    person behind), so search the rings around those candidates for a nearer hit. Comparing
 ///    with the plane, not with the hit's range, keeps a floor seen at grazing incidence (whose
 ///    neighbouring texels are nearer simply because the floor is slanted) out of this search.
-fn refine_exact(dir: DVec3, geom: &FrameGeometry, face: &crate::projection::Face, cand: &[Cand], b: &mut RingBuffers) -> Option<(f64, u32)> {
+fn refine_exact(dir: DVec3, geom: &FrameGeometry, image: &ImageMap, cand: &[Cand], b: &mut RingBuffers) -> Option<(f64, u32)> {
     let mut best = None;
     for c in cand {
         test_triangle(dir, geom, c.triangle, &mut best);
@@ -267,7 +328,7 @@ fn refine_exact(dir: DVec3, geom: &FrameGeometry, face: &crate::projection::Face
     let (r, t) = best?;
     let plane = geom.triangle_f64(t);
     let in_front = |c: &&Cand| {
-        let d = face.texel_dir(c.u, c.v).normalize();
+        let d = image.texel_dir(c.u, c.v).normalize();
         let expected = plane_hit(d, &plane).unwrap_or(r);
         (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
     };
