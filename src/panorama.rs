@@ -11,22 +11,25 @@
 //!   the image's left or right edge is drawn a second time shifted by 360 deg. No per-triangle
 //!   work on the CPU.
 //! - **Soup** (the background, a person around the axis or very near): every triangle is
-//!   handled here, in f64. Triangles wholly above or below the band are dropped; a triangle
-//!   whose azimuth or elevation extent exceeds the bound, or that winds around the vertical axis
-//!   (azimuth undefined there), is cut at the midpoints of its edges that are too long (3D
-//!   midpoints: the pieces are exact parts of the original plane; decided per edge, so pieces
-//!   of neighbouring triangles meet without cracks) until it fits or lies outside the band;
-//!   what is left is written as a triangle list of (position, global triangle id). Pieces within
-//!   `WRAP_GUARD_RAD` of the image's azimuth wrap are drawn twice, in windows centred on 0 and
-//!   on 360 deg. A piece still winding around the axis after `MAX_SPLIT_DEPTH` levels lies
-//!   within micrometres of the sensor (below any range limit) and is dropped; one still too
-//!   large but off the axis is drawn as it is.
+//!   handled here, in f64. Triangles wholly above or below the band are dropped; a triangle is
+//!   cut at the 3D midpoints of its edges that are "too long" (the pieces are exact parts of
+//!   the original plane), until none is or it lies outside the band. An edge is too long when
+//!   the projection of its midpoint strays more than `PANORAMA_EDGE_TOLERANCE_TEXELS` from the
+//!   straight panorama edge (vertical edges never do, horizontal ones near the horizon hardly),
+//!   when it is wider or taller than `Panorama::max_piece_rad`, or when an end lies on the
+//!   vertical axis (azimuth undefined); a triangle winding around the axis always has such an
+//!   edge. The decision depends on the edge alone, so pieces of neighbouring triangles meet
+//!   without cracks. What is left is written as a triangle list of (position, global triangle
+//!   id). Pieces within `WRAP_GUARD_RAD` of the image's azimuth wrap are drawn twice, in
+//!   windows centred on 0 and on 360 deg. A piece still winding around the axis after
+//!   `MAX_SPLIT_DEPTH` levels lies within micrometres of the sensor (below any range limit) and
+//!   is dropped; one still too long but off the axis is drawn as it is.
 //!
 //! The ID buffer always holds the ORIGINAL global triangle + 1, so refinement works on the
 //! posed triangles exactly as for the cube faces.
 
 use crate::geometry::{FrameGeometry, MeshRange};
-use crate::projection::{Panorama, NEAR_M};
+use crate::projection::{Panorama, NEAR_M, PANORAMA_EDGE_TOLERANCE_TEXELS};
 use glam::{DVec3, Vec3};
 use std::f64::consts::{PI, TAU};
 
@@ -87,6 +90,8 @@ pub struct PanoramaPrep {
     pub soup: [Vec<SoupVertex>; 4],
     pub stats: PrepStats,
     stack: Vec<([Vert; 3], u32)>,
+    /// Projected vertices of the soup mesh at hand (each computed once, not per triangle).
+    verts: Vec<Vert>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -129,9 +134,18 @@ impl PanoramaPrep {
             } else {
                 self.stats.soup_meshes += 1;
                 self.stats.soup_input_triangles += m.triangle_count as u64;
-                for t in m.first_triangle..m.first_triangle + m.triangle_count {
-                    self.add_triangle(pano, geom.triangle_f64(t), t, m.double_sided);
+                let first = 3 * m.first_triangle as usize;
+                let idx = &geom.indices[first..first + 3 * m.triangle_count as usize];
+                let lo = idx.iter().copied().min().unwrap_or(0) as usize;
+                let hi = idx.iter().copied().max().unwrap_or(0) as usize;
+                let mut verts = std::mem::take(&mut self.verts);
+                verts.clear();
+                verts.extend(geom.positions[lo..=hi].iter().map(|p| vert(pano, Vec3::from(*p).as_dvec3())));
+                for (k, t) in idx.chunks_exact(3).enumerate() {
+                    let v = [0, 1, 2].map(|c| verts[t[c] as usize - lo]);
+                    self.add_projected(pano, v, m.first_triangle + k as u32, m.double_sided);
                 }
+                self.verts = verts;
             }
         }
     }
@@ -147,21 +161,28 @@ impl PanoramaPrep {
     /// triangle is cut at the midpoints of exactly the edges that need it (4, 3 or 2 pieces).
     /// Two triangles that share an edge therefore split it at the same f64 midpoint: the pieces
     /// meet without T-junctions, so no crack opens between the straight panorama edges.
+    #[cfg(test)]
     fn add_triangle(&mut self, pano: &Panorama, tri: [DVec3; 3], id: u32, double_sided: bool) {
-        let bound = pano.max_extent_rad;
+        self.add_projected(pano, tri.map(|p| vert(pano, p)), id, double_sided);
+    }
+
+    /// `add_triangle` for a triangle whose vertices are projected already.
+    fn add_projected(&mut self, pano: &Panorama, tri: [Vert; 3], id: u32, double_sided: bool) {
+        let tol = pano.edge_tolerance_rad();
         // Thresholds for "wholly below / above the band": only across the horizon is the
         // vertex test conservative (a triangle in one half-space has its elevation extreme
         // towards the horizon at a vertex).
         let lo = pano.el_bottom().min(0.0);
         let hi = pano.el_top.max(0.0);
         self.stack.clear();
-        self.stack.push((tri.map(|p| vert(pano, p)), 0));
+        self.stack.push((tri, 0));
         while let Some((v, depth)) = self.stack.pop() {
             if v.iter().all(|v| v.p.length() < NEAR_M) || v.iter().all(|v| v.el < lo) || v.iter().all(|v| v.el > hi) {
                 self.stats.culled += 1;
                 continue;
             }
-            let split = [0, 1, 2].map(|e| edge_too_long(&v[e], &v[(e + 1) % 3], bound));
+            let mids = [0, 1, 2].map(|e| split_edge(pano, tol, &v[e], &v[(e + 1) % 3]));
+            let split = mids.map(|m| m.is_some());
             let n = split.iter().filter(|s| **s).count();
             if n == 0 || depth >= MAX_SPLIT_DEPTH {
                 // Winding around the axis (azimuth undefined at a vertex, or the phi steps
@@ -194,7 +215,7 @@ impl PanoramaPrep {
                 continue;
             }
             self.stats.splits += 1;
-            let mid = |e: usize| vert(pano, 0.5 * (v[e].p + v[(e + 1) % 3].p));
+            let mid = |e: usize| mids[e].expect("split edge");
             let d = depth + 1;
             match n {
                 3 => {
@@ -218,10 +239,28 @@ impl PanoramaPrep {
     }
 }
 
-/// Whether an edge must be split: its extent in phi or elevation exceeds the bound, or an end
-/// lies on the vertical axis (azimuth undefined). Depends on the two end points only.
-fn edge_too_long(a: &Vert, b: &Vert, bound: f64) -> bool {
-    a.axis || b.axis || wrap_pi(b.phi - a.phi).abs() > bound || (b.el - a.el).abs() > bound
+/// The midpoint at which an edge must be split, or None. It must be when an end lies on the
+/// vertical axis (azimuth undefined), when it is wider or taller than `max_piece_rad`, or when
+/// the projection of its 3D midpoint strays more than `PANORAMA_EDGE_TOLERANCE_TEXELS` from the
+/// straight panorama edge (a vertical edge never does; a horizontal one near the horizon
+/// hardly). An edge whose extent `e` gives `e^2 / 4` within the tolerance (elevations within
+/// +-45 deg) cannot stray that far and is kept without computing its midpoint. Depends on the
+/// edge alone, evaluated in a canonical order of its ends, so both triangles that share an edge
+/// decide alike.
+fn split_edge(pano: &Panorama, tol_rad: f64, a: &Vert, b: &Vert) -> Option<Vert> {
+    let (a, b) = if a.p.to_array() <= b.p.to_array() { (a, b) } else { (b, a) };
+    let bound = pano.max_piece_rad;
+    let (dphi, del) = (wrap_pi(b.phi - a.phi).abs(), (b.el - a.el).abs());
+    let mid = || vert(pano, 0.5 * (a.p + b.p));
+    if a.axis || b.axis || dphi > bound || del > bound {
+        return Some(mid());
+    }
+    let e = dphi.max(del);
+    if e * e / 4.0 <= tol_rad && a.el.abs().max(b.el.abs()) <= std::f64::consts::FRAC_PI_4 {
+        return None;
+    }
+    let m = mid();
+    (m.axis || pano.chord_deviation_texels((a.phi, a.el), (b.phi, b.el), (m.phi, m.el)) > PANORAMA_EDGE_TOLERANCE_TEXELS).then_some(m)
 }
 
 /// The phi windows of a mesh the GPU may draw directly (one, or two across the wrap), or None
@@ -301,7 +340,7 @@ mod tests {
     }
 
     #[test]
-    fn a_large_floor_is_split_into_pieces_within_the_bound_and_loses_no_area_in_the_band() {
+    fn a_large_floor_is_split_into_straight_enough_pieces_and_loses_no_area_in_the_band() {
         let p = pano();
         // A floor 0.8 m below the sensor, 40 m across, with the sensor's axis inside.
         let tri = [DVec3::new(-20.0, -20.0, -0.8), DVec3::new(30.0, -5.0, -0.8), DVec3::new(-10.0, 25.0, -0.8)];
@@ -314,9 +353,14 @@ mod tests {
             let p0 = v[0].phi;
             let p1 = p0 + wrap_pi(v[1].phi - v[0].phi);
             let p2 = p1 + wrap_pi(v[2].phi - v[1].phi);
-            assert!(p0.max(p1).max(p2) - p0.min(p1).min(p2) <= p.max_extent_rad + 1e-9);
+            assert!(p0.max(p1).max(p2) - p0.min(p1).min(p2) <= 2.0 * p.max_piece_rad + 1e-9);
             let (lo, hi) = (v[0].el.min(v[1].el).min(v[2].el), v[0].el.max(v[1].el).max(v[2].el));
-            assert!(hi - lo <= p.max_extent_rad + 1e-9);
+            assert!(hi - lo <= 2.0 * p.max_piece_rad + 1e-9);
+            for e in 0..3 {
+                let (a, b) = (v[e], v[(e + 1) % 3]);
+                let m = vert(&p, 0.5 * (a.p + b.p));
+                assert!(p.chord_deviation_texels((a.phi, a.el), (b.phi, b.el), (m.phi, m.el)) <= PANORAMA_EDGE_TOLERANCE_TEXELS + 1e-9);
+            }
             area += 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
         }
         // Every point of the floor at elevation >= the image's bottom edge is kept: the floor

@@ -153,6 +153,9 @@ pub const MAX_PANORAMA_TEXELS: u32 = 16384;
 /// could exceed it are split on the CPU (`Panorama::max_extent_rad`).
 pub const PANORAMA_EDGE_TOLERANCE_TEXELS: f64 = 0.25;
 
+/// Widest or tallest piece of a triangle the panorama draws from the CPU list, radians (7.2 deg).
+pub const MAX_PIECE_RAD: f64 = 0.125;
+
 /// One cylindrical (equirectangular) panorama around the sensor: 360 deg of azimuth across,
 /// the sensor's elevation band (plus `BAND_MARGIN_TEXELS` rows above and below) down.
 ///
@@ -181,11 +184,14 @@ pub struct Panorama {
     pub el_top: f64,
     /// Elevation per texel row, radians.
     pub el_step: f64,
-    /// Triangles whose extent in phi or elevation exceeds this are split before drawing:
-    /// `2 sqrt(tolerance)`, as an edge whose extents are at most `e` deviates from its chord by
-    /// at most `e^2 / 4` radians at elevations within +-45 deg (worst case a diagonal edge;
-    /// `panorama_straight_edges_stay_within_the_tolerance`).
+    /// A triangle whose extent in phi and elevation is within this needs no check: `2
+    /// sqrt(tolerance)`, as an edge whose extents are at most `e` deviates from its chord by at
+    /// most `e^2 / 4` radians at elevations within +-45 deg (worst case a diagonal edge;
+    /// `panorama_straight_edges_stay_within_the_tolerance`). The direct draws use this bound.
     pub max_extent_rad: f64,
+    /// Pieces of the CPU list are at most this wide or tall (radians), however straight their
+    /// edges: the raw range is interpolated across a piece, exactly only to second order.
+    pub max_piece_rad: f64,
     pub oversample: f64,
 }
 
@@ -223,7 +229,29 @@ impl Panorama {
             .clamp(4, MAX_PANORAMA_TEXELS);
         let texel = (tau / width as f64).min(el_step);
         let max_extent_rad = 2.0 * (PANORAMA_EDGE_TOLERANCE_TEXELS * texel).sqrt().min(0.125);
-        Panorama { width, height, texels_per_column: k, az0, el_top, el_step, max_extent_rad, oversample }
+        Panorama { width, height, texels_per_column: k, az0, el_top, el_step, max_extent_rad, max_piece_rad: MAX_PIECE_RAD, oversample }
+    }
+
+    /// Distance, in texels, of the projection of a point `m` from the straight panorama edge
+    /// between the projections (phi, elevation) of `a` and `b` (phi of `b` taken within +-pi of
+    /// `a`'s). With `m` the 3D midpoint of `ab`, this is how far the drawn edge strays from the
+    /// true projected curve (its bulge peaks near the middle).
+    pub fn chord_deviation_texels(&self, (a_phi, a_el): (f64, f64), (b_phi, b_el): (f64, f64), (m_phi, m_el): (f64, f64)) -> f64 {
+        let tau = std::f64::consts::TAU;
+        let wrap = |x: f64| x - tau * ((x + std::f64::consts::PI) / tau).floor();
+        let (sx, sy) = (self.width as f64 / tau, 1.0 / self.el_step);
+        let (ex, ey) = (wrap(b_phi - a_phi) * sx, (b_el - a_el) * sy);
+        let (mx, my) = (wrap(m_phi - a_phi) * sx, (m_el - a_el) * sy);
+        let len = ex.hypot(ey);
+        if len == 0.0 {
+            return mx.hypot(my);
+        }
+        (mx * ey - my * ex).abs() / len
+    }
+
+    /// `PANORAMA_EDGE_TOLERANCE_TEXELS` in radians, in the finer of the two texel directions.
+    pub fn edge_tolerance_rad(&self) -> f64 {
+        PANORAMA_EDGE_TOLERANCE_TEXELS * (std::f64::consts::TAU / self.width as f64).min(self.el_step)
     }
 
     /// Elevation of the bottom image edge, radians.
