@@ -40,7 +40,13 @@ pub struct BeamLookup {
     pub face_size: Vec<(u32, u32)>,
     /// The faces (or the panorama) themselves: texel directions for the exact refinement.
     pub images: Vec<ImageMap>,
+    /// Per beam: whether it lies on its texel's centre (within `CENTRED_TEXELS`), i.e. the
+    /// texel was rasterised along the beam itself (the panorama; never a cube face).
+    pub centred: Vec<bool>,
 }
+
+/// A beam this close to its texel centre (texels, each axis) counts as on it.
+pub const CENTRED_TEXELS: f64 = 0.02;
 
 /// The texel mapping of one raster image.
 #[derive(Clone, Debug, PartialEq)]
@@ -86,6 +92,7 @@ impl BeamLookup {
         BeamLookup {
             rows: sensor.rows(),
             columns: sensor.columns,
+            centred: vec![false; dirs.len()],
             dirs,
             face,
             texel,
@@ -98,8 +105,17 @@ impl BeamLookup {
     /// elevation (`Panorama::texel`).
     pub fn new_panorama(sensor: &Sensor, pano: &Panorama) -> BeamLookup {
         let dirs = sensor.beam_dirs();
-        let texel = dirs.iter().map(|d| pano.texel(*d)).collect();
+        let texel: Vec<(u32, u32)> = dirs.iter().map(|d| pano.texel(*d)).collect();
+        let centred = dirs
+            .iter()
+            .zip(&texel)
+            .map(|(d, &(u, v))| {
+                let (px, py) = pano.pixel(*d);
+                (px - (u as f64 + 0.5)).abs() < CENTRED_TEXELS && (py - (v as f64 + 0.5)).abs() < CENTRED_TEXELS
+            })
+            .collect();
         BeamLookup {
+            centred,
             rows: sensor.rows(),
             columns: sensor.columns,
             face: vec![0; dirs.len()],
@@ -223,7 +239,8 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                             continue;
                         }
                         cand[..nc].sort_unstable_by_key(|c| c.triangle);
-                        match refine_exact(dir, geom, &lookup.images[f], &cand[..nc], &mut bufs) {
+                        let centred = lookup.centred[b].then(|| (centre_id != 0).then(|| centre_id - 1));
+                        match refine_exact(dir, geom, &lookup.images[f], &cand[..nc], centred, &mut bufs) {
                             Some(hit) => hit,
                             // The beam misses every nearby triangle. Next to an empty texel this
                             // is a silhouette: no hit. Inside a covered patch (no adjacency to
@@ -308,6 +325,13 @@ struct Cand {
 /// Exact refinement of one beam from the triangles rendered in its 3x3 texels (`cand`, sorted
 /// by triangle).
 ///
+/// 0. A beam on its texel's centre (`centred` is `Some(centre triangle)`, the panorama): that
+///    texel was rasterised along the beam itself, so depth testing there already chose the
+///    nearest surface; when the beam hits that triangle exactly, that is the answer, without
+///    step 3: a nearer surface holding the beam but not the texel centre would need its
+///    silhouette within `CENTRED_TEXELS` of the beam, for which neighbouring texels, a whole
+///    (tall) texel away, are no evidence; searching around each nearer neighbour cost more
+///    than it found (`pedscan crosscheck --projection cylinder`). Otherwise steps 1 to 3.
 /// 1. The nearest exact hit among the candidates.
 /// 2. None: triangles smaller than a texel can hold the beam without covering a texel centre,
 ///    so search the rings around the candidates.
@@ -317,8 +341,21 @@ struct Cand {
 ///    person behind), so search the rings around those candidates for a nearer hit. Comparing
 ///    with the plane, not with the hit's range, keeps a floor seen at grazing incidence (whose
 ///    neighbouring texels are nearer simply because the floor is slanted) out of this search.
-fn refine_exact(dir: DVec3, geom: &FrameGeometry, image: &ImageMap, cand: &[Cand], b: &mut RingBuffers) -> Option<(f64, u32)> {
+fn refine_exact(
+    dir: DVec3,
+    geom: &FrameGeometry,
+    image: &ImageMap,
+    cand: &[Cand],
+    centred: Option<Option<u32>>,
+    b: &mut RingBuffers,
+) -> Option<(f64, u32)> {
     let mut best = None;
+    if let Some(Some(t)) = centred {
+        test_triangle(dir, geom, t, &mut best);
+        if best.is_some() {
+            return best;
+        }
+    }
     for c in cand {
         test_triangle(dir, geom, c.triangle, &mut best);
     }
