@@ -341,6 +341,14 @@ mod tests {
     }
 
     #[test]
+    fn projection_is_a_render_key() {
+        let c: Config = toml::from_str("[render]\nprojection = \"cylinder\"\n").unwrap();
+        assert_eq!(c.render.projection, Projection::Cylinder);
+        assert_eq!(Config::default().render.projection, Projection::Cube);
+        assert!(toml::from_str::<Config>("[render]\nprojection = \"sphere\"\n").is_err());
+    }
+
+    #[test]
     fn unknown_keys_and_impossible_values_are_rejected() {
         let e = toml::from_str::<Config>("frames = 3\nfrmaes = 4\n").unwrap_err();
         assert!(e.to_string().contains("frmaes"), "{e}");
