@@ -327,11 +327,14 @@ struct Cand {
 ///
 /// 0. A beam on its texel's centre (`centred` is `Some(centre triangle)`, the panorama): that
 ///    texel was rasterised along the beam itself, so depth testing there already chose the
-///    nearest surface; when the beam hits that triangle exactly, that is the answer, without
-///    step 3: a nearer surface holding the beam but not the texel centre would need its
-///    silhouette within `CENTRED_TEXELS` of the beam, for which neighbouring texels, a whole
-///    (tall) texel away, are no evidence; searching around each nearer neighbour cost more
-///    than it found (`pedscan crosscheck --projection cylinder`). Otherwise steps 1 to 3.
+///    nearest surface; when the beam hits that triangle exactly, that is the answer unless a
+///    candidate rendered clearly in front of its plane (step 3's test) holds the beam itself
+///    (a large triangle whose drawn edge strays up to `PANORAMA_EDGE_TOLERANCE_TEXELS` from
+///    the true one); no ring search: a nearer small triangle holding the beam but not the
+///    texel centre would need its silhouette within `CENTRED_TEXELS` of the beam, for which
+///    neighbouring texels, a whole (tall) texel away, are no evidence, and searching around
+///    each nearer neighbour cost more than it found (`pedscan crosscheck --projection
+///    cylinder`). Otherwise steps 1 to 3.
 /// 1. The nearest exact hit among the candidates.
 /// 2. None: triangles smaller than a texel can hold the beam without covering a texel centre,
 ///    so search the rings around the candidates.
@@ -349,10 +352,19 @@ fn refine_exact(
     centred: Option<Option<u32>>,
     b: &mut RingBuffers,
 ) -> Option<(f64, u32)> {
+    // Whether candidate `c` was rendered clearly in front of the plane of hit (r, t).
+    let in_front = |(r, t): (f64, u32), c: &Cand| {
+        let d = image.texel_dir(c.u, c.v).normalize();
+        let expected = plane_hit(d, &geom.triangle_f64(t)).unwrap_or(r);
+        (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
+    };
     let mut best = None;
     if let Some(Some(t)) = centred {
         test_triangle(dir, geom, t, &mut best);
-        if best.is_some() {
+        if let Some(hit) = best {
+            for c in cand.iter().filter(|c| in_front(hit, c)) {
+                test_triangle(dir, geom, c.triangle, &mut best);
+            }
             return best;
         }
     }
@@ -362,13 +374,9 @@ fn refine_exact(
     if best.is_none() {
         best = ring_search(dir, geom, cand.iter().map(|c| c.triangle), f64::INFINITY, b);
     }
-    let (r, t) = best?;
-    let plane = geom.triangle_f64(t);
-    let in_front = |c: &&Cand| {
-        let d = image.texel_dir(c.u, c.v).normalize();
-        let expected = plane_hit(d, &plane).unwrap_or(r);
-        (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
-    };
+    let hit = best?;
+    let r = hit.0;
+    let in_front = |c: &&Cand| in_front(hit, c);
     if cand.iter().any(|c| in_front(&c)) {
         if let Some(alt) = ring_search(dir, geom, cand.iter().filter(in_front).map(|c| c.triangle), r, b) {
             return Some(alt);
