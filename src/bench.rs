@@ -20,8 +20,9 @@ use std::time::Instant;
 /// One configuration of the sweep.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PointSpec {
-    /// `cube` (Vulkan raster into cube faces) or `raycast` (the CPU ray caster as the
-    /// generation backend; resolution and refinement do not apply).
+    /// `cube` (Vulkan raster into cube faces), `cylinder` (Vulkan raster into one cylindrical
+    /// panorama) or `raycast` (the CPU ray caster as the generation backend; resolution and
+    /// refinement do not apply).
     pub projection: String,
     /// Face texels per beam spacing (`render.oversample`).
     pub resolution: f64,
@@ -86,7 +87,9 @@ pub fn peak_rss_mb() -> f64 {
 
 /// The sweep: a base point (10 people, 1024 columns) varied one knob at a time, the
 /// time/error trade-off grid (resolution x LOD x refinement) at 10 people, and the workload
-/// scaling (people 1..100, columns 1024..4096) at the default settings.
+/// scaling (people 1..100, columns 1024..4096) at the default settings; the cylindrical
+/// panorama beside the cube faces at the same points (its resolution is rounded to whole
+/// texels per column), so one run compares them.
 pub fn sweep(quick: bool) -> Vec<PointSpec> {
     let frames = if quick { 4 } else { 16 };
     let p = |resolution: f64, lod: f64, refine: Refine, humans: usize, columns: usize| PointSpec {
@@ -104,8 +107,12 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
             v.push(p(res, lod, refine, 5, 1024));
         }
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, 5, 1024) });
+        for (res, refine) in [(2.0, Refine::Exact), (1.0, Refine::Exact), (2.0, Refine::None)] {
+            v.push(PointSpec { projection: "cylinder".into(), ..p(res, 1.0, refine, 5, 1024) });
+        }
         return v;
     }
+    let cyl = |s: PointSpec| PointSpec { projection: "cylinder".into(), ..s };
     for res in [1.0, 2.0, 3.0] {
         for lod in [0.0, 1.0, 3.0, 10.0] {
             for refine in [Refine::None, Refine::Exact] {
@@ -113,15 +120,26 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
             }
         }
     }
+    for res in [1.0, 2.0, 3.0] {
+        for refine in [Refine::None, Refine::Exact] {
+            v.push(cyl(p(res, 1.0, refine, 10, 1024)));
+        }
+    }
+    for lod in [0.0, 3.0, 10.0] {
+        v.push(cyl(p(2.0, lod, Refine::Exact, 10, 1024)));
+    }
+    v.push(cyl(p(1.0, 10.0, Refine::None, 10, 1024)));
     for lod in [0.0, 3.0] {
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, lod, Refine::Exact, 10, 1024) });
     }
     for humans in [1, 30, 100] {
         v.push(p(2.0, 1.0, Refine::Exact, humans, 1024));
+        v.push(cyl(p(2.0, 1.0, Refine::Exact, humans, 1024)));
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, humans, 1024) });
     }
     for columns in [2048, 4096] {
         v.push(p(2.0, 1.0, Refine::Exact, 10, columns));
+        v.push(cyl(p(2.0, 1.0, Refine::Exact, 10, columns)));
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, 10, columns) });
     }
     v
@@ -131,6 +149,11 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
 pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     let mut cfg = base.clone();
     cfg.render.backend = if spec.projection == "raycast" { crate::config::Backend::Raycast } else { crate::config::Backend::Raster };
+    cfg.render.projection = match spec.projection.as_str() {
+        "cube" | "raycast" => crate::config::Projection::Cube,
+        "cylinder" => crate::config::Projection::Cylinder,
+        other => return Err(Error::input("bench point", format!("unknown projection `{other}` (cube, cylinder, raycast)"))),
+    };
     cfg.render.oversample = spec.resolution;
     cfg.render.lod_max_error_mrad = spec.lod;
     cfg.render.refine = spec.refine;
@@ -287,7 +310,14 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
         let pts: Vec<(f64, f64)> =
             tradeoff.iter().filter(|p| p.spec.projection == "cube" && p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
         if !pts.is_empty() {
-            series.push(Series { name: format!("refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
+            series.push(Series { name: format!("cube, refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
+        }
+    }
+    for (refine, colour, marker) in [(Refine::Exact, [23, 190, 207], Marker::Circle), (Refine::None, [227, 119, 194], Marker::Square)] {
+        let pts: Vec<(f64, f64)> =
+            tradeoff.iter().filter(|p| p.spec.projection == "cylinder" && p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
+        if !pts.is_empty() {
+            series.push(Series { name: format!("cylinder, refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
         }
     }
     let rc_points: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.projection == "raycast").map(|p| (p.ms_per_frame, err(p))).collect();

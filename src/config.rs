@@ -45,6 +45,17 @@ pub enum Backend {
     Raycast,
 }
 
+/// Which raster views the Vulkan backend draws into.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Projection {
+    /// The 4 side faces of a cube, each a band-limited perspective frustum.
+    Cube,
+    /// One cylindrical (equirectangular) panorama: 360 deg of azimuth x the sensor's band,
+    /// beam directions on texel centres.
+    Cylinder,
+}
+
 /// Which velocity definition is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -143,7 +154,10 @@ pub struct SceneConfig {
 pub struct RenderConfig {
     /// Raster (default) or CPU ray cast.
     pub backend: Backend,
-    /// Texels per beam spacing at a face centre.
+    /// Raster views: cube faces (default) or one cylindrical panorama.
+    pub projection: Projection,
+    /// Texels per beam spacing: at a cube-face centre; for the cylinder, texels per column and
+    /// per elevation gap, rounded to a whole number (at least 1) so beams sit on texel centres.
     pub oversample: f64,
     pub refine: Refine,
     /// Level of detail: the coarsest level whose geometric error, seen from the sensor, stays
@@ -219,7 +233,14 @@ impl Default for SceneConfig {
 
 impl Default for RenderConfig {
     fn default() -> Self {
-        RenderConfig { backend: Backend::Auto, oversample: 2.0, refine: Refine::Exact, lod_max_error_mrad: 1.0, keep_holes: false }
+        RenderConfig {
+            backend: Backend::Auto,
+            projection: Projection::Cube,
+            oversample: 2.0,
+            refine: Refine::Exact,
+            lod_max_error_mrad: 1.0,
+            keep_holes: false,
+        }
     }
 }
 
@@ -362,6 +383,14 @@ mod tests {
         c.validate().unwrap();
         let back: Config = toml::from_str(&c.to_toml()).unwrap();
         assert_eq!(back, c);
+    }
+
+    #[test]
+    fn projection_is_a_render_key() {
+        let c: Config = toml::from_str("[render]\nprojection = \"cylinder\"\n").unwrap();
+        assert_eq!(c.render.projection, Projection::Cylinder);
+        assert_eq!(Config::default().render.projection, Projection::Cube);
+        assert!(toml::from_str::<Config>("[render]\nprojection = \"sphere\"\n").is_err());
     }
 
     #[test]

@@ -5,7 +5,8 @@
 //! Metrics on the human layer (people only, before compositing): beams both paths call human,
 //! beams only one does, mask IoU, instance mix-ups, and the range error on beams both call
 //! human; broken down by reference range (0-4, 4-8, 8+ m as in the paper's tables) and by
-//! closeness to a cube-face seam. The background layer's range error is reported too.
+//! closeness to a cube-face seam (for the cylinder: to the azimuth wrap). The background
+//! layer's range error is reported too.
 
 use crate::config::{Config, Refine};
 use crate::error::{Error, Result};
@@ -21,7 +22,8 @@ use std::time::Instant;
 
 /// Distance bins of the paper's tables, metres.
 pub const DISTANCE_BINS: [(&str, f64, f64); 3] = [("0-4", 0.0, 4.0), ("4-8", 4.0, 8.0), ("8+", 8.0, f64::INFINITY)];
-/// A beam within this many face texels of a cube-face seam counts as "near a seam".
+/// A beam within this many face texels of a cube-face seam (the panorama's azimuth wrap)
+/// counts as "near a seam".
 pub const SEAM_TEXELS: f64 = 2.0;
 
 /// Options of a cross-check run.
@@ -111,6 +113,8 @@ pub struct ModeReport {
 pub struct Report {
     pub frames: usize,
     pub sensor: String,
+    /// The raster views: `cube` or `cylinder`.
+    pub projection: String,
     pub oversample: f64,
     pub lod_max_error_mrad: f64,
     pub device: String,
@@ -272,18 +276,10 @@ pub fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// Which beams lie within `SEAM_TEXELS` texels of a cube-face seam.
+/// Which beams lie within `SEAM_TEXELS` texels of a cube-face seam (the panorama: of its
+/// azimuth wrap).
 fn seam_mask(gen: &Generator) -> Vec<bool> {
-    gen.lookup
-        .dirs
-        .iter()
-        .zip(&gen.lookup.face)
-        .map(|(d, f)| {
-            let face = &gen.cube.faces[*f as usize];
-            let (px, _) = face.pixel(*d).unwrap_or((0.0, 0.0));
-            px < SEAM_TEXELS || px > face.width as f64 - SEAM_TEXELS
-        })
-        .collect()
+    (0..gen.lookup.dirs.len()).map(|b| gen.lookup.seam_distance_texels(b) < SEAM_TEXELS).collect()
 }
 
 /// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames.
@@ -379,6 +375,7 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
     let report = Report {
         frames,
         sensor: gen.sensor.name.clone(),
+        projection: format!("{:?}", gen.cfg.render.projection).to_lowercase(),
         oversample: gen.cfg.render.oversample,
         lod_max_error_mrad: gen.cfg.render.lod_max_error_mrad,
         device: gen.renderer.context().device_name(),
@@ -466,7 +463,11 @@ fn strip_png(rows: usize, cols: usize, s: &Strip) -> RgbImage {
 
 impl std::fmt::Display for Report {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "crosscheck: {} frames, {} on {}, oversample {}, LOD bound {} mrad", self.frames, self.sensor, self.device, self.oversample, self.lod_max_error_mrad)?;
+        writeln!(
+            f,
+            "crosscheck: {} frames, {} on {}, {} projection, oversample {}, LOD bound {} mrad",
+            self.frames, self.sensor, self.device, self.projection, self.oversample, self.lod_max_error_mrad
+        )?;
         writeln!(f, "{:<10} {:>10} {:>9} {:>12} {:>12} {:>12} {:>12} {:>9} {:>8}", "mode", "agreement", "mask IoU", "median mm", "p99 mm", "max mm", "rms mm", "> 1 mm", "mixups")?;
         for (name, m) in [("none", &self.unrefined), ("plane", &self.plane), ("exact", &self.refined)] {
             let e = &m.range_error_m;
@@ -500,7 +501,7 @@ impl std::fmt::Display for Report {
         }
         writeln!(
             f,
-            "  near a face seam: agreement exact {:.4}% ({} beams); away: {:.4}%",
+            "  near a face seam (cylinder: the azimuth wrap): agreement exact {:.4}% ({} beams); away: {:.4}%",
             100.0 * self.refined.near_seam.human_beam_agreement,
             self.refined.near_seam.both_human + self.refined.near_seam.raster_only + self.refined.near_seam.reference_only,
             100.0 * self.refined.away_from_seam.human_beam_agreement

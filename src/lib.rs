@@ -15,6 +15,7 @@ pub mod geometry;
 pub mod gpu;
 pub mod human;
 pub mod output;
+pub mod panorama;
 pub mod pipeline;
 pub mod planner;
 pub mod plot;

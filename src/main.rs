@@ -3,7 +3,7 @@
 
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
-use pedscan::config::{Backend, CompressionChoice, Config, Refine, VelocityModel};
+use pedscan::config::{Backend, CompressionChoice, Config, Projection, Refine, VelocityModel};
 use pedscan::human::MotionMode;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -140,10 +140,13 @@ struct GenerateArgs {
     /// How beams find surfaces: Vulkan raster (default) or the CPU ray caster.
     #[arg(long, value_enum)]
     backend: Option<Backend>,
+    /// Raster views: cube faces or one cylindrical panorama.
+    #[arg(long, value_enum)]
+    projection: Option<Projection>,
     /// Per-beam refinement of the raster result.
     #[arg(long, value_enum)]
     refine: Option<Refine>,
-    /// Texels per beam spacing at a cube-face centre.
+    /// Texels per beam spacing at a cube-face centre (cylinder: per column and elevation gap).
     #[arg(long)]
     oversample: Option<f64>,
     /// Velocity definition written to /velocity.
@@ -250,6 +253,9 @@ fn build_config(a: &GenerateArgs) -> pedscan::Result<Config> {
     }
     if let Some(v) = a.backend {
         cfg.render.backend = v;
+    }
+    if let Some(v) = a.projection {
+        cfg.render.projection = v;
     }
     if let Some(v) = a.refine {
         cfg.render.refine = v;

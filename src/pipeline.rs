@@ -6,14 +6,14 @@
 //! sequence's content depends only on the seed, the configuration and its index: never on
 //! thread count, on which other sequences ran, or on the GPU.
 
-use crate::config::{Backend, CompressionChoice, Config};
+use crate::config::{Backend, CompressionChoice, Config, Projection};
 use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, FrameGeometry};
 use crate::gpu::{Context, ContextOptions, DeviceChoice};
 use crate::human::{HumanModel, MODEL_TO_BODY};
 use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter, WriterOptions};
 use crate::post::{composite, PostParams};
-use crate::projection::CubeFaces;
+use crate::projection::{CubeFaces, Panorama};
 use crate::raster::Renderer;
 use crate::raycast::BvhCache;
 use crate::resample::{resample, BeamHits, BeamLookup};
@@ -223,10 +223,16 @@ impl Generator {
                 })
                 .collect()
         });
+        // The cube faces also cull people no beam can reach (`pose_frame`), whatever the views.
         let cube = CubeFaces::new(&sensor, cfg.render.oversample);
-        let lookup = BeamLookup::new(&sensor, &cube);
         let ctx = Arc::new(Context::new(&ContextOptions { validation, device: device_choice(&cfg.device) })?);
-        let renderer = Renderer::new(&ctx, &cube)?;
+        let (lookup, renderer) = match cfg.render.projection {
+            Projection::Cube => (BeamLookup::new(&sensor, &cube), Renderer::new(&ctx, &cube)?),
+            Projection::Cylinder => {
+                let pano = Panorama::new(&sensor, cfg.render.oversample);
+                (BeamLookup::new_panorama(&sensor, &pano), Renderer::new_panorama(&ctx, &pano)?)
+            }
+        };
         let backend = match cfg.render.backend {
             Backend::Auto if ctx.is_cpu() => Backend::Raycast,
             Backend::Auto => Backend::Raster,

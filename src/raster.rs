@@ -7,6 +7,11 @@
 //! Per face only the meshes whose bounding sphere the face can see are drawn; a face with
 //! none is not rendered, and a frame where no face sees anything costs no GPU work at all.
 //! All rendered faces go into one command buffer and one submit.
+//!
+//! With a [`Panorama`] (`Renderer::new_panorama`) the frame has ONE image, the cylindrical
+//! panorama; [`PanoramaPrep`](crate::panorama::PanoramaPrep) decides per mesh between a direct
+//! draw from the shared buffers and the CPU-prepared triangle list (azimuth wrap, vertical
+//! axis, large triangles). Nothing visible: no GPU work, as for the cube.
 
 use crate::error::{Error, Result};
 use crate::geometry::FrameGeometry;
@@ -14,13 +19,18 @@ use crate::gpu::{
     spirv_words, Buffer, BufferDesc, Commands, Context, Framebuffer, GraphicsPipeline, Image, ImageDesc,
     PipelineDesc, PipelineLayout, RenderPass,
 };
-use crate::projection::{CubeFaces, Face};
+use crate::panorama::{PanoramaPrep, PrepStats, SoupList, SoupVertex};
+use crate::projection::{CubeFaces, Face, Panorama};
 use ash::vk;
 use glam::Vec3;
 use std::sync::Arc;
 
 static RANGE_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/range.vert.spv"));
 static RANGE_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/range.frag.spv"));
+static PANORAMA_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/panorama.vert.spv"));
+static PANORAMA_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/panorama.frag.spv"));
+static PANORAMA_SOUP_VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/panorama_soup.vert.spv"));
+static PANORAMA_SOUP_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/panorama_soup.frag.spv"));
 
 /// Front face of single-sided meshes. Geometry convention: triangle (a, b, c) faces the
 /// sensor when `dot((b - a) x (c - a), a) < 0` (counter-clockwise seen from the viewer).
@@ -47,10 +57,24 @@ pub struct PushConstants {
 const _: () = assert!(std::mem::size_of::<PushConstants>() == 80);
 const _: () = assert!(std::mem::offset_of!(PushConstants, base_triangle) == 64);
 
-/// One face's read-back images.
+/// Push constants of the panorama shaders, mirrored from `shaders/panorama.glsl` (std430:
+/// vec4 at 0, float at 16, uint at 20).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PanoramaPush {
+    /// `Panorama::shader_map()`.
+    pub map: [f32; 4],
+    /// Centre of the phi window of this draw.
+    pub window: f32,
+    pub base_triangle: u32,
+}
+const _: () = assert!(std::mem::size_of::<PanoramaPush>() == 24);
+const _: () = assert!(std::mem::offset_of!(PanoramaPush, base_triangle) == 20);
+
+/// One face's (or the panorama's) read-back images.
 #[derive(Clone, Debug, Default)]
 pub struct FaceImage {
-    /// Index into `CubeFaces::faces`.
+    /// Index into `CubeFaces::faces` (0 for the panorama).
     pub index: usize,
     pub width: u32,
     pub height: u32,
@@ -76,7 +100,7 @@ impl FaceImage {
     }
 }
 
-/// The rasterised faces of one frame, in `CubeFaces::faces` order.
+/// The rasterised faces of one frame, in `CubeFaces::faces` order (the panorama: one image).
 #[derive(Clone, Debug, Default)]
 pub struct RasterFrame {
     pub faces: Vec<FaceImage>,
@@ -92,9 +116,11 @@ pub struct RenderStats {
     pub triangles_submitted: u64,
     /// Whether any GPU work was submitted.
     pub submitted: bool,
+    /// Panorama only: what the CPU preparation did (direct meshes, soup, splits).
+    pub panorama: PrepStats,
 }
 
-/// Per-face GPU resources, allocated once.
+/// Per-face (or panorama) GPU resources, allocated once.
 struct FaceTarget {
     framebuffer: Framebuffer,
     range: Image,
@@ -105,14 +131,41 @@ struct FaceTarget {
     push: PushConstants,
 }
 
-/// The Vulkan rasteriser for one set of cube faces. Resources for all faces are created in
-/// `new`; `render` allocates nothing in steady state (buffers grow geometrically).
+impl FaceTarget {
+    fn new(ctx: &Arc<Context>, pass: &RenderPass, w: u32, h: u32, push: PushConstants) -> Result<FaceTarget> {
+        let range = Image::new(ctx, &ImageDesc::color_readback("face range", w, h, RANGE_FORMAT))?;
+        let id = Image::new(ctx, &ImageDesc::color_readback("face id", w, h, ID_FORMAT))?;
+        let depth = Image::new(ctx, &ImageDesc::depth("face depth", w, h, DEPTH_FORMAT))?;
+        let framebuffer = Framebuffer::new(ctx, pass, &[&range, &id, &depth])?;
+        let texels = w as u64 * h as u64;
+        let readback = Buffer::new(ctx, &BufferDesc::readback("face readback", 8 * texels))?;
+        Ok(FaceTarget { framebuffer, range, id, _depth: depth, readback, push })
+    }
+}
+
+/// The panorama's own state: its mapping, the per-frame CPU plan, the triangle-list buffer
+/// and the pipelines that draw it.
+struct PanoramaState {
+    soup_culled: GraphicsPipeline,
+    soup_double_sided: GraphicsPipeline,
+    soup: Buffer,
+    pano: Panorama,
+    prep: PanoramaPrep,
+    /// The four soup lists back to back (upload staging), and where each starts (vertices).
+    soup_all: Vec<SoupVertex>,
+    soup_first: [u32; 5],
+}
+
+/// The Vulkan rasteriser for one set of cube faces, or for one panorama. Resources are created
+/// in `new`; `render` allocates nothing in steady state (buffers grow geometrically).
 pub struct Renderer {
     // Field order is drop order: GPU objects first, the context last.
     targets: Vec<FaceTarget>,
+    panorama: Option<PanoramaState>,
     vertices: Buffer,
     indices: Buffer,
     commands: Commands,
+    /// Cube: `range.vert` / `range.frag`; panorama: the direct-draw `panorama.*` shaders.
     culled: GraphicsPipeline,
     double_sided: GraphicsPipeline,
     layout: PipelineLayout,
@@ -131,59 +184,103 @@ fn upload_desc(name: &'static str, size: u64, usage: vk::BufferUsageFlags) -> Bu
     BufferDesc::upload(name, size, usage)
 }
 
+/// A culled and a double-sided pipeline from one pair of shaders.
+fn pipeline_pair(
+    ctx: &Arc<Context>,
+    layout: &PipelineLayout,
+    pass: &RenderPass,
+    vert: &[u8],
+    frag: &[u8],
+    id_attribute: bool,
+) -> Result<(GraphicsPipeline, GraphicsPipeline)> {
+    let vert = spirv_words(vert)?;
+    let frag = spirv_words(frag)?;
+    let desc = |cull_mode| PipelineDesc {
+        vertex_spirv: &vert,
+        fragment_spirv: &frag,
+        vertex_stride: if id_attribute { 16 } else { 12 },
+        id_attribute,
+        color_attachments: 2,
+        cull_mode,
+        front_face: FRONT_FACE,
+        // Reversed-Z: nearer is greater; cleared to 0.
+        depth_compare: vk::CompareOp::GREATER,
+    };
+    Ok((
+        GraphicsPipeline::new(ctx, layout, pass, &desc(vk::CullModeFlags::BACK))?,
+        GraphicsPipeline::new(ctx, layout, pass, &desc(vk::CullModeFlags::NONE))?,
+    ))
+}
+
+fn empty_image(index: usize, w: u32, h: u32) -> FaceImage {
+    let texels = w as usize * h as usize;
+    FaceImage { index, width: w, height: h, rendered: false, range_m: vec![0.0; texels], id: vec![0; texels] }
+}
+
 impl Renderer {
     pub fn new(ctx: &Arc<Context>, faces: &CubeFaces) -> Result<Renderer> {
-        let vert = spirv_words(RANGE_VERT)?;
-        let frag = spirv_words(RANGE_FRAG)?;
         let pass = RenderPass::new_for_readback(ctx, &[RANGE_FORMAT, ID_FORMAT], DEPTH_FORMAT)?;
         let layout = PipelineLayout::with_push_constants(
             ctx,
             vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
             std::mem::size_of::<PushConstants>() as u32,
         )?;
-        let desc = |cull_mode| PipelineDesc {
-            vertex_spirv: &vert,
-            fragment_spirv: &frag,
-            vertex_stride: 12,
-            color_attachments: 2,
-            cull_mode,
-            front_face: FRONT_FACE,
-            // Reversed-Z: nearer is greater; cleared to 0.
-            depth_compare: vk::CompareOp::GREATER,
-        };
-        let culled = GraphicsPipeline::new(ctx, &layout, &pass, &desc(vk::CullModeFlags::BACK))?;
-        let double_sided = GraphicsPipeline::new(ctx, &layout, &pass, &desc(vk::CullModeFlags::NONE))?;
-
+        let (culled, double_sided) = pipeline_pair(ctx, &layout, &pass, RANGE_VERT, RANGE_FRAG, false)?;
         let mut targets = Vec::with_capacity(faces.faces.len());
         let mut frame = RasterFrame { faces: Vec::with_capacity(faces.faces.len()) };
         for face in &faces.faces {
-            let (w, h) = (face.width, face.height);
-            let range = Image::new(ctx, &ImageDesc::color_readback("face range", w, h, RANGE_FORMAT))?;
-            let id = Image::new(ctx, &ImageDesc::color_readback("face id", w, h, ID_FORMAT))?;
-            let depth = Image::new(ctx, &ImageDesc::depth("face depth", w, h, DEPTH_FORMAT))?;
-            let framebuffer = Framebuffer::new(ctx, &pass, &[&range, &id, &depth])?;
-            let texels = w as u64 * h as u64;
-            let readback = Buffer::new(ctx, &BufferDesc::readback("face readback", 8 * texels))?;
-            let push = PushConstants {
-                clip_from_sensor: face.clip_from_sensor().to_cols_array(),
-                ..Default::default()
-            };
-            targets.push(FaceTarget { framebuffer, range, id, _depth: depth, readback, push });
-            frame.faces.push(FaceImage {
-                index: face.index,
-                width: w,
-                height: h,
-                rendered: false,
-                range_m: vec![0.0; texels as usize],
-                id: vec![0; texels as usize],
-            });
+            let push = PushConstants { clip_from_sensor: face.clip_from_sensor().to_cols_array(), ..Default::default() };
+            targets.push(FaceTarget::new(ctx, &pass, face.width, face.height, push)?);
+            frame.faces.push(empty_image(face.index, face.width, face.height));
         }
+        Self::assemble(ctx, targets, None, (culled, double_sided), layout, pass, faces.faces.clone(), frame)
+    }
+
+    /// A renderer into one cylindrical panorama (`render.projection = "cylinder"`): the frame
+    /// has one image, index 0, `pano.width` x `pano.height`.
+    pub fn new_panorama(ctx: &Arc<Context>, pano: &Panorama) -> Result<Renderer> {
+        let pass = RenderPass::new_for_readback(ctx, &[RANGE_FORMAT, ID_FORMAT], DEPTH_FORMAT)?;
+        let layout = PipelineLayout::with_push_constants(
+            ctx,
+            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+            std::mem::size_of::<PanoramaPush>() as u32,
+        )?;
+        let direct = pipeline_pair(ctx, &layout, &pass, PANORAMA_VERT, PANORAMA_FRAG, false)?;
+        let (soup_culled, soup_double_sided) = pipeline_pair(ctx, &layout, &pass, PANORAMA_SOUP_VERT, PANORAMA_SOUP_FRAG, true)?;
+        let targets = vec![FaceTarget::new(ctx, &pass, pano.width, pano.height, PushConstants::default())?];
+        let frame = RasterFrame { faces: vec![empty_image(0, pano.width, pano.height)] };
+        let soup = Buffer::new(ctx, &upload_desc("panorama soup", MIN_BUFFER_BYTES, vk::BufferUsageFlags::VERTEX_BUFFER))?;
+        let state = PanoramaState {
+            soup_culled,
+            soup_double_sided,
+            soup,
+            pano: pano.clone(),
+            prep: PanoramaPrep::default(),
+            soup_all: Vec::new(),
+            soup_first: [0; 5],
+        };
+        Self::assemble(ctx, targets, Some(state), direct, layout, pass, Vec::new(), frame)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        ctx: &Arc<Context>,
+        targets: Vec<FaceTarget>,
+        panorama: Option<PanoramaState>,
+        (culled, double_sided): (GraphicsPipeline, GraphicsPipeline),
+        layout: PipelineLayout,
+        pass: RenderPass,
+        faces: Vec<Face>,
+        frame: RasterFrame,
+    ) -> Result<Renderer> {
         let vertices =
             Buffer::new(ctx, &upload_desc("vertices", MIN_BUFFER_BYTES, vk::BufferUsageFlags::VERTEX_BUFFER))?;
         let indices =
             Buffer::new(ctx, &upload_desc("indices", MIN_BUFFER_BYTES, vk::BufferUsageFlags::INDEX_BUFFER))?;
+        let visible = vec![Vec::new(); faces.len()];
         Ok(Renderer {
             targets,
+            panorama,
             vertices,
             indices,
             commands: Commands::new(ctx)?,
@@ -191,8 +288,8 @@ impl Renderer {
             double_sided,
             layout,
             pass,
-            faces: faces.faces.clone(),
-            visible: vec![Vec::new(); faces.faces.len()],
+            faces,
+            visible,
             frame,
             stats: RenderStats::default(),
             renders: 0,
@@ -200,11 +297,16 @@ impl Renderer {
         })
     }
 
+    /// The panorama this renderer draws into, if it is a panorama renderer.
+    pub fn panorama(&self) -> Option<&Panorama> {
+        self.panorama.as_ref().map(|p| &p.pano)
+    }
+
     pub fn context(&self) -> &Arc<Context> {
         &self.ctx
     }
 
-    /// The faces this renderer draws.
+    /// The faces this renderer draws (none for a panorama renderer).
     pub fn faces(&self) -> &[Face] {
         &self.faces
     }
@@ -224,10 +326,14 @@ impl Renderer {
         &self.frame
     }
 
-    /// Rasterises `geom` into every face that sees at least one mesh and reads it back.
+    /// Rasterises `geom` into every face that sees at least one mesh (or into the panorama)
+    /// and reads it back.
     pub fn render(&mut self, geom: &FrameGeometry) -> Result<&RasterFrame> {
         self.stats = RenderStats::default();
         let triangles = check_geometry(geom)?;
+        if self.panorama.is_some() {
+            return self.render_panorama(geom, triangles);
+        }
         let mut any = false;
         for (face, visible) in self.faces.iter().zip(self.visible.iter_mut()) {
             visible.clear();
@@ -298,6 +404,107 @@ impl Renderer {
             copy_pod(&bytes[..n], &mut image.range_m);
             copy_pod(&bytes[n..2 * n], &mut image.id);
         }
+        Ok(&self.frame)
+    }
+}
+
+impl Renderer {
+    /// The panorama path of `render`: plan on the CPU, then one render pass.
+    fn render_panorama(&mut self, geom: &FrameGeometry, triangles: u32) -> Result<&RasterFrame> {
+        let state = self.panorama.as_mut().expect("panorama renderer");
+        state.prep.prepare(&state.pano, geom);
+        let prep = &state.prep;
+        self.frame.faces[0].rendered = !prep.is_empty();
+        self.stats.panorama = prep.stats;
+        if prep.is_empty() {
+            return Ok(&self.frame);
+        }
+        // The soup lists back to back.
+        state.soup_all.clear();
+        for (k, list) in prep.soup.iter().enumerate() {
+            state.soup_first[k] = state.soup_all.len() as u32;
+            state.soup_all.extend_from_slice(list);
+        }
+        state.soup_first[4] = state.soup_all.len() as u32;
+        if !prep.direct.is_empty() {
+            check_indices(geom)?;
+            ensure_capacity(&self.ctx, &mut self.vertices, "vertices", vk::BufferUsageFlags::VERTEX_BUFFER, 12 * geom.positions.len() as u64)?;
+            ensure_capacity(&self.ctx, &mut self.indices, "indices", vk::BufferUsageFlags::INDEX_BUFFER, 4 * geom.indices.len() as u64)?;
+            self.vertices.write(&geom.positions)?;
+            self.indices.write(&geom.indices)?;
+        }
+        if !state.soup_all.is_empty() {
+            let bytes = std::mem::size_of::<SoupVertex>() as u64 * state.soup_all.len() as u64;
+            ensure_capacity(&self.ctx, &mut state.soup, "panorama soup", vk::BufferUsageFlags::VERTEX_BUFFER, bytes)?;
+            state.soup.write(&state.soup_all)?;
+        }
+
+        let clear = [
+            vk::ClearValue { color: vk::ClearColorValue { float32: [0.0; 4] } },
+            vk::ClearValue { color: vk::ClearColorValue { uint32: [0; 4] } },
+            vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } },
+        ];
+        let mut stats = RenderStats { submitted: true, faces_rendered: 1, panorama: prep.stats, ..Default::default() };
+        let target = &self.targets[0];
+        let map = state.pano.shader_map();
+        let mut rec = self.commands.begin()?;
+        rec.begin_render_pass(&self.pass, &target.framebuffer, &clear);
+        if !prep.direct.is_empty() {
+            rec.bind_vertex_buffer(&self.vertices, geom.positions.len() as u64);
+            rec.bind_index_buffer_u32(&self.indices, 3 * triangles as u64);
+            let mut bound: Option<bool> = None;
+            for d in &prep.direct {
+                let m = &geom.meshes[d.mesh];
+                if bound != Some(m.double_sided) {
+                    rec.bind_pipeline(if m.double_sided { &self.double_sided } else { &self.culled });
+                    bound = Some(m.double_sided);
+                }
+                let push = PanoramaPush { map, window: d.window, base_triangle: m.first_triangle };
+                rec.push_constants(&self.layout, bytemuck::bytes_of(&push));
+                rec.draw_indexed(3 * m.triangle_count, 3 * m.first_triangle);
+                stats.draws += 1;
+                stats.triangles_submitted += m.triangle_count as u64;
+            }
+        }
+        if !state.soup_all.is_empty() {
+            rec.bind_vertex_buffer(&state.soup, state.soup_all.len() as u64);
+            let tau = std::f32::consts::TAU;
+            let pi = std::f32::consts::PI;
+            let lists: [(SoupList, &[f32]); 4] = [
+                (SoupList::Culled, &[pi]),
+                (SoupList::DoubleSided, &[pi]),
+                (SoupList::WrapCulled, &[0.0, tau]),
+                (SoupList::WrapDoubleSided, &[0.0, tau]),
+            ];
+            for (list, windows) in lists {
+                let (first, end) = (state.soup_first[list as usize], state.soup_first[list as usize + 1]);
+                if first == end {
+                    continue;
+                }
+                let double = matches!(list, SoupList::DoubleSided | SoupList::WrapDoubleSided);
+                rec.bind_pipeline(if double { &state.soup_double_sided } else { &state.soup_culled });
+                for &window in windows {
+                    let push = PanoramaPush { map, window, base_triangle: 0 };
+                    rec.push_constants(&self.layout, bytemuck::bytes_of(&push));
+                    rec.draw(end - first, first);
+                    stats.draws += 1;
+                    stats.triangles_submitted += (end - first) as u64 / 3;
+                }
+            }
+        }
+        rec.end_render_pass();
+        let texels = target.range.extent().width as u64 * target.range.extent().height as u64;
+        rec.copy_image_to_buffer(&target.range, &target.readback, 0);
+        rec.copy_image_to_buffer(&target.id, &target.readback, 4 * texels);
+        rec.transfer_to_host_barrier();
+        rec.submit_and_wait()?;
+        self.renders += 1;
+        self.stats = stats;
+        let image = &mut self.frame.faces[0];
+        let bytes = self.targets[0].readback.read_bytes()?;
+        let n = image.range_m.len() * 4;
+        copy_pod(&bytes[..n], &mut image.range_m);
+        copy_pod(&bytes[n..2 * n], &mut image.id);
         Ok(&self.frame)
     }
 }

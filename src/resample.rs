@@ -1,6 +1,9 @@
-//! Stage 3: from the rendered cube faces to the sensor's beam grid. A lookup computed once per
-//! sensor maps every beam to its face and texel (nearest by integer index, clamp-to-edge,
-//! deterministic at seams: see `CubeFaces::face_of`). No ranges are ever blended across texels.
+//! Stage 3: from the rendered cube faces (or the panorama) to the sensor's beam grid. A lookup
+//! computed once per sensor maps every beam to its face and texel (nearest by integer index,
+//! clamp-to-edge, deterministic at seams: see `CubeFaces::face_of`). For the panorama the
+//! lookup is direct: one image, column from azimuth (beams on texel centres), row from
+//! elevation, and the 3x3 neighbourhood wraps around in azimuth. No ranges are ever blended
+//! across texels.
 //!
 //! Refinement uses the ID buffer: with the triangle that covers the beam's texel (and those of
 //! the 3x3 texels around it) the beam is re-intersected exactly, in f64, with the same
@@ -8,7 +11,7 @@
 
 use crate::config::Refine;
 use crate::geometry::FrameGeometry;
-use crate::projection::CubeFaces;
+use crate::projection::{CubeFaces, Face, Panorama};
 use crate::raster::RasterFrame;
 use crate::raycast::intersect_triangle;
 use crate::sensor::Sensor;
@@ -35,8 +38,44 @@ pub struct BeamLookup {
     pub texel: Vec<(u32, u32)>,
     /// Width and height of each face.
     pub face_size: Vec<(u32, u32)>,
-    /// The faces themselves (texel directions for the exact refinement).
-    pub faces: Vec<crate::projection::Face>,
+    /// The faces (or the panorama) themselves: texel directions for the exact refinement.
+    pub images: Vec<ImageMap>,
+    /// Per beam: whether it lies on its texel's centre (within `CENTRED_TEXELS`), i.e. the
+    /// texel was rasterised along the beam itself (the panorama; never a cube face).
+    pub centred: Vec<bool>,
+}
+
+/// A beam this close to its texel centre (texels, each axis) counts as on it.
+pub const CENTRED_TEXELS: f64 = 0.02;
+
+/// The texel mapping of one raster image.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ImageMap {
+    Face(Face),
+    Panorama(Panorama),
+}
+
+impl ImageMap {
+    /// Direction (not necessarily unit) through the centre of texel (u, v).
+    pub fn texel_dir(&self, u: u32, v: u32) -> DVec3 {
+        match self {
+            ImageMap::Face(f) => f.texel_dir(u, v),
+            ImageMap::Panorama(p) => p.texel_dir(u, v),
+        }
+    }
+
+    /// Whether the image wraps around horizontally (the panorama's 360 deg).
+    pub fn wraps(&self) -> bool {
+        matches!(self, ImageMap::Panorama(_))
+    }
+
+    /// Continuous horizontal pixel coordinate of a direction and the image width.
+    fn px(&self, d: DVec3) -> (f64, f64) {
+        match self {
+            ImageMap::Face(f) => (f.pixel(d).map_or(0.0, |p| p.0), f.width as f64),
+            ImageMap::Panorama(p) => (p.pixel(d).0, p.width as f64),
+        }
+    }
 }
 
 impl BeamLookup {
@@ -53,12 +92,45 @@ impl BeamLookup {
         BeamLookup {
             rows: sensor.rows(),
             columns: sensor.columns,
+            centred: vec![false; dirs.len()],
             dirs,
             face,
             texel,
             face_size: cube.faces.iter().map(|f| (f.width, f.height)).collect(),
-            faces: cube.faces.clone(),
+            images: cube.faces.iter().cloned().map(ImageMap::Face).collect(),
         }
+    }
+
+    /// The direct lookup into one panorama: every beam in image 0, texel from its azimuth and
+    /// elevation (`Panorama::texel`).
+    pub fn new_panorama(sensor: &Sensor, pano: &Panorama) -> BeamLookup {
+        let dirs = sensor.beam_dirs();
+        let texel: Vec<(u32, u32)> = dirs.iter().map(|d| pano.texel(*d)).collect();
+        let centred = dirs
+            .iter()
+            .zip(&texel)
+            .map(|(d, &(u, v))| {
+                let (px, py) = pano.pixel(*d);
+                (px - (u as f64 + 0.5)).abs() < CENTRED_TEXELS && (py - (v as f64 + 0.5)).abs() < CENTRED_TEXELS
+            })
+            .collect();
+        BeamLookup {
+            centred,
+            rows: sensor.rows(),
+            columns: sensor.columns,
+            face: vec![0; dirs.len()],
+            dirs,
+            texel,
+            face_size: vec![(pano.width, pano.height)],
+            images: vec![ImageMap::Panorama(pano.clone())],
+        }
+    }
+
+    /// Horizontal distance, in texels, of beam `b` from the nearest left or right edge of its
+    /// image: a cube-face seam, or the panorama's azimuth wrap.
+    pub fn seam_distance_texels(&self, b: usize) -> f64 {
+        let (px, w) = self.images[self.face[b] as usize].px(self.dirs[b]);
+        px.min(w - px)
     }
 
     /// Which faces any beam uses.
@@ -118,6 +190,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                 }
                 let (u, v) = lookup.texel[b];
                 let (fw, fh) = (img.width, img.height);
+                let wraps = lookup.images[f].wraps();
                 let at = |u: u32, v: u32| (v * fw + u) as usize;
                 let centre_id = img.id[at(u, v)];
                 let dir = lookup.dirs[b];
@@ -142,7 +215,11 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         let mut any_empty = false;
                         for dv in -1i64..=1 {
                             for du in -1i64..=1 {
-                                let uu = (u as i64 + du).clamp(0, fw as i64 - 1) as u32;
+                                let uu = if wraps {
+                                    (u as i64 + du).rem_euclid(fw as i64) as u32
+                                } else {
+                                    (u as i64 + du).clamp(0, fw as i64 - 1) as u32
+                                };
                                 let vv = (v as i64 + dv).clamp(0, fh as i64 - 1) as u32;
                                 let id = img.id[at(uu, vv)];
                                 let r = img.range_m[at(uu, vv)];
@@ -162,7 +239,8 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                             continue;
                         }
                         cand[..nc].sort_unstable_by_key(|c| c.triangle);
-                        match refine_exact(dir, geom, &lookup.faces[f], &cand[..nc], &mut bufs) {
+                        let centred = lookup.centred[b].then(|| (centre_id != 0).then(|| centre_id - 1));
+                        match refine_exact(dir, geom, &lookup.images[f], &cand[..nc], centred, &mut bufs) {
                             Some(hit) => hit,
                             // The beam misses every nearby triangle. Next to an empty texel this
                             // is a silhouette: no hit. Inside a covered patch (no adjacency to
@@ -247,6 +325,16 @@ struct Cand {
 /// Exact refinement of one beam from the triangles rendered in its 3x3 texels (`cand`, sorted
 /// by triangle).
 ///
+/// 0. A beam on its texel's centre (`centred` is `Some(centre triangle)`, the panorama): that
+///    texel was rasterised along the beam itself, so depth testing there already chose the
+///    nearest surface; when the beam hits that triangle exactly, that is the answer unless a
+///    candidate rendered clearly in front of its plane (step 3's test) holds the beam itself
+///    (a large triangle whose drawn edge strays up to `PANORAMA_EDGE_TOLERANCE_TEXELS` from
+///    the true one); no ring search: a nearer small triangle holding the beam but not the
+///    texel centre would need its silhouette within `CENTRED_TEXELS` of the beam, for which
+///    neighbouring texels, a whole (tall) texel away, are no evidence, and searching around
+///    each nearer neighbour cost more than it found (`pedscan crosscheck --projection
+///    cylinder`). Otherwise steps 1 to 3.
 /// 1. The nearest exact hit among the candidates.
 /// 2. None: triangles smaller than a texel can hold the beam without covering a texel centre,
 ///    so search the rings around the candidates.
@@ -256,21 +344,39 @@ struct Cand {
 ///    person behind), so search the rings around those candidates for a nearer hit. Comparing
 ///    with the plane, not with the hit's range, keeps a floor seen at grazing incidence (whose
 ///    neighbouring texels are nearer simply because the floor is slanted) out of this search.
-fn refine_exact(dir: DVec3, geom: &FrameGeometry, face: &crate::projection::Face, cand: &[Cand], b: &mut RingBuffers) -> Option<(f64, u32)> {
+fn refine_exact(
+    dir: DVec3,
+    geom: &FrameGeometry,
+    image: &ImageMap,
+    cand: &[Cand],
+    centred: Option<Option<u32>>,
+    b: &mut RingBuffers,
+) -> Option<(f64, u32)> {
+    // Whether candidate `c` was rendered clearly in front of the plane of hit (r, t).
+    let in_front = |(r, t): (f64, u32), c: &Cand| {
+        let d = image.texel_dir(c.u, c.v).normalize();
+        let expected = plane_hit(d, &geom.triangle_f64(t)).unwrap_or(r);
+        (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
+    };
     let mut best = None;
+    if let Some(Some(t)) = centred {
+        test_triangle(dir, geom, t, &mut best);
+        if let Some(hit) = best {
+            for c in cand.iter().filter(|c| in_front(hit, c)) {
+                test_triangle(dir, geom, c.triangle, &mut best);
+            }
+            return best;
+        }
+    }
     for c in cand {
         test_triangle(dir, geom, c.triangle, &mut best);
     }
     if best.is_none() {
         best = ring_search(dir, geom, cand.iter().map(|c| c.triangle), f64::INFINITY, b);
     }
-    let (r, t) = best?;
-    let plane = geom.triangle_f64(t);
-    let in_front = |c: &&Cand| {
-        let d = face.texel_dir(c.u, c.v).normalize();
-        let expected = plane_hit(d, &plane).unwrap_or(r);
-        (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
-    };
+    let hit = best?;
+    let r = hit.0;
+    let in_front = |c: &&Cand| in_front(hit, c);
     if cand.iter().any(|c| in_front(&c)) {
         if let Some(alt) = ring_search(dir, geom, cand.iter().filter(in_front).map(|c| c.triangle), r, b) {
             return Some(alt);

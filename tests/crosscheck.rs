@@ -49,6 +49,23 @@ fn crosscheck_writes_the_report_strip_and_geometry_and_exact_mode_agrees() {
     }
 }
 
+#[test]
+fn crosscheck_with_the_cylindrical_panorama_meets_the_same_acceptance() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let o = pedscan(&["crosscheck", "--projection", "cylinder", "--sequences", "1", "--frames", "3", "--humans", "4..4", "--seed", "5", "--json", "cc.json"], dir);
+    ok(&o);
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("cc.json")).unwrap()).unwrap();
+    assert_eq!(j["projection"], "cylinder");
+    let agreement = j["refined"]["human_beam_agreement"].as_f64().unwrap();
+    let p99 = j["refined"]["range_error_m"]["p99"].as_f64().unwrap();
+    eprintln!("cylinder: exact agreement {agreement}, p99 {p99} m; unrefined {}", j["human_beam_agreement"]);
+    assert!(agreement >= 0.995, "exact agreement {agreement}");
+    assert!(p99 <= 1e-3, "exact p99 {p99} m");
+    assert!(j["refined"]["overall"]["both_human"].as_u64().unwrap() > 100, "people were seen");
+    assert!(j["background_beam_agreement"].as_f64().unwrap() >= 0.999, "background agreement");
+}
+
 struct Ply {
     verts: Vec<[f64; 3]>,
     faces: Vec<([usize; 3], i32)>,

@@ -380,6 +380,18 @@ fn bench_25k_triangles() {
         stats.triangles_submitted,
         times[times.len() / 2]
     );
+    // The same ten on the panorama.
+    let pano = Panorama::new(&Sensor::hdl32e(), 2.0);
+    let mut pr = Renderer::new_panorama(&ctx, &pano).unwrap();
+    let mut times = Vec::new();
+    for _ in 0..11 {
+        let t = std::time::Instant::now();
+        pr.render(&geom).unwrap();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    println!("panorama {}x{}: {:?}: median {:.2} ms", pano.width, pano.height, pr.stats(), times[times.len() / 2]);
+    drop(pr);
     drop(renderer);
     drop(ctx);
 }
@@ -400,4 +412,468 @@ fn validation_layer_counts_an_invalid_call() {
     }
     assert!(errors.load(Ordering::SeqCst) >= 1, "the validation layer did not report a size-0 buffer");
     drop(ctx);
+}
+
+// ------------------------------------------------------------------------------------------
+// The cylindrical panorama (`render.projection = "cylinder"`)
+// ------------------------------------------------------------------------------------------
+
+use pedscan::config::Refine;
+use pedscan::geometry::Adjacency;
+use pedscan::projection::Panorama;
+use pedscan::raycast::{cast_frame, Hit};
+use pedscan::resample::{resample, BeamHits, BeamLookup, NO_TRIANGLE};
+
+/// Beam level: exact refinement must reproduce the closed form on every beam.
+const EXACT_ABS_TOL_M: f64 = 1e-5;
+/// Texel level: the panorama's raw range is interpolated across each (possibly split)
+/// triangle, exact only to second order in its angular size (refinement makes beams exact).
+const PANORAMA_TEXEL_REL_TOL: f64 = 2e-3;
+
+fn panorama_setup(ctx: &Arc<Context>, oversample: f64) -> (Sensor, Panorama, BeamLookup, Renderer) {
+    let sensor = Sensor::hdl32e();
+    let pano = Panorama::new(&sensor, oversample);
+    let lookup = BeamLookup::new_panorama(&sensor, &pano);
+    let renderer = Renderer::new_panorama(ctx, &pano).unwrap();
+    (sensor, pano, lookup, renderer)
+}
+
+/// A front-facing grid of `nx` x `nz` cells on the plane x = `x` (sensor frame), with one-rings.
+fn grid_x(x: f64, y: (f64, f64), z: (f64, f64), nx: u32, nz: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut pos = Vec::new();
+    for j in 0..=nz {
+        for i in 0..=nx {
+            let (fy, fz) = (i as f64 / nx as f64, j as f64 / nz as f64);
+            pos.push([x as f32, (y.0 + fy * (y.1 - y.0)) as f32, (z.0 + fz * (z.1 - z.0)) as f32]);
+        }
+    }
+    let mut idx = Vec::new();
+    let at = |i: u32, j: u32| j * (nx + 1) + i;
+    for j in 0..nz {
+        for i in 0..nx {
+            for tri in [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]] {
+                let [a, b, c] = tri.map(|k| Vec3::from(pos[k as usize]));
+                let front = (b - a).cross(c - a).dot(a) < 0.0;
+                idx.extend(if front { tri } else { [tri[0], tri[2], tri[1]] });
+            }
+        }
+    }
+    (pos, idx)
+}
+
+/// Exact refinement against `expected` (range along the unit beam, None = no hit) on every
+/// beam: returns (beams expected to hit, beams that differ in hit/miss, max |range error|).
+fn beams_vs_closed_form(lookup: &BeamLookup, hits: &BeamHits, expected: impl Fn(DVec3) -> Option<f64>) -> (usize, usize, f64) {
+    let (mut want_hits, mut differ, mut max_err) = (0, 0, 0f64);
+    for (b, d) in lookup.dirs.iter().enumerate() {
+        let got = (hits.triangle[b] != NO_TRIANGLE).then_some(hits.range_m[b] as f64);
+        match (got, expected(*d)) {
+            (Some(g), Some(w)) => {
+                want_hits += 1;
+                max_err = max_err.max((g - w).abs());
+            }
+            (None, None) => {}
+            (_, w) => {
+                want_hits += w.is_some() as usize;
+                differ += 1;
+            }
+        }
+    }
+    (want_hits, differ, max_err)
+}
+
+/// Texel level: every texel of the panorama against the closed form along its centre
+/// direction; returns the number of texels whose hit/miss or range (relative
+/// `PANORAMA_TEXEL_REL_TOL`) differ. Catches a triangle smeared across the image or lost.
+fn panorama_texels_vs(name: &str, pano: &Panorama, img: &FaceImage, expected: impl Fn(DVec3) -> f64) -> usize {
+    assert!(img.rendered, "{name}: panorama not rendered");
+    assert_eq!((img.width, img.height), (pano.width, pano.height));
+    let mut bad = 0;
+    let mut exp = vec![0f32; img.range_m.len()];
+    for v in 0..img.height {
+        for u in 0..img.width {
+            let want = expected(pano.texel_dir(u, v));
+            exp[(v * img.width + u) as usize] = want as f32;
+            let got = img.range_at(u, v) as f64;
+            let ok = if want == 0.0 { got == 0.0 } else { ((got - want) / want).abs() <= PANORAMA_TEXEL_REL_TOL };
+            bad += !ok as usize;
+        }
+    }
+    let allowed = (MAX_BAD_FRACTION * img.range_m.len() as f64) as usize;
+    eprintln!("{name}: {bad} of {} panorama texels differ (allowed {allowed})", img.range_m.len());
+    if bad > allowed {
+        write_pngs(name, img, &exp);
+    }
+    assert!(bad <= allowed, "{name}: {bad} texels differ (allowed {allowed})");
+    bad
+}
+
+/// Ray / rectangle on the plane x = `x`: range along the unit direction `d`.
+fn ray_rect_x(d: DVec3, x: f64, y: (f64, f64), z: (f64, f64)) -> Option<f64> {
+    let d = d.normalize();
+    let t = x / d.x;
+    let p = d * t;
+    (t > 0.0 && p.y > y.0 && p.y < y.1 && p.z > z.0 && p.z < z.1).then_some(t)
+}
+
+#[test]
+fn panorama_quad_straddling_the_wrap_behind_the_sensor_is_hit_on_both_sides() {
+    let ctx = context();
+    let (sensor, pano, lookup, mut renderer) = panorama_setup(&ctx, 2.0);
+    let (x, y, z) = (-4.0, (-1.0, 1.0), (-1.2, 0.4));
+    // Coarse (2 large triangles: the CPU list, split and drawn on both sides of the wrap) and
+    // fine (5 cm cells: drawn directly, twice, once per side).
+    for (name, nx, nz, direct) in [("wrap_quad_coarse", 1, 1, false), ("wrap_quad_fine", 40, 32, true)] {
+        let (p, i) = grid_x(x, y, z, nx, nz);
+        let mut geom = FrameGeometry::default();
+        geom.push_mesh_with_adjacency(&p, &i, 1, false, Some(Arc::new(Adjacency::build(&i))));
+        let frame = renderer.render(&geom).unwrap().clone();
+        let stats = renderer.stats();
+        eprintln!("{name}: {stats:?}");
+        if direct {
+            assert_eq!((stats.panorama.direct_meshes, stats.draws), (1, 2), "{name}: one mesh, drawn on both sides");
+        } else {
+            assert_eq!(stats.panorama.soup_meshes, 1, "{name}");
+            assert!(stats.panorama.wrap_triangles > 0, "{name}: pieces across the wrap");
+        }
+        panorama_texels_vs(name, &pano, &frame.faces[0], |d| ray_rect_x(d, x, y, z).unwrap_or(0.0));
+        // Both edge columns of the image are covered.
+        let img = &frame.faces[0];
+        let row = pano.texel(DVec3::new(-1.0, 0.0, -0.1)).1;
+        assert!(img.range_at(0, row) > 0.0 && img.range_at(pano.width - 1, row) > 0.0, "{name}");
+        let mut hits = BeamHits::default();
+        resample(&lookup, &frame, &geom, Refine::Exact, &mut hits);
+        let (want, differ, err) = beams_vs_closed_form(&lookup, &hits, |d| ray_rect_x(d, x, y, z));
+        eprintln!("{name}: {want} beams should hit, {differ} differ, max error {err:.2e} m");
+        assert!(want > 500, "{name}: {want}");
+        assert_eq!(differ, 0, "{name}: every beam that should hit does, and no other");
+        assert!(err <= EXACT_ABS_TOL_M, "{name}: max range error {err} m");
+        // Columns 0 and W-1 (the wrap) both see it.
+        let w = sensor.columns;
+        let on = |c: usize| (0..sensor.rows()).any(|r| hits.triangle[r * w + c] != NO_TRIANGLE);
+        assert!(on(0) && on(w - 1), "{name}: beams on both sides of the wrap");
+    }
+    finish(renderer, ctx);
+}
+
+#[test]
+fn panorama_room_box_around_the_sensor_every_beam_exact() {
+    let ctx = context();
+    for oversample in [1.0, 2.0] {
+        let (_, pano, lookup, mut renderer) = panorama_setup(&ctx, oversample);
+        let (lo, hi) = (DVec3::new(-6.0, -4.0, -1.5), DVec3::new(6.0, 4.0, 2.5));
+        let mut geom = FrameGeometry::default();
+        let (p, i) = box_mesh(lo, hi, false);
+        geom.push_mesh_with_adjacency(&p, &i, 3, true, Some(Arc::new(Adjacency::build(&i))));
+        let frame = renderer.render(&geom).unwrap().clone();
+        let stats = renderer.stats();
+        eprintln!("room x{oversample}: {stats:?}");
+        // Floor and ceiling wind around the vertical axis: split, the parts out of the band
+        // culled, nothing dropped.
+        assert_eq!(stats.panorama.soup_meshes, 1);
+        assert_eq!(stats.panorama.dropped_at_axis, 0);
+        assert!(stats.panorama.culled > 0);
+        let name = format!("room_x{oversample}");
+        panorama_texels_vs(&name, &pano, &frame.faces[0], |d| ray_box(d, lo, hi).map_or(0.0, |(_, t1)| t1 * d.length()));
+        let img = &frame.faces[0];
+        assert!(img.id.iter().all(|&id| id != 0), "{name}: every texel sees the room");
+        // Every texel's triangle lies in the plane of its hit point.
+        let mut bad_id = 0;
+        for v in 0..img.height {
+            for u in 0..img.width {
+                let id = img.id_at(u, v);
+                let d = pano.texel_dir(u, v);
+                let hit = d * ray_box(d, lo, hi).unwrap().1;
+                let [a, b, c] = geom.triangle_f64(id - 1);
+                let n = (b - a).cross(c - a).normalize();
+                bad_id += (n.dot(hit - a).abs() > 1e-3) as usize;
+            }
+        }
+        let allowed = (MAX_BAD_FRACTION * img.id.len() as f64) as usize;
+        assert!(bad_id <= allowed, "{name}: {bad_id} ids on the wrong wall");
+        let mut hits = BeamHits::default();
+        resample(&lookup, &frame, &geom, Refine::Exact, &mut hits);
+        let (want, differ, err) = beams_vs_closed_form(&lookup, &hits, |d| ray_box(d, lo, hi).map(|(_, t1)| t1));
+        eprintln!("{name}: {want} beams, {differ} differ, max error {err:.2e} m");
+        assert_eq!((want, differ), (lookup.dirs.len(), 0));
+        assert!(err <= EXACT_ABS_TOL_M, "{name}: {err}");
+    }
+    assert_eq!(Arc::strong_count(&ctx), 1);
+    let errors = ctx.validation_counter();
+    drop(ctx);
+    assert_eq!(errors.load(Ordering::SeqCst), 0);
+}
+
+#[test]
+fn panorama_large_walls_close_by_are_split_and_exact() {
+    let ctx = context();
+    let (_, pano, lookup, mut renderer) = panorama_setup(&ctx, 2.0);
+    // Two triangles each: 60 m walls 0.6 m to the left and 0.5 m behind the sensor (this one
+    // across the wrap), 4 m tall; and a 60 m x 60 m floor 0.8 m below, around the axis.
+    let walls: [(&str, Vec<[f64; 3]>); 3] = [
+        ("left", vec![[-30.0, 0.6, -1.0], [30.0, 0.6, -1.0], [30.0, 0.6, 3.0], [-30.0, 0.6, 3.0]]),
+        ("behind", vec![[-0.5, 30.0, -1.0], [-0.5, -30.0, -1.0], [-0.5, -30.0, 3.0], [-0.5, 30.0, 3.0]]),
+        ("floor", vec![[-30.0, -30.0, -0.8], [30.0, -30.0, -0.8], [30.0, 30.0, -0.8], [-30.0, 30.0, -0.8]]),
+    ];
+    for (name, q) in walls {
+        let p: Vec<[f32; 3]> = q.iter().map(|v| v.map(|c| c as f32)).collect();
+        let i = vec![0, 1, 2, 0, 2, 3];
+        let mut geom = FrameGeometry::default();
+        geom.push_mesh_with_adjacency(&p, &i, 0, true, Some(Arc::new(Adjacency::build(&i))));
+        let tris = [[0usize, 1, 2], [0, 2, 3]].map(|t| t.map(|k| DVec3::from(q[k])));
+        let expected = |d: DVec3| -> Option<f64> {
+            tris.iter().filter_map(|t| pedscan::raycast::intersect_triangle(d.normalize(), t, false)).reduce(f64::min)
+        };
+        let frame = renderer.render(&geom).unwrap().clone();
+        let stats = renderer.stats();
+        eprintln!("{name}: {stats:?}");
+        assert!(stats.panorama.splits > 50, "{name}: the wall is split");
+        assert_eq!(stats.panorama.dropped_at_axis, 0, "{name}");
+        panorama_texels_vs(name, &pano, &frame.faces[0], |d| expected(d).unwrap_or(0.0));
+        let mut hits = BeamHits::default();
+        resample(&lookup, &frame, &geom, Refine::Exact, &mut hits);
+        let (want, differ, err) = beams_vs_closed_form(&lookup, &hits, expected);
+        eprintln!("{name}: {want} beams should hit, {differ} differ, max error {err:.2e} m");
+        assert!(want > 1000, "{name}");
+        assert_eq!(differ, 0, "{name}");
+        assert!(err <= EXACT_ABS_TOL_M, "{name}: {err}");
+    }
+    finish(renderer, ctx);
+}
+
+#[test]
+fn panorama_nothing_visible_means_no_gpu_work() {
+    let ctx = context();
+    let (_, _, _, mut renderer) = panorama_setup(&ctx, 2.0);
+    let frame = renderer.render(&FrameGeometry::default()).unwrap();
+    assert!(!frame.faces[0].rendered);
+    assert!(!renderer.stats().submitted);
+    let mut geom = FrameGeometry::default();
+    // Straight above the band, straight below it, and a speck inside the near limit.
+    let (p, i) = box_mesh(DVec3::new(-0.5, -0.5, 10.0), DVec3::new(0.5, 0.5, 11.0), true);
+    geom.push_mesh(&p, &i, 1, false);
+    let (p, i) = box_mesh(DVec3::new(-0.5, -0.5, -11.0), DVec3::new(0.5, 0.5, -10.0), true);
+    geom.push_mesh(&p, &i, 2, false);
+    let (p, i) = box_mesh(DVec3::splat(-0.001), DVec3::splat(0.001), true);
+    geom.push_mesh(&p, &i, 3, false);
+    let frame = renderer.render(&geom).unwrap();
+    assert!(!frame.faces[0].rendered);
+    assert_eq!(renderer.stats(), Default::default());
+    assert_eq!(renderer.render_count(), 0);
+    finish(renderer, ctx);
+}
+
+/// People posed around the sensor: in front, behind across the wrap, on a cube seam, far, and
+/// one within a metre (its bounding sphere around the vertical axis: the CPU list). The
+/// panorama with exact refinement against the ray-cast reference, with the tolerances the
+/// cube path is held to (`pedscan crosscheck` acceptance: >= 99.5 % of human beams agree,
+/// p99 range error <= 1 mm); the cube path on the same scene for comparison.
+#[test]
+fn panorama_matches_the_ray_cast_reference_on_posed_people() {
+    use pedscan::human::{HumanModel, MODEL_TO_BODY};
+    let ctx = context();
+    let models: Vec<HumanModel> = ["h1700_w60", "h1200_w20", "h1800_w90", "h1600_w50"]
+        .iter()
+        .map(|n| HumanModel::load(&pedscan::config::data_dir().join("humans").join(format!("{n}.glb")), true).unwrap())
+        .collect();
+    // (x, y, heading, phase) on a floor 0.8 m below the sensor.
+    let people = [(5.0, 0.3, 1.0, 0.1), (-4.0, 0.05, 2.0, 0.4), (3.5, 3.6, -0.5, 0.7), (12.0, -7.0, 0.3, 0.2), (0.2, 0.8, 1.5, 0.9), (-2.5, -1.5, -2.0, 0.6)];
+    let mut geom = FrameGeometry::default();
+    let (mut joints, mut skinned) = (Vec::new(), Vec::new());
+    for (k, &(x, y, heading, phase)) in people.iter().enumerate() {
+        let m = &models[k % models.len()];
+        let body = glam::DMat4::from_translation(DVec3::new(x, y, -0.8)) * glam::DMat4::from_rotation_z(heading);
+        m.joint_matrices(phase as f32, &mut joints);
+        let t = (body * MODEL_TO_BODY.as_dmat4()).as_mat4();
+        m.skin_into(0, &joints, &t, &mut skinned);
+        geom.push_mesh_with_adjacency(&skinned, &m.lods[0].indices, k as u32 + 1, false, Some(m.lods[0].adjacency.clone()));
+    }
+    let sensor = Sensor::hdl32e();
+    let reference = cast_frame(&geom, &sensor.beam_dirs(), 1e3);
+    let agreement = |hits: &BeamHits, reference: &[Hit]| {
+        let (mut both, mut union, mut errors, mut mixups) = (0, 0, Vec::new(), 0);
+        for (b, r) in reference.iter().enumerate() {
+            let rh = hits.triangle[b] != NO_TRIANGLE;
+            if rh || r.is_hit() {
+                union += 1;
+            }
+            if rh && r.is_hit() {
+                both += 1;
+                errors.push((hits.range_m[b] as f64 - r.range_m).abs());
+                mixups += (geom.mesh_of_triangle(hits.triangle[b]).instance != r.instance(&geom)) as usize;
+            }
+        }
+        errors.sort_by(f64::total_cmp);
+        let p99 = errors[((errors.len() - 1) as f64 * 0.99).round() as usize];
+        (both as f64 / union as f64, p99, union, mixups)
+    };
+    let mut rows = Vec::new();
+    for (name, cylinder) in [("cube", false), ("cylinder", true)] {
+        let (lookup, mut renderer) = if cylinder {
+            let pano = Panorama::new(&sensor, 2.0);
+            (BeamLookup::new_panorama(&sensor, &pano), Renderer::new_panorama(&ctx, &pano).unwrap())
+        } else {
+            let cube = CubeFaces::new(&sensor, 2.0);
+            (BeamLookup::new(&sensor, &cube), Renderer::new(&ctx, &cube).unwrap())
+        };
+        renderer.render(&geom).unwrap();
+        let stats = renderer.stats();
+        let mut hits = BeamHits::default();
+        resample(&lookup, renderer.frame(), &geom, Refine::Exact, &mut hits);
+        let (a, p99, union, mixups) = agreement(&hits, &reference);
+        eprintln!("{name}: agreement {:.4} % of {union} beams, p99 {:.2e} m, {mixups} instance mix-ups, {stats:?}", 100.0 * a, p99);
+        if cylinder {
+            assert_eq!(stats.panorama.soup_meshes, 1, "the person within a metre goes through the CPU list");
+            assert_eq!(stats.panorama.direct_meshes, 5);
+        }
+        rows.push((a, p99, mixups));
+        let errors = ctx.validation_counter();
+        drop(renderer);
+        assert_eq!(errors.load(Ordering::SeqCst), 0);
+    }
+    let (a, p99, mixups) = rows[1];
+    assert!(a >= 0.995, "cylinder agreement {a}");
+    assert!(p99 <= 1e-3, "cylinder p99 {p99} m");
+    assert_eq!(mixups, 0);
+    assert_eq!(Arc::strong_count(&ctx), 1);
+    let errors = ctx.validation_counter();
+    drop(ctx);
+    assert_eq!(errors.load(Ordering::SeqCst), 0);
+}
+
+/// Benchmark, not a test: `cargo test --release --test gpu_raster bench_cube_vs_cylinder --
+/// --ignored --nocapture`. The default scene (hall + people) posed by the pipeline, then the
+/// render and the resampling of each layer timed for both projections on the same frames.
+/// `PEDSCAN_BENCH_HUMANS` (default 10), `PEDSCAN_BENCH_COLUMNS` (1024), `PEDSCAN_BENCH_OVERSAMPLE` (2),
+/// `PEDSCAN_BENCH_ONLY` (`cube` or `cylinder`: time one, e.g. under a profiler).
+#[test]
+#[ignore]
+fn bench_cube_vs_cylinder() {
+    use pedscan::config::{Config, Projection};
+    use pedscan::pipeline::Generator;
+    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    let humans = env("PEDSCAN_BENCH_HUMANS", 10.0) as usize;
+    let columns = env("PEDSCAN_BENCH_COLUMNS", 1024.0) as usize;
+    let oversample = env("PEDSCAN_BENCH_OVERSAMPLE", 2.0);
+    let sensor_file = std::env::temp_dir().join(format!("pedscan-bench-cyl-{columns}.toml"));
+    let elev: Vec<String> = Sensor::hdl32e().elevation_deg.iter().map(|e| e.to_string()).collect();
+    std::fs::write(&sensor_file, format!("elevation_deg = [{}]\ncolumns = {columns}\n", elev.join(", "))).unwrap();
+    let mut gens: Vec<Generator> = [Projection::Cube, Projection::Cylinder]
+        .iter()
+        .map(|&p| {
+            let mut cfg = Config::default();
+            cfg.humans.count = [humans, humans];
+            cfg.frames = 8;
+            cfg.render.projection = p;
+            cfg.render.oversample = oversample;
+            cfg.sensor = sensor_file.display().to_string();
+            Generator::new(cfg, false).unwrap()
+        })
+        .collect();
+    let plan = gens[0].plan(0).unwrap();
+    let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    // [projection][layer]: render, resample none, resample exact, prep (cylinder)
+    let mut t = vec![vec![vec![Vec::new(); 4]; 2]; 2];
+    let mut tris = [0u64; 2];
+    for k in 0..plan.times_s.len() {
+        for rep in 0..5 {
+            for (g, gen) in gens.iter_mut().enumerate() {
+                if std::env::var("PEDSCAN_BENCH_ONLY").is_ok_and(|o| o != ["cube", "cylinder"][g]) {
+                    continue;
+                }
+                let state = gen.frame_state(&plan, k);
+                gen.pose_frame(&plan, &state);
+                for layer in 0..2 {
+                    let geom = if layer == 0 { &gen.scratch.background } else { &gen.scratch.humans };
+                    if rep == 0 && layer == 1 {
+                        tris[g] += geom.triangle_count() as u64;
+                    }
+                    if let Some(p) = gen.renderer.panorama() {
+                        let mut prep = pedscan::panorama::PanoramaPrep::default();
+                        let t0 = std::time::Instant::now();
+                        prep.prepare(p, geom);
+                        t[g][layer][3].push(ms(t0));
+                    }
+                    let t0 = std::time::Instant::now();
+                    let frame = gen.renderer.render(geom).unwrap();
+                    t[g][layer][0].push(ms(t0));
+                    let mut hits = BeamHits::default();
+                    for (i, refine) in [(1, Refine::None), (2, Refine::Exact)] {
+                        let t0 = std::time::Instant::now();
+                        resample(&gen.lookup, frame, geom, refine, &mut hits);
+                        t[g][layer][i].push(ms(t0));
+                    }
+                    if rep == 0 && k == 0 {
+                        eprintln!("{} layer {layer}: {:?}", ["cube", "cylinder"][g], gen.renderer.stats());
+                    }
+                }
+            }
+        }
+    }
+    for (g, name) in ["cube", "cylinder"].iter().enumerate() {
+        for (layer, lname) in ["background", "people"].iter().enumerate() {
+            let mut row = t[g][layer].clone();
+            if row[0].is_empty() {
+                continue;
+            }
+            let prep = if row[3].is_empty() { 0.0 } else { median(&mut row[3]) };
+            let render_min = row[0].iter().cloned().fold(f64::MAX, f64::min);
+            println!(
+                "{name:>8} {lname:>10}: render {:.2} ms (min {render_min:.2}; CPU prep {prep:.2}), resample none {:.2}, exact {:.2}",
+                median(&mut row[0]),
+                median(&mut row[1]),
+                median(&mut row[2])
+            );
+        }
+    }
+    println!("{humans} people, {columns} columns, oversample {oversample}; human triangles per frame {}", tris[0] / plan.times_s.len() as u64);
+    let _ = std::fs::remove_file(&sensor_file);
+}
+
+#[test]
+fn panorama_back_face_culling_keeps_the_near_side() {
+    let ctx = context();
+    let (_, pano, _, mut renderer) = panorama_setup(&ctx, 2.0);
+    let (lo, hi) = (DVec3::new(3.0, -0.5, -0.6), DVec3::new(4.0, 0.5, 0.4));
+    let near = |d: DVec3| ray_box(d, lo, hi).map_or(0.0, |(t0, _)| t0 * d.length());
+    let far = |d: DVec3| ray_box(d, lo, hi).map_or(0.0, |(_, t1)| t1 * d.length());
+    type Expected<'a> = &'a dyn Fn(DVec3) -> f64;
+    // As for the cube: outward + culling shows the near side, inward + culling the far side
+    // (culling is on and keeps the sensor's counter-clockwise), double-sided the near side.
+    let cases: [(&str, bool, bool, Expected); 3] =
+        [("pano_outward_culled", true, false, &near), ("pano_outward_double", true, true, &near), ("pano_inward_culled", false, false, &far)];
+    for (name, outward, double_sided, expected) in cases {
+        // Fine enough to be drawn directly (5 cm cells) and as 12 triangles (the CPU list).
+        for direct in [false, true] {
+            let mut geom = FrameGeometry::default();
+            let (p, i) = box_mesh(lo, hi, outward);
+            if direct {
+                // Subdivide every box face 4 x 4 times (midpoints keep the winding).
+                let (mut p, mut i) = (p, i);
+                for _ in 0..4 {
+                    let mut ni = Vec::new();
+                    for t in i.chunks_exact(3) {
+                        let [a, b, c] = [t[0], t[1], t[2]].map(|k| Vec3::from(p[k as usize]));
+                        let base = p.len() as u32;
+                        p.extend([(a + b) / 2.0, (b + c) / 2.0, (c + a) / 2.0].map(|v| v.to_array()));
+                        let (ab, bc, ca) = (base, base + 1, base + 2);
+                        ni.extend([t[0], ab, ca, ab, t[1], bc, ca, bc, t[2], ab, bc, ca]);
+                    }
+                    i = ni;
+                }
+                geom.push_mesh(&p, &i, 1, double_sided);
+            } else {
+                geom.push_mesh(&p, &i, 1, double_sided);
+            }
+            let frame = renderer.render(&geom).unwrap().clone();
+            let stats = renderer.stats();
+            assert_eq!(stats.panorama.direct_meshes == 1, direct, "{name}: {stats:?}");
+            panorama_texels_vs(name, &pano, &frame.faces[0], expected);
+        }
+    }
+    finish(renderer, ctx);
 }

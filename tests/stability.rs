@@ -989,3 +989,100 @@ fn non_unit_quaternions_in_the_rig_are_normalised_on_load_and_sampling() {
         assert!(worst <= MAT_TOL, "factor {factor}: joint matrices differ by {worst:e} > {MAT_TOL:e}");
     }
 }
+
+// ------------------------------------------------------------------------------------------
+// 7. The cylindrical panorama on the render-path cases above
+// ------------------------------------------------------------------------------------------
+
+#[test]
+fn cylinder_panorama_holds_the_render_path_cases() {
+    // The scenes of sections 2, 3 and 5 and the grazing floor through the panorama
+    // (`render.projection = "cylinder"`), with the tolerances stated there: exact mode's hit
+    // set equals the reference's, ranges within 1e-5 m, same instance on every beam (the
+    // grazing floor: within 1e-6 relative, hit sets agreeing on >= 99 % of beams).
+    use pedscan::projection::Panorama;
+    let ctx = context();
+    let run = |sensor: &Sensor, geom: &FrameGeometry, max_range_m: f64, label: &str| -> Compared {
+        let pano = Panorama::new(sensor, OVERSAMPLE);
+        let lookup = BeamLookup::new_panorama(sensor, &pano);
+        let mut renderer = Renderer::new_panorama(&ctx, &pano).expect("renderer");
+        let c = compare(&mut renderer, &lookup, geom, max_range_m);
+        c.print(label);
+        eprintln!("[{label}] {:?}", renderer.stats().panorama);
+        c
+    };
+    let sensor = Sensor::hdl32e();
+
+    let mut geom = FrameGeometry::default();
+    push_box(&mut geom, DVec3::new(0.3, -0.3, -1.7), DVec3::new(0.6, 0.3, 0.1), 1, true, false);
+    push_box(&mut geom, DVec3::new(-1.1, -120.5, -1.7), DVec3::new(1.1, -120.0, 0.3), 2, true, false);
+    let c = run(&sensor, &geom, 1e3, "cyl near/far 1 km");
+    assert_exact_matches(&c, "cyl near/far 1 km");
+    assert!(ref_hits_on(&c, &geom, 1) > 1000 && ref_hits_on(&c, &geom, 2) >= 1);
+    let c = run(&sensor, &geom, 100.0, "cyl near/far 100 m");
+    assert_exact_matches(&c, "cyl near/far 100 m");
+    assert_eq!(exact_hits_on(&c, &geom, 2, 100.0), 0);
+
+    let mut geom = FrameGeometry::default();
+    let s = 5.0 * std::f64::consts::FRAC_1_SQRT_2;
+    push_box(&mut geom, DVec3::new(s - 0.4, s - 0.4, -1.7), DVec3::new(s + 0.4, s + 0.4, 0.2), 1, true, false);
+    push_box(&mut geom, DVec3::new(-5.4, -0.4, -1.7), DVec3::new(-5.0, 0.4, 0.2), 2, true, false);
+    let c = run(&sensor, &geom, 1e3, "cyl seam/wrap");
+    assert_exact_matches(&c, "cyl seam/wrap");
+    let w = sensor.columns;
+    let wrap_cols = |col: usize| (0..sensor.rows()).filter(|r| c.reference[r * w + col].is_hit()).count();
+    assert!(wrap_cols(0) > 0 && wrap_cols(w - 1) > 0, "the wrap box covers columns 0 and W-1");
+
+    let mut geom = FrameGeometry::default();
+    push_box(&mut geom, DVec3::new(4.0, -0.5, -1.7), DVec3::new(5.0, 0.5, 0.1), 1, true, false);
+    push_box(&mut geom, DVec3::new(4.4, 0.1, -1.6), DVec3::new(5.4, 1.1, 0.05), 2, true, false);
+    let c = run(&sensor, &geom, 1e3, "cyl overlap");
+    assert_exact_matches(&c, "cyl overlap");
+    assert_eq!(c.exact().triangle_mismatch, 0);
+
+    let (lo, hi) = (DVec3::new(-3.0, -4.0, -2.0), DVec3::new(5.0, 2.0, 3.0));
+    let mut single = FrameGeometry::default();
+    push_box(&mut single, lo, hi, 1, true, false);
+    let c = run(&sensor, &single, 1e3, "cyl enclosing single-sided");
+    for (k, h) in c.hits.iter().enumerate() {
+        let n = h.triangle.iter().filter(|&&t| t != NO_TRIANGLE).count();
+        assert_eq!(n, 0, "{:?}: {n} hits on back faces from inside (tolerance 0)", MODES[k]);
+    }
+    let mut double = FrameGeometry::default();
+    push_box(&mut double, lo, hi, 1, true, true);
+    let c = run(&sensor, &double, 1e3, "cyl enclosing double-sided");
+    assert_exact_matches(&c, "cyl enclosing double-sided");
+    assert_eq!(c.exact().both, sensor.rows() * sensor.columns, "every beam sees a wall");
+
+    // The grazing floor, on a sensor whose elevation table is far from uniform (rows from the
+    // smallest gap; beams off texel centres take the full search).
+    let grazing = custom_sensor("grazing", vec![0.0, -0.03, -0.1, -0.3, -1.0, -1.33, -3.0, -10.0], 1024);
+    let (n, cell, z) = (20usize, 20.0f64, -0.05f64);
+    let mut pos = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            pos.push(DVec3::new(-200.0 + i as f64 * cell, -200.0 + j as f64 * cell, z));
+        }
+    }
+    let mut idx = Vec::new();
+    let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    for j in 0..n {
+        for i in 0..n {
+            idx.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    let mut geom = FrameGeometry::default();
+    push(&mut geom, &to_f32(&pos), &idx, 0, false);
+    let c = run(&grazing, &geom, 1e3, "cyl grazing");
+    let s = c.exact();
+    let total = grazing.rows() * grazing.columns;
+    let agreement = (total - s.raster_only - s.ref_only) as f64 / total as f64;
+    assert!(s.max_rel_err <= 1e-6, "cyl grazing: exact max relative error {:e}", s.max_rel_err);
+    assert!(agreement >= 0.99, "cyl grazing: agreement {agreement}");
+    assert_eq!(s.non_finite, 0);
+
+    let errors = ctx.validation_counter();
+    assert_eq!(Arc::strong_count(&ctx), 1);
+    drop(ctx);
+    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
+}

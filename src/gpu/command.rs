@@ -156,6 +156,16 @@ impl<'a> CommandRecorder<'a> {
         unsafe { self.device().cmd_draw_indexed(self.cmd(), index_count, 1, first_index, 0, 0) };
     }
 
+    /// `vkCmdDraw(vertex_count, 1, first_vertex, 0)`, bounds-checked against the bound vertex
+    /// buffer.
+    pub fn draw(&mut self, vertex_count: u32, first_vertex: u32) {
+        assert!(self.in_pass, "draw outside a render pass");
+        assert!(first_vertex as u64 + vertex_count as u64 <= self.vertex_count, "draw exceeds the bound vertex buffer");
+        // SAFETY: inside a render pass with pipeline and vertex buffer bound; the vertex range
+        // is in bounds (checked).
+        unsafe { self.device().cmd_draw(self.cmd(), vertex_count, 1, first_vertex, 0) };
+    }
+
     /// Copies a whole single-channel 32-bit colour image (in `TRANSFER_SRC_OPTIMAL`) to
     /// `buffer` at byte `offset`, tightly packed, row-major.
     pub fn copy_image_to_buffer(&mut self, image: &'a Image, buffer: &'a Buffer, offset: u64) {

@@ -128,13 +128,16 @@ impl Drop for PipelineLayout {
     }
 }
 
-/// Fixed-function choices of a triangle pipeline with one `vec3` vertex attribute.
+/// Fixed-function choices of a triangle pipeline with one `vec3` vertex attribute (and,
+/// optionally, a `uint` after it).
 #[derive(Clone, Debug)]
 pub struct PipelineDesc<'a> {
     pub vertex_spirv: &'a [u32],
     pub fragment_spirv: &'a [u32],
     /// Bytes per vertex; attribute 0 is `R32G32B32_SFLOAT` at offset 0.
     pub vertex_stride: u32,
+    /// Attribute 1 is `R32_UINT` at offset 12 (a per-vertex id).
+    pub id_attribute: bool,
     pub color_attachments: u32,
     pub cull_mode: vk::CullModeFlags,
     pub front_face: vk::FrontFace,
@@ -188,11 +191,14 @@ impl GraphicsPipeline {
             stride: desc.vertex_stride,
             input_rate: vk::VertexInputRate::VERTEX,
         }];
-        let attributes =
-            [vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32B32_SFLOAT, offset: 0 }];
+        let all_attributes = [
+            vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32B32_SFLOAT, offset: 0 },
+            vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 12 },
+        ];
+        let attributes = &all_attributes[..if desc.id_attribute { 2 } else { 1 }];
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
             .vertex_binding_descriptions(&bindings)
-            .vertex_attribute_descriptions(&attributes);
+            .vertex_attribute_descriptions(attributes);
         let input_assembly =
             vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
         let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
