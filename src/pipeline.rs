@@ -443,6 +443,16 @@ impl Generator {
         Ok(state)
     }
 
+    /// One frame, and its posed people as PLY with `--export-geometry`.
+    fn frame_and_export(&mut self, plan: &SequencePlan, index: usize, k: usize, out: &mut FrameOutput) -> Result<()> {
+        self.frame(plan, k, out)?;
+        if let Some(dir) = &self.export_geometry {
+            let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
+            crate::output::ply::write_humans_ply(&path, &self.scratch.humans)?;
+        }
+        Ok(())
+    }
+
     /// Metadata of sequence `index`.
     pub fn meta(&self, index: usize, plan: &SequencePlan) -> SequenceMeta {
         SequenceMeta {
@@ -513,7 +523,17 @@ impl Generator {
                 CompressionChoice::Deflate => Compression::Deflate(1),
             },
         };
-        let writer = SequenceWriter::create(out_dir, &meta, &opts)?;
+        let mut writer = SequenceWriter::create(out_dir, &meta, &opts)?;
+        // PEDSCAN_OVERLAP_WRITE=0 writes each frame on this thread (to measure the overlap).
+        if std::env::var("PEDSCAN_OVERLAP_WRITE").is_ok_and(|v| v == "0") {
+            let mut out = FrameOutput::default();
+            for k in 0..plan.times_s.len() {
+                self.frame_and_export(&plan, index, k, &mut out)?;
+                writer.write_frame(&out)?;
+                on_frame();
+            }
+            return writer.finish();
+        }
         // The writer runs on its own thread, one frame behind: frame k+1 is posed, rendered
         // and composited while frame k is compressed and written. Two frame buffers travel
         // between the threads (no per-frame allocation). The writer finishes the files only
@@ -546,11 +566,7 @@ impl Generator {
                     // A buffer comes back once the writer is done with it; none means the
                     // writer stopped on an error, reported below.
                     let Ok(mut out) = spare.recv() else { return Ok(()) };
-                    self.frame(&plan, k, &mut out)?;
-                    if let Some(dir) = &self.export_geometry {
-                        let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
-                        crate::output::ply::write_humans_ply(&path, &self.scratch.humans)?;
-                    }
+                    self.frame_and_export(&plan, index, k, &mut out)?;
                     if to_writer.send(Msg::Frame(out)).is_err() {
                         return Ok(());
                     }
