@@ -348,7 +348,8 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
         log_x: true,
         log_y: true,
         series,
-        width: 1000,
+        // Wide enough for the legend to move right of the axes when it would cover points.
+        width: 1400,
         height: 650,
     }
 }

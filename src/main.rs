@@ -50,6 +50,9 @@ enum Command {
         /// Run one point (internal: the sweep runs each point in a child process).
         #[arg(long, hide = true)]
         point: Option<String>,
+        /// Redraw the table and plot from the points of an earlier `--json` file; runs nothing.
+        #[arg(long)]
+        from_json: Option<PathBuf>,
     },
     /// Contact sheet of human models at several gait phases, rendered by pedscan itself.
     Sheet {
@@ -313,7 +316,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let report = pedscan::crosscheck::crosscheck(cfg, &opts)?;
             println!("{report}");
         }
-        Command::Bench { quick, config, json, markdown, plot, point } => {
+        Command::Bench { quick, config, json, markdown, plot, point, from_json } => {
+            if let Some(src) = from_json {
+                let text = std::fs::read_to_string(&src).with_context(|| src.display().to_string())?;
+                let points: Vec<pedscan::bench::Point> = serde_json::from_str(&text)
+                    .map_err(|e| pedscan::Error::input(src.display(), format!("not a bench JSON: {e}")))?;
+                let table = pedscan::bench::markdown(&points);
+                std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
+                pedscan::bench::plot(&points).save(&plot)?;
+                print!("{table}");
+                return Ok(());
+            }
             let base = match &config {
                 Some(p) => Config::from_file(p)?,
                 None => Config::default(),

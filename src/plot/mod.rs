@@ -316,6 +316,8 @@ struct Layout {
     bottom: i64,
     /// Gap between the box and the ends of the axis ranges (keeps markers off the frame).
     inset: f64,
+    /// The legend sits right of the axis box (every corner inside would cover data).
+    legend_outside: bool,
     x: Axis,
     y: Axis,
 }
@@ -367,6 +369,20 @@ impl Plot {
     }
 
     fn layout(&self, pts: &[Vec<(f64, f64)>], w: u32, h: u32) -> Layout {
+        let l = self.layout_reserving(pts, w, h, 0);
+        match self.legend_size(l.scale) {
+            // Move the legend out of the box when every corner inside covers data, if the
+            // box keeps at least half the width.
+            Some((bw, _)) if self.legend_corner(&l, pts).1 > 0 && (bw + 12 * l.scale as i64) < w as i64 / 2 => {
+                let mut l = self.layout_reserving(pts, w, h, bw + 12 * l.scale as i64);
+                l.legend_outside = true;
+                l
+            }
+            _ => l,
+        }
+    }
+
+    fn layout_reserving(&self, pts: &[Vec<(f64, f64)>], w: u32, h: u32, reserve_right: i64) -> Layout {
         let range = |f: fn(&(f64, f64)) -> f64| {
             pts.iter()
                 .flatten()
@@ -410,9 +426,10 @@ impl Plot {
             scale,
             left,
             top,
-            right: w as i64 - 1 - right,
+            right: w as i64 - 1 - right - reserve_right,
             bottom: h as i64 - 1 - bottom,
             inset: (6 * s + 2) as f64,
+            legend_outside: false,
             x,
             y,
         }
@@ -428,12 +445,13 @@ impl Plot {
         let s = scale as i64;
         let th = font::text_height(scale) as i64;
 
-        // Title, centred over the image.
+        // Title, centred over the image right of the vertical y-axis title.
         if !self.title.trim().is_empty() {
-            let (title, ts) = fit_text(&self.title, w as i64 - 4 * s, scale + 1);
+            let x0 = if self.y_label.trim().is_empty() { 0 } else { 6 * s + th + 2 * s };
+            let (title, ts) = fit_text(&self.title, w as i64 - x0 - 4 * s, scale + 1);
             let tw = font::text_width(&title, ts) as i64;
             let y = 2 * s + 4 + (font::text_height(scale + 1) - font::text_height(ts)) as i64 / 2;
-            font::draw_text(&mut img, (w as i64 - tw) / 2, y, &title, ts, TEXT);
+            font::draw_text(&mut img, x0 + (w as i64 - x0 - tw) / 2, y, &title, ts, TEXT);
         }
         let box_ok = l.right - l.left > 2 * l.inset as i64 && l.bottom - l.top > 2 * l.inset as i64;
         if !box_ok {
@@ -575,25 +593,24 @@ impl Plot {
         img
     }
 
-    /// The legend box in the corner of the axis box that covers the fewest data pixels.
-    fn draw_legend(&self, img: &mut RgbImage, l: &Layout, pts: &[Vec<(f64, f64)>]) {
+    /// Width and height of the legend box at text `scale` (None without series).
+    fn legend_size(&self, scale: u32) -> Option<(i64, i64)> {
         if self.series.is_empty() {
-            return;
+            return None;
         }
-        let scale = l.scale;
         let s = scale as i64;
         let th = font::text_height(scale) as i64;
         let row = th + 4 * s;
-        let sample = 18 * s;
-        let pad = 5 * s;
-        let name_w = self
-            .series
-            .iter()
-            .map(|x| font::text_width(&x.name, scale))
-            .max()
-            .unwrap_or(0);
-        let bw = pad + sample + pad + 2 * s + name_w as i64 + pad;
-        let bh = 2 * pad + row * self.series.len() as i64 - 4 * s;
+        let (sample, pad) = (18 * s, 5 * s);
+        let name_w = self.series.iter().map(|x| font::text_width(&x.name, scale)).max().unwrap_or(0);
+        Some((pad + sample + pad + 2 * s + name_w as i64 + pad, 2 * pad + row * self.series.len() as i64 - 4 * s))
+    }
+
+    /// The corner of the axis box for the legend that covers the fewest data pixels, and how
+    /// many it covers.
+    fn legend_corner(&self, l: &Layout, pts: &[Vec<(f64, f64)>]) -> ((i64, i64), usize) {
+        let Some((bw, bh)) = self.legend_size(l.scale) else { return ((l.left, l.top), 0) };
+        let s = l.scale as i64;
         let m = 6 * s;
         // Top-right, top-left, bottom-right, bottom-left; first wins ties.
         let corners = [
@@ -612,10 +629,7 @@ impl Plot {
                 for seg in px.windows(2) {
                     for k in 1..16 {
                         let t = k as f64 / 16.0;
-                        probes.push((
-                            seg[0].0 + t * (seg[1].0 - seg[0].0),
-                            seg[0].1 + t * (seg[1].1 - seg[0].1),
-                        ));
+                        probes.push((seg[0].0 + t * (seg[1].0 - seg[0].0), seg[0].1 + t * (seg[1].1 - seg[0].1)));
                     }
                 }
             }
@@ -632,12 +646,19 @@ impl Plot {
                 })
                 .count()
         };
-        let (x0, y0) = corners
-            .iter()
-            .enumerate()
-            .min_by_key(|&(i, c)| (cost(c), i))
-            .map(|(_, c)| *c)
-            .unwrap_or(corners[0]);
+        corners.iter().enumerate().map(|(i, c)| ((cost(c), i), *c)).min().map_or((corners[0], 0), |((n, _), c)| (c, n))
+    }
+
+    /// The legend: inside the axis box in its emptiest corner, or right of it.
+    fn draw_legend(&self, img: &mut RgbImage, l: &Layout, pts: &[Vec<(f64, f64)>]) {
+        let Some((bw, bh)) = self.legend_size(l.scale) else { return };
+        let scale = l.scale;
+        let s = scale as i64;
+        let th = font::text_height(scale) as i64;
+        let row = th + 4 * s;
+        let sample = 18 * s;
+        let pad = 5 * s;
+        let (x0, y0) = if l.legend_outside { (l.right + 6 * s, l.top) } else { self.legend_corner(l, pts).0 };
         let full = Clip {
             x0: 0,
             y0: 0,
