@@ -506,7 +506,8 @@ fn sample_synthetic_people(
                 continue;
             }
             let path: HumanPath = match (hc.walk, inp.grid, planner.as_mut()) {
-                (WalkMode::Goals, Some(grid), Some(planner)) => {
+                // A person who does not walk (speed 0) stands: no path to plan.
+                (WalkMode::Goals, Some(grid), Some(planner)) if speed > 0.0 => {
                     match planner.plan_walk(rng, grid, hc.clearance_m, speed, duration, Some(start)) {
                         Some(w) => HumanPath::Walk(w, inp.floor_z_m),
                         None => continue,
