@@ -206,6 +206,7 @@ impl Generator {
             kept.into_iter().map(Arc::new).collect()
         };
         if let Some(rec) = &recording {
+            eprintln!("background {}: {}", bg.display(), rec.description);
             if rec.poses.is_none() {
                 eprintln!("warning: {}: no poses given (--poses), so the sensor is taken as static; background velocities are 0", bg.display());
             }
@@ -490,6 +491,7 @@ impl Generator {
         if let (Some(rec), Some(s)) = (&self.recording, plan.recording_start) {
             v.push(("recording_first_frame".into(), s.to_string()));
             v.push(("recording_frames".into(), rec.len().to_string()));
+            v.push(("recording".into(), rec.description.clone()));
         }
         if !self.cfg.scene.poses.as_os_str().is_empty() {
             v.push(("poses".into(), name(&self.cfg.scene.poses)));

@@ -132,6 +132,8 @@ fn people_are_composited_into_a_recorded_kitti_sequence() {
     let f = hdf5::File::open(dir.join("out/seq_000000.h5")).unwrap();
     let start: usize = provenance(&f, "recording_first_frame").parse().unwrap();
     assert!(start + 6 <= frames_total);
+    assert_eq!(provenance(&f, "recording"), "12 KITTI .bin frames");
+    assert_eq!(provenance(&f, "backend"), "raster");
     let floor: f64 = provenance(&f, "floor_z_m").parse().unwrap();
     assert!(floor.abs() < 1e-3, "estimated floor {floor}");
     let range: Vec<f32> = f.dataset("range").unwrap().read_raw().unwrap();

@@ -56,7 +56,8 @@ pub struct Recording {
     pub times_s: Vec<f64>,
     /// `world_from_sensor` per frame, when a poses file was given.
     pub poses: Option<Vec<DMat4>>,
-    /// One line about the source (format, counts, skipped packets), for logs and metadata.
+    /// One line about the source (format, counts, skipped packets), for logs and metadata;
+    /// names no path, so outputs do not depend on where the data lies.
     pub description: String,
     projector: Projector,
     dirs: Vec<DVec3>,
@@ -114,14 +115,13 @@ impl Recording {
                     }
                 }
             }
-            let d = format!("{} {} frames in {}", files.len(), if kind == Some(FileKind::Bin) { "KITTI .bin" } else { "PCD" }, path.display());
+            let d = format!("{} {} frames", files.len(), if kind == Some(FileKind::Bin) { "KITTI .bin" } else { "PCD" });
             (Frames::Files(files), None, d)
         } else if is_recording(path) {
             let rec = read_pcap(path)?;
             let d = format!(
-                "{} capture {}: {} rotations from {} data packets ({} foreign packets skipped, {} partial rotations dropped)",
+                "{} capture: {} rotations from {} data packets ({} foreign packets skipped, {} partial rotations dropped)",
                 rec.model.name(),
-                path.display(),
                 rec.scans.len(),
                 rec.data_packets,
                 rec.foreign_packets,
