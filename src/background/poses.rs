@@ -91,17 +91,7 @@ pub fn read_poses(path: &Path) -> Result<Poses> {
         if n == 12 {
             poses.push(kitti_pose(&vals).map_err(|m| Error::input(at(line), m))?);
         } else {
-            let t = vals[0];
-            if let Some(&prev) = times.last() {
-                if t <= prev {
-                    return Err(Error::input(
-                        at(line),
-                        format!("time {t} is not after time {prev} on line {prev_time_line}"),
-                    ));
-                }
-            }
-            times.push(t);
-            prev_time_line = line;
+            push_later_time(&mut times, &mut prev_time_line, vals[0], line, &at)?;
             poses.push(tum_pose(&vals).map_err(|m| Error::input(at(line), m))?);
         }
     }
@@ -110,6 +100,18 @@ pub fn read_poses(path: &Path) -> Result<Poses> {
         Some((12, _)) => Ok(Poses { world_from_sensor: poses, times_s: None }),
         Some(_) => Ok(Poses { world_from_sensor: poses, times_s: Some(times) }),
     }
+}
+
+/// Appends time `t` read on `line`, which must come after the last one (read on `prev_line`).
+fn push_later_time(times: &mut Vec<f64>, prev_line: &mut usize, t: f64, line: usize, at: &impl Fn(usize) -> String) -> Result<()> {
+    if let Some(&prev) = times.last() {
+        if t <= prev {
+            return Err(Error::input(at(line), format!("time {t} is not after time {prev} on line {prev_line}")));
+        }
+    }
+    times.push(t);
+    *prev_line = line;
+    Ok(())
 }
 
 /// Reads a KITTI `times.txt`: one time in seconds per line, finite and strictly increasing.
@@ -135,17 +137,7 @@ pub fn read_times(path: &Path) -> Result<Vec<f64>> {
                 format!("{} values: expected one time per line", vals.len()),
             ));
         }
-        let t = vals[0];
-        if let Some(&prev) = times.last() {
-            if t <= prev {
-                return Err(Error::input(
-                    at(line),
-                    format!("time {t} is not after time {prev} on line {prev_line}"),
-                ));
-            }
-        }
-        times.push(t);
-        prev_line = line;
+        push_later_time(&mut times, &mut prev_line, vals[0], line, &at)?;
     }
     if times.is_empty() {
         return Err(Error::input(name, "holds no time"));
