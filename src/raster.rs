@@ -16,7 +16,7 @@
 use crate::error::{Error, Result};
 use crate::geometry::FrameGeometry;
 use crate::gpu::{
-    spirv_words, Buffer, BufferDesc, Commands, Context, Framebuffer, GraphicsPipeline, Image, ImageDesc,
+    spirv_words, Buffer, BufferDesc, CommandRecorder, Commands, Context, Framebuffer, GraphicsPipeline, Image, ImageDesc,
     PipelineDesc, PipelineLayout, RenderPass,
 };
 use crate::panorama::{PanoramaPrep, PrepStats, SoupList, SoupVertex};
@@ -140,6 +140,13 @@ impl FaceTarget {
         let texels = w as u64 * h as u64;
         let readback = Buffer::new(ctx, &BufferDesc::readback("face readback", 8 * texels))?;
         Ok(FaceTarget { framebuffer, range, id, _depth: depth, readback, push })
+    }
+
+    /// Records the copy of the range and id images into `readback` (range, then id).
+    fn record_readback<'a>(&'a self, rec: &mut CommandRecorder<'a>) {
+        let texels = self.range.extent().width as u64 * self.range.extent().height as u64;
+        rec.copy_image_to_buffer(&self.range, &self.readback, 0);
+        rec.copy_image_to_buffer(&self.id, &self.readback, 4 * texels);
     }
 }
 
@@ -386,9 +393,7 @@ impl Renderer {
                 stats.triangles_submitted += m.triangle_count as u64;
             }
             rec.end_render_pass();
-            let texels = target.range.extent().width as u64 * target.range.extent().height as u64;
-            rec.copy_image_to_buffer(&target.range, &target.readback, 0);
-            rec.copy_image_to_buffer(&target.id, &target.readback, 4 * texels);
+            target.record_readback(&mut rec);
         }
         rec.transfer_to_host_barrier();
         rec.submit_and_wait()?;
@@ -493,9 +498,7 @@ impl Renderer {
             }
         }
         rec.end_render_pass();
-        let texels = target.range.extent().width as u64 * target.range.extent().height as u64;
-        rec.copy_image_to_buffer(&target.range, &target.readback, 0);
-        rec.copy_image_to_buffer(&target.id, &target.readback, 4 * texels);
+        target.record_readback(&mut rec);
         rec.transfer_to_host_barrier();
         rec.submit_and_wait()?;
         self.renders += 1;
