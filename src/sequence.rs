@@ -70,6 +70,8 @@ pub struct TrackPath {
     pub track: Arc<Track>,
     pub t0_s: f64,
     pub z_m: f64,
+    /// Distance walked at k * 10 ms from time 0 (see [`TrackPath::new`]).
+    walked_m: Vec<f64>,
 }
 
 /// Step of the distance integral along a track, s.
@@ -88,22 +90,47 @@ impl TrackPath {
         }
     }
 
-    /// Arc length walked from time 0 to `t_s`: Simpson's rule on the speed of the interpolant,
-    /// in steps of at most 10 ms (the interpolant is a piecewise cubic, so this is exact to
-    /// well under a millimetre per metre).
+    /// A path along `track` from track time `t0_s`, with its distance table over the first
+    /// `duration_s` seconds (so the gait phase of each frame costs O(1), not O(t)).
+    pub fn new(track: Arc<Track>, t0_s: f64, z_m: f64, duration_s: f64) -> TrackPath {
+        let mut p = TrackPath { track, t0_s, z_m, walked_m: Vec::new() };
+        let steps = (duration_s.max(0.0) / TRACK_DISTANCE_STEP_S).ceil() as usize;
+        let mut sum = 0.0;
+        p.walked_m.push(0.0);
+        for k in 0..steps {
+            sum += p.simpson(k as f64 * TRACK_DISTANCE_STEP_S, (k + 1) as f64 * TRACK_DISTANCE_STEP_S);
+            p.walked_m.push(sum);
+        }
+        p
+    }
+
+    /// Simpson's rule for the speed of the interpolant over [a, b].
+    fn simpson(&self, a: f64, b: f64) -> f64 {
+        let speed = |t: f64| self.state(t).1.length();
+        (b - a) / 6.0 * (speed(a) + 4.0 * speed(0.5 * (a + b)) + speed(b))
+    }
+
+    /// Arc length walked from time 0 to `t_s`: Simpson's rule on the speed of the interpolant
+    /// in steps of 10 ms (the interpolant is a piecewise cubic, so this is exact to well under
+    /// a millimetre per metre): the table up to the last whole step, one step after it.
     fn distance(&self, t_s: f64) -> f64 {
-        if t_s == 0.0 {
+        if t_s <= 0.0 {
             return 0.0;
         }
-        let n = ((t_s.abs() / TRACK_DISTANCE_STEP_S).ceil() as usize).max(1);
-        let h = t_s / n as f64;
-        let speed = |t: f64| self.state(t).1.length();
-        let mut sum = 0.0;
-        for i in 0..n {
-            let t0 = i as f64 * h;
-            sum += speed(t0) + 4.0 * speed(t0 + 0.5 * h) + speed(t0 + h);
+        let k = ((t_s / TRACK_DISTANCE_STEP_S).floor() as usize).min(self.walked_m.len().saturating_sub(1));
+        let (mut t, mut d) = match self.walked_m.get(k) {
+            Some(&d) => (k as f64 * TRACK_DISTANCE_STEP_S, d),
+            None => (0.0, 0.0),
+        };
+        // Past the table (or without one): whole steps, then the rest.
+        while t_s - t > TRACK_DISTANCE_STEP_S {
+            d += self.simpson(t, t + TRACK_DISTANCE_STEP_S);
+            t += TRACK_DISTANCE_STEP_S;
         }
-        sum * h / 6.0
+        if t_s > t {
+            d += self.simpson(t, t_s);
+        }
+        d
     }
 }
 
@@ -376,7 +403,7 @@ pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> 
             covering.swap(i, j);
         }
         let paths: Vec<TrackPath> =
-            covering.iter().map(|&i| TrackPath { track: inp.tracks[i].clone(), t0_s: t0, z_m: inp.floor_z_m }).collect();
+            covering.iter().map(|&i| TrackPath::new(inp.tracks[i].clone(), t0, inp.floor_z_m, duration)).collect();
         let sensor = match &inp.sensor {
             Some(p) => SensorPath::Poses(p.clone()),
             None => {
@@ -572,6 +599,29 @@ mod tests {
             stride_m: 1.2,
             motion,
         }
+    }
+
+    #[test]
+    fn track_distance_is_the_arc_length_inside_and_past_its_table() {
+        // A curved walk sampled at 0.4 s; the interpolant's arc length by a fine chord sum.
+        let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+        let xy: Vec<DVec2> = times.iter().map(|t| DVec2::new(1.3 * t, (0.5 * t).sin() * 2.0)).collect();
+        let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+        let path = TrackPath::new(track, 1.7, 0.0, 3.0);
+        let chord = |t: f64| {
+            let n = 200_000;
+            (0..n)
+                .map(|i| {
+                    let (a, b) = (t * i as f64 / n as f64, t * (i + 1) as f64 / n as f64);
+                    path.state(b).0.distance(path.state(a).0)
+                })
+                .sum::<f64>()
+        };
+        for t in [0.0, 0.005, 0.3, 1.234, 3.0, 4.56] {
+            let (d, want) = (path.distance(t), chord(t));
+            assert!((d - want).abs() < 1e-6 * (1.0 + want), "t {t}: {d} vs {want}");
+        }
+        assert_eq!(path.distance(0.0), 0.0);
     }
 
     #[test]
