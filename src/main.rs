@@ -103,6 +103,9 @@ struct GenerateArgs {
     /// Also write debug PNG range / label / velocity images per frame.
     #[arg(long)]
     png: bool,
+    /// Print the time spent per stage (ms per frame) at the end.
+    #[arg(long)]
+    timings: bool,
     /// Vulkan device: `auto`, an index or part of a name (see `pedscan devices`).
     #[arg(long)]
     device: Option<String>,
@@ -302,6 +305,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let validation = args.validation || pedscan::gpu::validation_from_env();
             let summary = pedscan::run::generate(cfg, validation, true, args.export_geometry.clone())?;
             eprintln!("{summary}");
+            if args.timings {
+                eprintln!("{}", summary.timings);
+            }
         }
         Command::Crosscheck { mut args, json, strip_png } => {
             // By default 4 sequences of 32 frames: over 100 frames.

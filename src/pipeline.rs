@@ -15,7 +15,7 @@ use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, 
 use crate::post::{composite, PostParams};
 use crate::projection::{CubeFaces, Panorama};
 use crate::raster::Renderer;
-use crate::raycast::BvhCache;
+use crate::raycast::{BeamCaster, BvhCache};
 use crate::resample::{resample, BeamHits, BeamLookup};
 use crate::scene::{Environment, WalkableGrid};
 use crate::sensor::Sensor;
@@ -59,6 +59,53 @@ pub struct Generator {
     env_meshes: Vec<EnvDraw>,
     /// Write each frame's posed humans as PLY under this folder (`--export-geometry`).
     pub export_geometry: Option<PathBuf>,
+    /// Seconds spent per stage so far (see `--timings`).
+    pub timings: StageTimes,
+    /// Ray-cast backend: trace every beam through a BVH refit per frame instead of binning
+    /// the triangles into beams (same hits; `PEDSCAN_CASTER=bvh`, to compare their speed).
+    bvh_caster: bool,
+}
+
+/// Wall-clock seconds spent per stage of the frames generated so far. The writer runs on its
+/// own thread, overlapping the next frame, so `write_s` is not part of the frame's critical
+/// path unless it is the longer of the two.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StageTimes {
+    pub frames: u64,
+    /// Plan and sample sequences (walkable area, walks, tracks).
+    pub plan_s: f64,
+    /// Load a recorded frame, pose the background, skin and place the people.
+    pub pose_s: f64,
+    /// Ray caster: refit or build the bottom-level trees (background and people).
+    pub bvh_s: f64,
+    /// Render (raster) or cast (ray caster) the background and resample it.
+    pub background_s: f64,
+    /// Render or cast the people and resample them.
+    pub humans_s: f64,
+    /// Composite, labels, instance ids, velocities.
+    pub post_s: f64,
+    /// Compress and write (HDF5, PNG), on the writer thread.
+    pub write_s: f64,
+}
+
+impl std::fmt::Display for StageTimes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let n = self.frames.max(1) as f64;
+        let main = self.plan_s + self.pose_s + self.bvh_s + self.background_s + self.humans_s + self.post_s;
+        writeln!(f, "stage           ms/frame   share of frame thread")?;
+        for (name, s) in [
+            ("plan", self.plan_s),
+            ("pose + skin", self.pose_s),
+            ("bvh refit", self.bvh_s),
+            ("background", self.background_s),
+            ("people", self.humans_s),
+            ("post", self.post_s),
+        ] {
+            writeln!(f, "{name:<14} {:>9.3}   {:>5.1} %", 1e3 * s / n, 100.0 * s / main.max(1e-12))?;
+        }
+        writeln!(f, "{:<14} {:>9.3}", "frame thread", 1e3 * main / n)?;
+        write!(f, "{:<14} {:>9.3}   (writer thread, overlaps the next frame)", "write", 1e3 * self.write_s / n)
+    }
 }
 
 struct EnvDraw {
@@ -85,6 +132,9 @@ pub struct Scratch {
     /// cache for the background and one for the people.
     bvh_background: BvhCache,
     bvh_humans: BvhCache,
+    /// Ray-cast backend: the binned beam-grid caster and its output.
+    beams: Option<BeamCaster>,
+    cast: Vec<crate::raycast::Hit>,
 }
 
 /// The sensor and people at one frame (world frame).
@@ -245,6 +295,9 @@ impl Generator {
             scratch.bvh_background = BvhCache::disabled();
             scratch.bvh_humans = BvhCache::disabled();
         }
+        if backend == Backend::Raycast {
+            scratch.beams = Some(BeamCaster::new(&lookup.dirs, lookup.rows, lookup.columns));
+        }
         Ok(Generator {
             cfg,
             sensor,
@@ -261,6 +314,8 @@ impl Generator {
             scratch,
             env_meshes,
             export_geometry: None,
+            timings: StageTimes::default(),
+            bvh_caster: std::env::var("PEDSCAN_CASTER").is_ok_and(|v| v == "bvh"),
         })
     }
 
@@ -385,9 +440,12 @@ impl Generator {
         let backend = self.backend;
         let n = self.lookup.dirs.len();
         let s = &mut self.scratch;
-        for (geom, hits, cache) in
-            [(&s.background, &mut s.bg_hits, &mut s.bvh_background), (&s.humans, &mut s.human_hits, &mut s.bvh_humans)]
-        {
+        let t = &mut self.timings;
+        for (geom, hits, cache, stage) in [
+            (&s.background, &mut s.bg_hits, &mut s.bvh_background, &mut t.background_s),
+            (&s.humans, &mut s.human_hits, &mut s.bvh_humans, &mut t.humans_s),
+        ] {
+            let t0 = std::time::Instant::now();
             if geom.meshes.is_empty() {
                 hits.clear_to(n);
                 continue;
@@ -399,13 +457,27 @@ impl Generator {
                 }
                 Backend::Raycast => {
                     // Ranges are limited later, in the post-pass, as for the raster path.
-                    let bvh = cache.build_or_refit(geom);
-                    let cast = crate::raycast::cast(geom, bvh, &self.lookup.dirs, f64::MAX);
+                    let t1;
+                    let cast = if self.bvh_caster {
+                        let bvh = cache.build_or_refit(geom);
+                        t.bvh_s += t0.elapsed().as_secs_f64();
+                        t1 = std::time::Instant::now();
+                        s.cast = crate::raycast::cast(geom, bvh, &self.lookup.dirs, f64::MAX);
+                        &s.cast
+                    } else {
+                        t1 = std::time::Instant::now();
+                        let caster = s.beams.as_mut().expect("the ray-cast backend has a beam caster");
+                        caster.cast(geom, f64::MAX, &mut s.cast);
+                        &s.cast
+                    };
                     hits.clear_to(0);
                     hits.range_m.extend(cast.iter().map(|h| h.range_m as f32));
                     hits.triangle.extend(cast.iter().map(|h| h.triangle));
+                    *stage += t1.elapsed().as_secs_f64();
+                    continue;
                 }
             }
+            *stage += t0.elapsed().as_secs_f64();
         }
         if let Some(r) = &s.recorded {
             s.bg_hits.range_m.clone_from(r);
@@ -437,10 +509,16 @@ impl Generator {
 
     /// Everything of one frame: pose, render, resample, composite.
     pub fn frame(&mut self, plan: &SequencePlan, k: usize, out: &mut FrameOutput) -> Result<FrameState> {
+        let t0 = std::time::Instant::now();
         let state = self.frame_state(plan, k);
         self.pose_frame(plan, &state)?;
+        let t1 = std::time::Instant::now();
         self.render_posed()?;
+        let t2 = std::time::Instant::now();
         self.post(&state, out);
+        self.timings.pose_s += (t1 - t0).as_secs_f64();
+        self.timings.post_s += t2.elapsed().as_secs_f64();
+        self.timings.frames += 1;
         Ok(state)
     }
 
@@ -516,7 +594,9 @@ impl Generator {
     /// Generates and writes sequence `index` into `out_dir`; returns the files written.
     /// On failure nothing of this sequence is left behind.
     pub fn write_sequence(&mut self, index: usize, out_dir: &Path, mut on_frame: impl FnMut()) -> Result<Vec<PathBuf>> {
+        let t0 = std::time::Instant::now();
         let plan = self.plan(index)?;
+        self.timings.plan_s += t0.elapsed().as_secs_f64();
         let meta = self.meta(index, &plan);
         let opts = WriterOptions {
             png: self.cfg.png,
@@ -531,7 +611,9 @@ impl Generator {
             let mut out = FrameOutput::default();
             for k in 0..plan.times_s.len() {
                 self.frame_and_export(&plan, index, k, &mut out)?;
+                let t0 = std::time::Instant::now();
                 writer.write_frame(&out)?;
+                self.timings.write_s += t0.elapsed().as_secs_f64();
                 on_frame();
             }
             return writer.finish();
@@ -550,18 +632,21 @@ impl Generator {
         to_main.send(FrameOutput::default()).ok();
         to_main.send(FrameOutput::default()).ok();
         std::thread::scope(|scope| {
-            let write = scope.spawn(move || -> Result<Option<Vec<PathBuf>>> {
+            let write = scope.spawn(move || -> Result<(Option<Vec<PathBuf>>, f64)> {
+                let mut write_s = 0.0;
                 let mut writer = writer;
                 for msg in from_main {
                     match msg {
                         Msg::Frame(out) => {
+                            let t0 = std::time::Instant::now();
                             writer.write_frame(&out)?;
+                            write_s += t0.elapsed().as_secs_f64();
                             let _ = to_main.send(out);
                         }
-                        Msg::Done => return writer.finish().map(Some),
+                        Msg::Done => return writer.finish().map(|f| (Some(f), write_s)),
                     }
                 }
-                Ok(None)
+                Ok((None, write_s))
             });
             let computed = (|| -> Result<()> {
                 for k in 0..plan.times_s.len() {
@@ -580,7 +665,9 @@ impl Generator {
             drop(to_writer);
             let written = write.join().map_err(|_| Error::Internal("the writer thread panicked".into()))?;
             computed?;
-            written?.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))
+            let (written, write_s) = written?;
+            self.timings.write_s += write_s;
+            written.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))
         })
     }
 }

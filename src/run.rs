@@ -17,6 +17,8 @@ pub struct Summary {
     pub files: Vec<PathBuf>,
     pub seconds: f64,
     pub device: String,
+    /// Seconds per stage (`--timings` prints them).
+    pub timings: crate::pipeline::StageTimes,
 }
 
 impl fmt::Display for Summary {
@@ -65,6 +67,7 @@ pub fn generate(cfg: Config, validation: bool, progress: bool, export_geometry: 
         frames: gen.cfg.sequences * gen.cfg.frames,
         files,
         seconds: start.elapsed().as_secs_f64(),
+        timings: gen.timings,
         device: match gen.backend {
             crate::config::Backend::Raycast => "the CPU ray caster".into(),
             _ => gen.renderer.context().device_name(),

@@ -37,6 +37,9 @@
 //!   all hits with `range <= max_range_m`; it does not depend on thread count or traversal
 //!   order, and the BVH build itself is deterministic.
 
+mod beams;
+pub use beams::BeamCaster;
+
 use crate::geometry::{Adjacency, FrameGeometry, MeshRange};
 use glam::{DVec3, Vec3A, Vec4};
 use rayon::prelude::*;
