@@ -20,6 +20,9 @@ pub struct MeshRange {
     pub radius: f32,
     /// Draw both sides (no back-face culling), e.g. walls seen from inside.
     pub double_sided: bool,
+    /// The mesh's vertices in `FrameGeometry::positions`.
+    pub first_vertex: u32,
+    pub vertex_count: u32,
 }
 
 /// Triangles of one frame in the sensor frame: positions, absolute indices, meshes.
@@ -138,6 +141,8 @@ impl FrameGeometry {
             centre,
             radius,
             double_sided,
+            first_vertex: base,
+            vertex_count: positions.len() as u32,
         });
     }
 

@@ -384,15 +384,31 @@ impl HumanModel {
     /// Skins LOD `lod` with `joints` and maps it through `transform` (model -> target frame),
     /// writing f32 positions into `out` (resized). Without a skin the bind pose is used.
     pub fn skin_into(&self, lod: usize, joints: &[Mat4], transform: &Mat4, out: &mut Vec<[f32; 3]>) {
+        out.resize(self.lods[lod].positions.len(), [0.0; 3]);
+        self.skin_into_slice(lod, joints, transform, &mut Vec::new(), out);
+    }
+
+    /// Like `skin_into`, into a slice of exactly the LOD's vertex count (e.g. the person's
+    /// vertices in last frame's geometry); `placed` is scratch for the placed joint matrices.
+    pub fn skin_into_slice(
+        &self,
+        lod: usize,
+        joints: &[Mat4],
+        transform: &Mat4,
+        placed: &mut Vec<Affine3A>,
+        out: &mut [[f32; 3]],
+    ) {
         let l = &self.lods[lod];
-        out.resize(l.positions.len(), [0.0; 3]);
+        assert_eq!(out.len(), l.positions.len(), "skinning into a slice of another size");
         if joints.is_empty() {
             out.par_iter_mut().zip(l.positions.par_iter()).for_each(|(o, p)| *o = transform.transform_point3(*p).into());
             return;
         }
         // The placement folded into each joint once (affine 3x4, SIMD), instead of once per
         // vertex: sum_k w_k (T J_k) p.
-        let placed: Vec<Affine3A> = joints.iter().map(|j| Affine3A::from_mat4(*transform * *j)).collect();
+        placed.clear();
+        placed.extend(joints.iter().map(|j| Affine3A::from_mat4(*transform * *j)));
+        let placed = &placed[..];
         out.par_chunks_mut(2048).enumerate().for_each(|(c, chunk)| {
             let first = c * 2048;
             for (k, o) in chunk.iter_mut().enumerate() {

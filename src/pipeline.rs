@@ -25,6 +25,7 @@ use crate::sequence::{sample_plan, PlanInputs, PoseTrack, SequencePlan};
 use crate::tracks::{read_tracks, Track, TrackOptions};
 use glam::{DMat3, DMat4, DVec3, Mat4};
 use rand::SeedableRng;
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -127,6 +128,13 @@ pub struct Scratch {
     pub recorded: Option<Vec<f32>>,
     joints: Vec<Mat4>,
     skinned: Vec<[f32; 3]>,
+    /// The people in `humans` (instance, model, level of detail), last frame and this one,
+    /// and this frame's placements (sensor from model, gait phase).
+    layout: Vec<(u32, usize, usize)>,
+    layout_next: Vec<(u32, usize, usize)>,
+    placements: Vec<(Mat4, f32)>,
+    /// Per drawn person: joint matrices, placed joints and bounding sphere (in-place poses).
+    person_scratch: Vec<(Vec<Mat4>, Vec<glam::Affine3A>, ([f32; 3], f32))>,
     env_sensor: Vec<[f32; 3]>,
     /// Ray-cast backend: bottom-level BVHs kept across frames (refit to each pose), one
     /// cache for the background and one for the people.
@@ -406,8 +414,10 @@ impl Generator {
                 s.background.push_mesh_with_adjacency(verts, &m.local_indices, 0, m.double_sided, Some(m.adjacency.clone()));
             }
         }
-        s.humans.clear();
+        // Who is drawn, at which level of detail: (instance, model, lod), and where.
         let lod_rad = self.cfg.render.lod_max_error_mrad * 1e-3;
+        s.layout_next.clear();
+        s.placements.clear();
         for (k, h) in plan.humans.iter().enumerate() {
             let model = &self.models[h.model];
             let st = &state.humans[k];
@@ -425,12 +435,50 @@ impl Generator {
             }
             let near = (dist - r).max(0.1);
             let lod = model.lod_for_error((lod_rad * near) as f32);
-            model.joint_matrices(st.gait_phase, &mut s.joints);
-            let transform = (sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4();
-            model.skin_into(lod, &s.joints, &transform, &mut s.skinned);
-            let l = &model.lods[lod];
-            s.humans.push_mesh_with_adjacency(&s.skinned, &l.indices, k as u32 + 1, false, Some(l.adjacency.clone()));
+            s.layout_next.push((k as u32 + 1, h.model, lod));
+            s.placements.push(((sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4(), st.gait_phase));
         }
+        // The same people at the same levels of detail as last frame: the triangles stay,
+        // only the vertices move (skinned in place). Otherwise the geometry is rebuilt.
+        let in_place = s.layout_next == s.layout && s.humans.meshes.len() == s.layout.len();
+        if !in_place {
+            s.humans.clear();
+        }
+        if in_place {
+            // One person per task: joint matrices, skinning into its own vertices, bounds.
+            let mut rest = &mut s.humans.positions[..];
+            let mut slices = Vec::with_capacity(s.layout_next.len());
+            for m in &s.humans.meshes {
+                let (mine, later) = std::mem::take(&mut rest).split_at_mut(m.vertex_count as usize);
+                slices.push(mine);
+                rest = later;
+            }
+            s.person_scratch.resize_with(s.layout_next.len(), Default::default);
+            let models = &self.models;
+            slices
+                .into_par_iter()
+                .zip(s.person_scratch.par_iter_mut())
+                .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
+                .for_each(|((out, (joints, placed, bounds)), (&(_, m, lod), &(transform, phase)))| {
+                    let model = &models[m];
+                    model.joint_matrices(phase, joints);
+                    model.skin_into_slice(lod, joints, &transform, placed, out);
+                    *bounds = crate::geometry::bounding_sphere(out);
+                });
+            for (m, (_, _, (centre, radius))) in s.humans.meshes.iter_mut().zip(&s.person_scratch) {
+                m.centre = *centre;
+                m.radius = *radius;
+            }
+        } else {
+            for (&(instance, m, lod), &(transform, phase)) in s.layout_next.iter().zip(&s.placements) {
+                let model = &self.models[m];
+                model.joint_matrices(phase, &mut s.joints);
+                model.skin_into(lod, &s.joints, &transform, &mut s.skinned);
+                let l = &model.lods[lod];
+                s.humans.push_mesh_with_adjacency(&s.skinned, &l.indices, instance, false, Some(l.adjacency.clone()));
+            }
+        }
+        std::mem::swap(&mut s.layout, &mut s.layout_next);
         Ok(())
     }
 

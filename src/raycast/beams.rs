@@ -80,7 +80,7 @@ pub struct BeamCaster {
     /// `sin(elevation)` per row, descending with the row index.
     row_sin: Vec<f32>,
     /// Per vertex: the column cell `floor(u)` as `2 floor(u) + e`, where `e = 1` when `u` is
-    /// within the azimuth margin of a cell edge (`i32::MIN`: no azimuth); and the row gap (the number of rows above the
+    /// within the azimuth margin of a cell edge (`NO_CELL`: no azimuth); and the row gap (the number of rows above the
     /// vertex) when the vertex is farther than `gap_margin` from both rows around it, else
     /// `i32::MIN` (see `gap_table`).
     cell: Vec<[i32; 2]>,
@@ -165,7 +165,12 @@ impl BeamCaster {
             .zip(self.us.par_chunks_mut(JOB_VERTICES))
             .zip(geom.positions.par_chunks(JOB_VERTICES))
             .for_each(|((cell, us), pos)| {
-                for ((k, us), p) in cell.iter_mut().zip(us.iter_mut()).zip(pos) {
+                // Four vertices at a time in SIMD lanes, the rest one by one.
+                let n4 = pos.len() / 4 * 4;
+                for ((k, us), p) in cell[..n4].chunks_exact_mut(4).zip(us[..n4].chunks_exact_mut(4)).zip(pos[..n4].chunks_exact(4)) {
+                    vertex_cells_x4(p, w, col_per_rad, margin_u, gaps, k, us);
+                }
+                for ((k, us), p) in cell[n4..].iter_mut().zip(us[n4..].iter_mut()).zip(&pos[n4..]) {
                     (*k, *us) = vertex_cells(*p, w, col_per_rad, margin_u, gaps);
                 }
             });
@@ -211,17 +216,17 @@ impl BeamCaster {
                 let i = &geom.indices[3 * t..3 * t + 3];
                 let (k0, k1, k2) = (cell[i[0] as usize], cell[i[1] as usize], cell[i[2] as usize]);
                 // All three azimuths inside one column cell, clear of its edges: no beam
-                // can hit (an odd code marks a vertex near a cell edge).
-                if k0[0] & 1 == 0 && k0[0] == k1[0] && k0[0] == k2[0] {
+                // can hit (an odd code marks a vertex near a cell edge, or without azimuth).
+                // Or all three in one row gap, in two neighbouring column cells (so the sides
+                // cannot bulge by more than the gap margin): no beam can hit. Evaluated
+                // without short circuits: one well-predicted branch per triangle.
+                let same_col = (k0[0] & 1 == 0) & (k0[0] == k1[0]) & (k0[0] == k2[0]);
+                let same_gap = (k0[1] != i32::MIN) & (k0[1] == k1[1]) & (k0[1] == k2[1]);
+                let lo = k0[0].min(k1[0]).min(k2[0]);
+                let hi = k0[0].max(k1[0]).max(k2[0]);
+                let neighbours = (lo != NO_CELL) & ((hi >> 1) - (lo >> 1) <= 1);
+                if same_col | (same_gap & neighbours) {
                     continue;
-                }
-                // All three in one row gap, in two neighbouring column cells (so the sides
-                // cannot bulge by more than the gap margin): no beam can hit.
-                if k0[1] != i32::MIN && k0[1] == k1[1] && k0[1] == k2[1] {
-                    let (a, b, c) = (k0[0], k1[0], k2[0]);
-                    if a != i32::MIN && b != i32::MIN && c != i32::MIN && (a.max(b).max(c) >> 1) - (a.min(b).min(c) >> 1) <= 1 {
-                        continue;
-                    }
                 }
                 grid.triangle(geom, t as u32, cull, (r0, r1), hits);
             }
@@ -239,6 +244,10 @@ impl BeamCaster {
         self.spans = spans;
     }
 }
+
+/// Column code of a vertex without an azimuth: odd (never "clear of the cell edges") and
+/// below every real code.
+const NO_CELL: i32 = i32::MIN + 1;
 
 /// Columns per block of the wide-span pre-test.
 const BLOCK: usize = 8;
@@ -325,8 +334,8 @@ fn azimuth_margin_columns(columns: usize) -> f32 {
 }
 
 /// The column cell and row gap of a vertex (see `BeamCaster::cell`) and its `u` and
-/// `sin(elevation)`, without branches; `i32::MIN` where the vertex is non-finite, at the
-/// origin or on the z axis.
+/// `sin(elevation)`, without branches; `NO_CELL` / `i32::MIN` where the vertex is non-finite,
+/// at the origin or on the z axis.
 #[inline(always)]
 fn vertex_cells(p: [f32; 3], w: f32, col_per_rad: f32, margin_u: f32, gaps: &[i32]) -> ([i32; 2], [f32; 2]) {
     let [x, y, z] = p;
@@ -337,11 +346,54 @@ fn vertex_cells(p: [f32; 3], w: f32, col_per_rad: f32, margin_u: f32, gaps: &[i3
     let u = 0.5 * w - 0.5 - atan2_fast(y, x) * col_per_rad;
     let lo = floor_i(u - margin_u);
     let near_edge = (lo != floor_i(u + margin_u)) as i32;
-    let col = if valid { 2 * floor_i(u) + near_edge } else { i32::MIN };
+    let col = if valid { 2 * floor_i(u) + near_edge } else { NO_CELL };
     let s = z / r2.sqrt();
     let bin = floor_i((s + 1.0) * (0.5 * GAP_BINS as f32)).clamp(0, GAP_BINS as i32 - 1);
     let gap = if valid { gaps[bin as usize] } else { i32::MIN };
     ([col, gap], [u, s])
+}
+
+/// `vertex_cells` for four vertices in SIMD lanes (same bounds; the lanes may round
+/// differently from the scalar form, which is harmless: both are conservative).
+#[inline(always)]
+fn vertex_cells_x4(
+    p: &[[f32; 3]],
+    w: f32,
+    col_per_rad: f32,
+    margin_u: f32,
+    gaps: &[i32],
+    cell: &mut [[i32; 2]],
+    us: &mut [[f32; 2]],
+) {
+    use glam::Vec4;
+    let x = Vec4::new(p[0][0], p[1][0], p[2][0], p[3][0]);
+    let y = Vec4::new(p[0][1], p[1][1], p[2][1], p[3][1]);
+    let z = Vec4::new(p[0][2], p[1][2], p[2][2], p[3][2]);
+    let rxy2 = x * x + y * y;
+    let r2 = rxy2 + z * z;
+    let valid = (r2.cmpgt(Vec4::splat(1e-30)) & r2.cmplt(Vec4::splat(1e30)) & rxy2.cmpgt(r2 * 1e-12)).bitmask();
+    // atan2 as in `atan2_fast`.
+    let (ax, ay) = (x.abs(), y.abs());
+    let a = ax.min(ay) / ax.max(ay);
+    let s2 = a * a;
+    let mut r = ((((0.020_835_1 * s2 - 0.085_133) * s2 + 0.180_141) * s2 - 0.330_299_5) * s2 + 0.999_866) * a;
+    r = Vec4::select(ay.cmpgt(ax), Vec4::splat(0.5 * PI32) - r, r);
+    r = Vec4::select(x.cmplt(Vec4::ZERO), Vec4::splat(PI32) - r, r);
+    r = Vec4::select(y.cmplt(Vec4::ZERO), -r, r);
+    let u = Vec4::splat(0.5 * w - 0.5) - r * col_per_rad;
+    let lo = (u - Vec4::splat(margin_u)).floor().to_array();
+    let hi = (u + Vec4::splat(margin_u)).floor().to_array();
+    let fl = u.floor().to_array();
+    let s = z / r2.sqrt();
+    let bin = ((s + 1.0) * (0.5 * GAP_BINS as f32)).floor().to_array();
+    let (u, s) = (u.to_array(), s.to_array());
+    for k in 0..4 {
+        let ok = valid & (1 << k) != 0;
+        let near_edge = (lo[k] != hi[k]) as i32;
+        let b = (bin[k] as i32).clamp(0, GAP_BINS as i32 - 1);
+        cell[k] = if ok { [2 * fl[k] as i32 + near_edge, gaps[b as usize]] } else { [NO_CELL, i32::MIN] };
+        us[k] = [u[k], s[k]];
+    }
 }
 
 /// The grid as seen by one triangle job.
@@ -383,7 +435,7 @@ impl Grid<'_> {
         let [a, b, c] = [0, 1, 2].map(|k| {
             let v = i[k] as usize;
             let us = self.us[v];
-            [us[1], if self.cell[v][0] == i32::MIN { f32::NAN } else { us[0] }]
+            [us[1], if self.cell[v][0] == NO_CELL { f32::NAN } else { us[0] }]
         });
         // Columns: the shortest arc holding the three azimuths. `surround`: the triangle
         // surrounds or touches the z axis (a pole may lie inside its projection).
@@ -671,12 +723,22 @@ mod tests {
             [f32::NAN, 1.0, 0.0],
             [3.0, 0.0, 0.0],
             [3.0, 1.0, 1.0], // NaN
+            [2e16, -3e16, -1e16],
+            [2e16, 3e16, -1e16],
+            [2e16, 0.0, 1e16], // all three too far for an azimuth cell (> 1e15 m)
         ];
-        geom.push_mesh(&odd, &(0..12).collect::<Vec<u32>>(), 0, true);
+        geom.push_mesh(&odd, &(0..15).collect::<Vec<u32>>(), 0, true);
         let hits = check_equal(&small_sensor(256), &geom, 100.0);
         assert!(hits > 4000, "{hits} hits");
-        // A short max range keeps ties with the reference's `<=` rule.
+        // A short max range keeps ties with the reference's `<=` rule; an unlimited one
+        // reaches the far triangle.
         check_equal(&small_sensor(256), &geom, 4.0);
+        check_equal(&small_sensor(256), &geom, f64::MAX);
+        // The far triangle alone (its vertices have no azimuth cell).
+        let mut far = FrameGeometry::default();
+        far.push_mesh(&odd[12..15], &[0, 1, 2], 0, true);
+        let hits = check_equal(&small_sensor(256), &far, f64::MAX);
+        assert!(hits > 1000, "{hits} hits on the far triangle");
     }
 
     #[test]
