@@ -129,7 +129,7 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
         v.push(cyl(p(2.0, lod, Refine::Exact, 10, 1024)));
     }
     v.push(cyl(p(1.0, 10.0, Refine::None, 10, 1024)));
-    for lod in [0.0, 3.0] {
+    for lod in [0.0, 1.0, 3.0, 10.0] {
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, lod, Refine::Exact, 10, 1024) });
     }
     for humans in [1, 30, 100] {

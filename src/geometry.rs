@@ -25,6 +25,20 @@ pub struct MeshRange {
     pub vertex_count: u32,
 }
 
+/// One mesh's first vertex, vertices and absolute indices (see
+/// [`FrameGeometry::mesh_slices_mut`]).
+pub type MeshSlices<'a> = (u32, &'a mut [[f32; 3]], &'a mut [u32]);
+
+/// The size and kind of one mesh, for [`FrameGeometry::lay_out`].
+#[derive(Clone, Debug)]
+pub struct MeshLayout {
+    pub vertex_count: u32,
+    pub triangle_count: u32,
+    pub instance: u32,
+    pub double_sided: bool,
+    pub adjacency: Option<Arc<Adjacency>>,
+}
+
 /// Triangles of one frame in the sensor frame: positions, absolute indices, meshes.
 #[derive(Clone, Debug, Default)]
 pub struct FrameGeometry {
@@ -144,6 +158,49 @@ impl FrameGeometry {
             first_vertex: base,
             vertex_count: positions.len() as u32,
         });
+    }
+
+    /// Replaces all meshes by meshes of the given sizes, one after the other, for the caller
+    /// to fill in place (see [`FrameGeometry::mesh_slices_mut`]): positions and indices are
+    /// resized (their contents are stale until filled), bounding spheres are zero.
+    pub fn lay_out(&mut self, meshes: impl IntoIterator<Item = MeshLayout>) {
+        self.meshes.clear();
+        self.adjacency.clear();
+        let (mut vertices, mut triangles) = (0u32, 0u32);
+        for m in meshes {
+            debug_assert!(m.adjacency.as_ref().map_or(true, |a| a.triangle_count() == m.triangle_count as usize));
+            self.meshes.push(MeshRange {
+                first_triangle: triangles,
+                triangle_count: m.triangle_count,
+                instance: m.instance,
+                centre: [0.0; 3],
+                radius: 0.0,
+                double_sided: m.double_sided,
+                first_vertex: vertices,
+                vertex_count: m.vertex_count,
+            });
+            self.adjacency.push(m.adjacency);
+            vertices += m.vertex_count;
+            triangles += m.triangle_count;
+        }
+        self.positions.resize(vertices as usize, [0.0; 3]);
+        self.indices.resize(3 * triangles as usize, 0);
+    }
+
+    /// Per mesh, its first vertex, its vertices and its (absolute) indices, as disjoint
+    /// mutable slices, so the meshes can be filled in parallel.
+    pub fn mesh_slices_mut(&mut self) -> Vec<MeshSlices<'_>> {
+        let mut pos = &mut self.positions[..];
+        let mut idx = &mut self.indices[..];
+        let mut out = Vec::with_capacity(self.meshes.len());
+        for m in &self.meshes {
+            let (p, p_rest) = std::mem::take(&mut pos).split_at_mut(m.vertex_count as usize);
+            let (i, i_rest) = std::mem::take(&mut idx).split_at_mut(3 * m.triangle_count as usize);
+            out.push((m.first_vertex, p, i));
+            pos = p_rest;
+            idx = i_rest;
+        }
+        out
     }
 
     /// The three vertices of global triangle `t`.

@@ -126,15 +126,13 @@ pub struct Scratch {
     pub human_hits: BeamHits,
     /// The recorded background of the current frame (target grid ranges), when there is one.
     pub recorded: Option<Vec<f32>>,
-    joints: Vec<Mat4>,
-    skinned: Vec<[f32; 3]>,
     /// The people in `humans` (instance, model, level of detail), last frame and this one,
     /// and this frame's placements (sensor from model, gait phase).
     layout: Vec<(u32, usize, usize)>,
     layout_next: Vec<(u32, usize, usize)>,
     placements: Vec<(Mat4, f32)>,
     /// Per drawn person: joint matrices, placed joints and bounding sphere (in-place poses).
-    person_scratch: Vec<(Vec<Mat4>, Vec<glam::Affine3A>, ([f32; 3], f32))>,
+    person_scratch: Vec<PersonScratch>,
     env_sensor: Vec<[f32; 3]>,
     /// Ray-cast backend: bottom-level BVHs kept across frames (refit to each pose), one
     /// cache for the background and one for the people.
@@ -143,6 +141,14 @@ pub struct Scratch {
     /// Ray-cast backend: the binned beam-grid caster and its output.
     beams: Option<BeamCaster>,
     cast: Vec<crate::raycast::Hit>,
+}
+
+/// Per drawn person, reused across frames: joint matrices, placed joints, bounding sphere.
+#[derive(Default)]
+struct PersonScratch {
+    joints: Vec<Mat4>,
+    placed: Vec<glam::Affine3A>,
+    bounds: ([f32; 3], f32),
 }
 
 /// The sensor and people at one frame (world frame).
@@ -438,45 +444,44 @@ impl Generator {
             s.layout_next.push((k as u32 + 1, h.model, lod));
             s.placements.push(((sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4(), st.gait_phase));
         }
-        // The same people at the same levels of detail as last frame: the triangles stay,
-        // only the vertices move (skinned in place). Otherwise the geometry is rebuilt.
+        // The same people at the same levels of detail as last frame: the triangles stay and
+        // only the vertices move. Otherwise the meshes are laid out anew (sizes from the
+        // levels of detail) and each person also writes its indices.
         let in_place = s.layout_next == s.layout && s.humans.meshes.len() == s.layout.len();
+        let models = &self.models;
         if !in_place {
-            s.humans.clear();
+            s.humans.lay_out(s.layout_next.iter().map(|&(instance, m, lod)| {
+                let l = &models[m].lods[lod];
+                crate::geometry::MeshLayout {
+                    vertex_count: l.positions.len() as u32,
+                    triangle_count: l.triangle_count() as u32,
+                    instance,
+                    double_sided: false,
+                    adjacency: Some(l.adjacency.clone()),
+                }
+            }));
         }
-        if in_place {
-            // One person per task: joint matrices, skinning into its own vertices, bounds.
-            let mut rest = &mut s.humans.positions[..];
-            let mut slices = Vec::with_capacity(s.layout_next.len());
-            for m in &s.humans.meshes {
-                let (mine, later) = std::mem::take(&mut rest).split_at_mut(m.vertex_count as usize);
-                slices.push(mine);
-                rest = later;
-            }
-            s.person_scratch.resize_with(s.layout_next.len(), Default::default);
-            let models = &self.models;
-            slices
-                .into_par_iter()
-                .zip(s.person_scratch.par_iter_mut())
-                .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
-                .for_each(|((out, (joints, placed, bounds)), (&(_, m, lod), &(transform, phase)))| {
-                    let model = &models[m];
-                    model.joint_matrices(phase, joints);
-                    model.skin_into_slice(lod, joints, &transform, placed, out);
-                    *bounds = crate::geometry::bounding_sphere(out);
-                });
-            for (m, (_, _, (centre, radius))) in s.humans.meshes.iter_mut().zip(&s.person_scratch) {
-                m.centre = *centre;
-                m.radius = *radius;
-            }
-        } else {
-            for (&(instance, m, lod), &(transform, phase)) in s.layout_next.iter().zip(&s.placements) {
-                let model = &self.models[m];
-                model.joint_matrices(phase, &mut s.joints);
-                model.skin_into(lod, &s.joints, &transform, &mut s.skinned);
-                let l = &model.lods[lod];
-                s.humans.push_mesh_with_adjacency(&s.skinned, &l.indices, instance, false, Some(l.adjacency.clone()));
-            }
+        // One person per task: joint matrices, skinning into its own vertices, its indices
+        // when laid out anew, its bounding sphere.
+        s.person_scratch.resize_with(s.layout_next.len(), Default::default);
+        s.humans
+            .mesh_slices_mut()
+            .into_par_iter()
+            .zip(s.person_scratch.par_iter_mut())
+            .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
+            .for_each(|(((first, out, indices), p), (&(_, m, lod), &(transform, phase)))| {
+                let model = &models[m];
+                model.joint_matrices(phase, &mut p.joints);
+                model.skin_into_slice(lod, &p.joints, &transform, &mut p.placed, out);
+                if !in_place {
+                    for (d, &i) in indices.iter_mut().zip(&model.lods[lod].indices) {
+                        *d = i + first;
+                    }
+                }
+                p.bounds = crate::geometry::bounding_sphere(out);
+            });
+        for (m, p) in s.humans.meshes.iter_mut().zip(&s.person_scratch) {
+            (m.centre, m.radius) = p.bounds;
         }
         std::mem::swap(&mut s.layout, &mut s.layout_next);
         Ok(())

@@ -53,3 +53,39 @@ fn beam_caster_equals_the_bvh_on_walking_people_in_the_hall() {
     std::fs::write(&wide, format!("elevation_deg = [{}]\ncolumns = 2048\n", elev.join(", "))).unwrap();
     compare(wide.to_str().unwrap(), 12, 1, &[3]);
 }
+
+#[test]
+fn beam_caster_equals_the_bvh_for_a_person_brushing_the_sensor_and_far_away() {
+    // One posed person moved so that its surface passes 0.3 m from the sensor (it then covers
+    // a large part of the grid, around the z axis too), and the same person 80 m behind.
+    let mut cfg = Config::default();
+    cfg.render.backend = Backend::Raycast;
+    cfg.humans.count = [1, 1];
+    cfg.scene.background = std::path::PathBuf::new();
+    let mut gen = Generator::new(cfg, false).expect("generator");
+    let plan = gen.plan(0).expect("plan");
+    let state = gen.frame_state(&plan, 0);
+    gen.pose_frame(&plan, &state).expect("pose");
+    let person = gen.scratch.humans.clone();
+    assert_eq!(person.meshes.len(), 1, "the person must be drawn");
+    let indices: Vec<u32> = person.indices.clone();
+    let centre = glam::Vec3::from(person.meshes[0].centre);
+    let mut caster = BeamCaster::new(&gen.lookup.dirs, gen.lookup.rows, gen.lookup.columns);
+    let mut got = Vec::new();
+    for (name, offset) in [
+        ("0.3 m ahead", -centre + glam::Vec3::new(0.55, 0.0, 0.0)),
+        ("straddling the axis", -centre + glam::Vec3::new(0.0, 0.0, -0.2)),
+        ("80 m behind, on the column-0 edge", -centre + glam::Vec3::new(-80.0, 0.01, 0.1)),
+    ] {
+        let moved: Vec<[f32; 3]> = person.positions.iter().map(|p| (glam::Vec3::from(*p) + offset).to_array()).collect();
+        let mut geom = pedscan::geometry::FrameGeometry::default();
+        geom.push_mesh(&moved, &indices, 1, false);
+        caster.cast(&geom, f64::MAX, &mut got);
+        let reference = cast(&geom, &Bvh::build(&geom), &gen.lookup.dirs, f64::MAX);
+        let hits = reference.iter().filter(|h| h.is_hit()).count();
+        assert!(hits > 0, "{name}: the person must be hit");
+        for (b, (g, r)) in got.iter().zip(&reference).enumerate() {
+            assert!(g.triangle == r.triangle && g.range_m.to_bits() == r.range_m.to_bits(), "{name} beam {b}: {g:?} vs {r:?}");
+        }
+    }
+}
