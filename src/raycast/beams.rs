@@ -18,8 +18,9 @@
 //! * The projection of a triangle is a spherical triangle whose sides are great-circle arcs.
 //! * Azimuth: if the triangle's xy-projection does not contain the z axis, the azimuths of its
 //!   points fill the shortest arc that holds the three vertex azimuths (less than 180 degrees).
-//!   Vertex azimuths come from a polynomial `atan` with a proven error below 1.2e-5 rad
-//!   (tested); the bound is widened by 4e-5 rad plus the f32 rounding of the column coordinate.
+//!   Vertex azimuths come from a polynomial `atan` whose error, sampled densely (5e7 points),
+//!   stays below 1.17e-5 rad (a unit test checks 6e5 of them); the bound is widened by
+//!   4e-5 rad plus the f32 rounding of the column coordinate.
 //! * Elevation: `sin(el) = z` of the unit direction is linear on the sphere, so without a pole
 //!   inside, its extremes lie on the sides. On an arc of angle `theta` between unit vectors A
 //!   and B, every point is `w1 A + w2 B` with `w1 + w2 <= 1 / cos(theta / 2)`, so `z` exceeds
@@ -27,8 +28,11 @@
 //!   from the triangle's longest chord.
 //! * A triangle whose azimuth arc is wider than a quarter turn (it surrounds or nearly touches
 //!   the z axis), or with a vertex on the axis, is tested against every beam; one with a
-//!   longest side over 90 degrees against every row of its columns. Non-finite vertices never
-//!   hit (as in the reference) and are skipped.
+//!   longest chord over ~87 degrees (chord^2 >= 1.9) against every row of its columns.
+//!   Non-finite vertices never hit (as in the reference) and are skipped.
+//! * Preconditions (checked in [`BeamCaster::new`]): at least 8 columns on the sensor's
+//!   uniform azimuth grid, rows of constant elevation in strictly descending order. The row-gap
+//!   shortcut needs two neighbouring column cells to span well under half a turn.
 
 use super::{better, intersect_pre, Hit, RayPre};
 use crate::geometry::FrameGeometry;
@@ -42,7 +46,7 @@ const JOB_TRIANGLES: usize = 4096;
 const JOB_VERTICES: usize = 4096;
 /// Jobs wanted per cast (row bands split meshes of few triangles).
 const MIN_JOBS: usize = 16;
-/// Bound on the error of [`atan2_fast`] in radians (measured 1.0e-5, see the tests) with margin.
+/// Bound on the error of [`atan2_fast`] in radians (sampled maximum 1.17e-5) with margin.
 const AZIMUTH_MARGIN_RAD: f32 = 4e-5;
 /// Margin on `sin(elevation)` for the f32 normalisation of the vertices.
 const SIN_MARGIN: f32 = 4e-6;
@@ -80,16 +84,17 @@ pub struct BeamCaster {
     /// `sin(elevation)` per row, descending with the row index.
     row_sin: Vec<f32>,
     /// Per vertex: the column cell `floor(u)` as `2 floor(u) + e`, where `e = 1` when `u` is
-    /// within the azimuth margin of a cell edge (`NO_CELL`: no azimuth); and the row gap (the number of rows above the
-    /// vertex) when the vertex is farther than `gap_margin` from both rows around it, else
-    /// `i32::MIN` (see `gap_table`).
+    /// within the azimuth margin of a cell edge (`NO_CELL`: no azimuth); and the row gap (the
+    /// number of rows above the vertex) when the vertex is farther than the gap table's
+    /// margin from both rows around it, else `i32::MIN` (see `gap_table`).
     cell: Vec<[i32; 2]>,
     /// Per vertex: column coordinate `u` and `sin(elevation)` (meaningful where the vertex
     /// is finite and off the z axis).
     us: Vec<[f32; 2]>,
     /// Row gap per bin of `sin(elevation)` over [-1, 1] (`GAP_BINS` bins): the gap that holds
-    /// the whole bin widened by `gap_margin`, or `i32::MIN`. Gaps beyond the outermost rows
-    /// are used only on the side of zero elevation (where arcs cannot bulge out of them).
+    /// the whole bin widened by the bulge margin, or `i32::MIN`. Arcs bulge away from zero
+    /// elevation, so the gap above the top row is used only if that row is at or above zero,
+    /// and the gap below the bottom row only if that row is at or below zero.
     gap_table: Vec<i32>,
     /// Per triangle job: the hits it found (beam, range, triangle).
     jobs: Vec<Vec<(u32, f64, u32)>>,
@@ -111,6 +116,19 @@ impl BeamCaster {
     /// descending elevations (see [`crate::sensor::Sensor`]).
     pub fn new(dirs: &[DVec3], rows: usize, columns: usize) -> BeamCaster {
         assert_eq!(dirs.len(), rows * columns, "beam grid size");
+        // The bounds below rely on this grid layout (a sensor's `beam_dirs`).
+        assert!(columns >= 8, "the beam caster needs at least 8 columns, got {columns}");
+        for r in 0..rows {
+            let z = dirs[r * columns].z;
+            assert!(r == 0 || z < dirs[(r - 1) * columns].z, "rows must descend strictly in elevation (row {r})");
+            for c in 0..columns {
+                let d = dirs[r * columns + c];
+                let az = std::f64::consts::PI * (1.0 - 2.0 * (c as f64 + 0.5) / columns as f64);
+                let dz = (d.z - z).abs();
+                let daz = (d.y.atan2(d.x) - az + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                assert!(dz <= 1e-12 && daz.abs() <= 1e-9, "beam ({r}, {c}) is off the sensor's grid");
+            }
+        }
         let row_sin: Vec<f32> = (0..rows).map(|r| dirs[r * columns].z as f32).collect();
         let gap_table = gap_table(&row_sin, columns);
         BeamCaster {
@@ -502,8 +520,11 @@ impl Grid<'_> {
             DVec3::from(pos[i[2] as usize].map(f64::from)),
         ];
         // Edge planes through the origin: a beam strictly outside one of them and strictly
-        // inside another is outside the triangle (the exact test would say the same); the
-        // tolerance is far above the rounding of these f32 products.
+        // inside another is outside the triangle. The tolerance is far above the rounding of
+        // these f32 products; where the exact test's own rounding is larger (a plane through
+        // two nearly parallel vertices), the other two planes nearly coincide with opposite
+        // normals, so a beam the exact test hits sets neither flag from them, and one plane
+        // alone never drops a beam.
         let edge = |p: DVec3, q: DVec3| {
             let n = p.cross(q).as_vec3();
             (n, 1e-6 * (n.x.abs() + n.y.abs() + n.z.abs()) + 1e-30)
@@ -586,6 +607,7 @@ mod tests {
                 worst = worst.max(d);
             }
         }
+        // A denser sweep's maximum is 1.17e-5; the margin is built on that.
         assert!(worst < 1.2e-5, "atan2_fast error {worst:e}");
         assert!(worst > 1e-7, "the test must measure the polynomial's error ({worst:e})");
         assert!((AZIMUTH_MARGIN_RAD as f64) > 3.0 * worst);
@@ -809,5 +831,23 @@ mod tests {
         geom.push_mesh(&v, &idx, 0, true);
         let hits = check_equal(&sensor, &geom, 100.0);
         assert!(hits > 1000, "{hits} hits");
+    }
+
+    #[test]
+    #[should_panic(expected = "at least 8 columns")]
+    fn grids_too_coarse_for_the_bounds_are_refused() {
+        // With very few columns two neighbouring cells span most of a turn and the row-gap
+        // shortcut would no longer hold.
+        let s = small_sensor(4);
+        BeamCaster::new(&s.beam_dirs(), s.rows(), s.columns);
+    }
+
+    #[test]
+    #[should_panic(expected = "off the sensor's grid")]
+    fn directions_off_the_grid_are_refused() {
+        let s = small_sensor(64);
+        let mut dirs = s.beam_dirs();
+        dirs[70] = DVec3::new(1.0, 0.0, 0.0);
+        BeamCaster::new(&dirs, s.rows(), s.columns);
     }
 }
