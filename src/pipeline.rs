@@ -102,6 +102,10 @@ impl std::fmt::Display for StageTimes {
             ("people", self.humans_s),
             ("post", self.post_s),
         ] {
+            // The BVH stage exists only with PEDSCAN_CASTER=bvh.
+            if name == "bvh refit" && s == 0.0 {
+                continue;
+            }
             writeln!(f, "{name:<14} {:>9.3}   {:>5.1} %", 1e3 * s / n, 100.0 * s / main.max(1e-12))?;
         }
         writeln!(f, "{:<14} {:>9.3}", "frame thread", 1e3 * main / n)?;
