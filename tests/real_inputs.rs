@@ -276,3 +276,27 @@ fn broken_recordings_and_tracks_are_named_and_exit_2() {
         assert!(!dir.join(o).exists(), "{o} was created for a run that failed on its input");
     }
 }
+
+#[test]
+fn a_window_of_frame_files_is_read_once() {
+    // Finding the floor and walkable area reads the window's frames; the frames of the
+    // sequence then come from those images, equal to reading the files again.
+    let tmp = tempfile::tempdir().unwrap();
+    write_recording(tmp.path(), 12);
+    let velo = tmp.path().join("velodyne");
+    let poses = tmp.path().join("poses.txt");
+    let open = || pedscan::background::Recording::open(&velo, Some(&poses), &Sensor::hdl32e()).unwrap();
+    let (rec, fresh) = (open(), open());
+    let read = |r: &pedscan::background::Recording| r.files_read.load(std::sync::atomic::Ordering::Relaxed);
+    rec.walkable(3..9, None).unwrap();
+    assert_eq!(read(&rec), 6);
+    let (mut img, mut expected) = (Vec::new(), Vec::new());
+    for k in (3..9).chain([10, 4]) {
+        rec.frame_ranges(k, &mut img).unwrap();
+        fresh.frame_ranges(k, &mut expected).unwrap();
+        assert!(img == expected && img.iter().any(|&r| r > 0.0), "frame {k} differs from the file");
+    }
+    // Only frame 10, outside the window, was read again.
+    assert_eq!(read(&rec), 7, "the window's frames must not be read twice");
+    assert_eq!(read(&fresh), 8);
+}

@@ -6,7 +6,9 @@
 //!   projected range images (rows x columns x 4 bytes per frame), times from the capture;
 //! * a folder of KITTI `.bin` or `.pcd` frames (one kind per folder, in file-name order): read
 //!   and projected when a window uses them, so a folder may hold any number of frames. The
-//!   `.bin` sizes are checked when the run starts.
+//!   `.bin` sizes are checked when the run starts. The window's images, read once to find the
+//!   floor and walkable area, are kept for its frames (up to 256 MiB), so each file is read
+//!   once per sequence.
 //!
 //! # Times
 //! In order of preference: the poses file's (TUM), the capture's (pcap), a KITTI `times.txt`
@@ -61,7 +63,16 @@ pub struct Recording {
     pub description: String,
     projector: Projector,
     dirs: Vec<DVec3>,
+    /// Frame files only: the range images of the last window `walkable` read (first frame,
+    /// images), so the frames of the sequence are not read and projected a second time.
+    /// Kept only while the window's images fit in `WINDOW_CACHE_BYTES`.
+    window: std::sync::Mutex<Option<(usize, Vec<Vec<f32>>)>>,
+    /// Frame files read and projected so far (to check the window cache).
+    pub files_read: std::sync::atomic::AtomicUsize,
 }
+
+/// The most memory the window cache of a frame folder may hold.
+const WINDOW_CACHE_BYTES: usize = 256 << 20;
 
 /// What a frame file is.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -181,6 +192,8 @@ impl Recording {
             description,
             projector,
             dirs: target.beam_dirs(),
+            window: std::sync::Mutex::new(None),
+            files_read: std::sync::atomic::AtomicUsize::new(0),
         })
     }
 
@@ -201,12 +214,20 @@ impl Recording {
                 out.extend_from_slice(&v[k]);
             }
             Frames::Files(files) => {
+                if let Some((first, images)) = &*self.window.lock().unwrap_or_else(|e| e.into_inner()) {
+                    if let Some(img) = k.checked_sub(*first).and_then(|i| images.get(i)) {
+                        out.clear();
+                        out.extend_from_slice(img);
+                        return Ok(());
+                    }
+                }
                 let f = &files[k];
                 let scan: Scan = match kind_of(f) {
                     Some(FileKind::Bin) => kitti::read_bin(f)?,
                     _ => pcd::read_pcd(f)?,
                 };
                 self.projector.project(&scan, out);
+                self.files_read.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             }
         }
         Ok(())
@@ -223,11 +244,36 @@ impl Recording {
         // World points of the window with their sensor's position.
         let mut pts: Vec<(DVec3, DVec3)> = Vec::new();
         let mut ranges = Vec::new();
+        // Frame files: keep the window's images for the frames that follow (when they fit).
+        let keep = matches!(self.frames, Frames::Files(_))
+            && frames.len().saturating_mul(self.dirs.len() * 4) <= WINDOW_CACHE_BYTES;
+        *self.window.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        // Kept frames are read in parallel (files are independent); the first failing
+        // frame, in order, is the one reported.
+        let kept: Vec<Vec<f32>> = if keep {
+            use rayon::prelude::*;
+            let read: Vec<Result<Vec<f32>>> = frames
+                .clone()
+                .into_par_iter()
+                .map(|k| {
+                    let mut img = Vec::new();
+                    self.frame_ranges(k, &mut img).map(|()| img)
+                })
+                .collect();
+            read.into_iter().collect::<Result<_>>()?
+        } else {
+            Vec::new()
+        };
         for k in frames.clone() {
-            self.frame_ranges(k, &mut ranges)?;
+            let ranges = if keep {
+                &kept[k - frames.start]
+            } else {
+                self.frame_ranges(k, &mut ranges)?;
+                &ranges
+            };
             let pose = self.pose(k);
             let origin = pose.w_axis.truncate();
-            for (d, &r) in self.dirs.iter().zip(&ranges) {
+            for (d, &r) in self.dirs.iter().zip(ranges) {
                 if r > 0.0 {
                     pts.push((pose.transform_point3(*d * r as f64), origin));
                 }
@@ -242,6 +288,9 @@ impl Recording {
         };
         let grid = walkable_from_points(&pts, floor, crate::pipeline::WALKABLE_CELL_M)
             .ok_or_else(|| Error::input(name(), format!("no walkable floor near z = {floor:.2} m in the recorded returns")))?;
+        if keep {
+            *self.window.lock().unwrap_or_else(|e| e.into_inner()) = Some((frames.start, kept));
+        }
         Ok((floor, grid))
     }
 }
