@@ -51,50 +51,36 @@ pub struct Poses {
 
 /// Reads a KITTI or TUM pose file (format detected from the number of values per line).
 pub fn read_poses(path: &Path) -> Result<Poses> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
-    let name = path.display().to_string();
-    let at = |line: usize| format!("{name}:{line}");
-
     let mut poses = Vec::new();
     let mut times: Vec<f64> = Vec::new();
     // (values per line, line it was first seen on)
     let mut format: Option<(usize, usize)> = None;
     let mut prev_time_line = 0usize;
-    let mut vals = Vec::with_capacity(12);
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let s = raw.trim();
-        if s.is_empty() || s.starts_with('#') {
-            continue;
-        }
-        parse_numbers(s, &at(line), &mut vals)?;
+    let name = for_each_number_line(path, |line, here, vals| {
         let n = vals.len();
         match format {
             None => {
                 if n != 12 && n != 8 {
                     return Err(Error::input(
-                        at(line),
+                        here,
                         format!("{n} values: expected 12 (KITTI 3x4 [R|t]) or 8 (TUM t x y z qx qy qz qw)"),
                     ));
                 }
                 format = Some((n, line));
             }
             Some((want, first)) if n != want => {
-                return Err(Error::input(
-                    at(line),
-                    format!("{n} values, but line {first} has {want}: one file holds one format"),
-                ));
+                return Err(Error::input(here, format!("{n} values, but line {first} has {want}: one file holds one format")));
             }
             Some(_) => {}
         }
         if n == 12 {
-            poses.push(kitti_pose(&vals).map_err(|m| Error::input(at(line), m))?);
+            poses.push(kitti_pose(vals).map_err(|m| Error::input(here, m))?);
         } else {
-            push_later_time(&mut times, &mut prev_time_line, vals[0], line, &at)?;
-            poses.push(tum_pose(&vals).map_err(|m| Error::input(at(line), m))?);
+            push_later_time(&mut times, &mut prev_time_line, vals[0], line, here)?;
+            poses.push(tum_pose(vals).map_err(|m| Error::input(here, m))?);
         }
-    }
+        Ok(())
+    })?;
     match format {
         None => Err(Error::input(name, "holds no pose")),
         Some((12, _)) => Ok(Poses { world_from_sensor: poses, times_s: None }),
@@ -102,11 +88,32 @@ pub fn read_poses(path: &Path) -> Result<Poses> {
     }
 }
 
-/// Appends time `t` read on `line`, which must come after the last one (read on `prev_line`).
-fn push_later_time(times: &mut Vec<f64>, prev_line: &mut usize, t: f64, line: usize, at: &impl Fn(usize) -> String) -> Result<()> {
+/// Reads `path` and calls `each(line, "file:line", numbers)` for every line that is not blank
+/// or a `#` comment, its values parsed as finite numbers. Returns the file's name for
+/// messages about the whole file.
+fn for_each_number_line(path: &Path, mut each: impl FnMut(usize, &str, &[f64]) -> Result<()>) -> Result<String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
+    let name = path.display().to_string();
+    let mut vals = Vec::with_capacity(12);
+    for (i, raw) in text.lines().enumerate() {
+        let s = raw.trim();
+        if s.is_empty() || s.starts_with('#') {
+            continue;
+        }
+        let here = format!("{name}:{}", i + 1);
+        parse_numbers(s, &here, &mut vals)?;
+        each(i + 1, &here, &vals)?;
+    }
+    Ok(name)
+}
+
+/// Appends time `t` read on `line` (named `here`), which must come after the last one (read on
+/// `prev_line`).
+fn push_later_time(times: &mut Vec<f64>, prev_line: &mut usize, t: f64, line: usize, here: &str) -> Result<()> {
     if let Some(&prev) = times.last() {
         if t <= prev {
-            return Err(Error::input(at(line), format!("time {t} is not after time {prev} on line {prev_line}")));
+            return Err(Error::input(here, format!("time {t} is not after time {prev} on line {prev_line}")));
         }
     }
     times.push(t);
@@ -117,28 +124,14 @@ fn push_later_time(times: &mut Vec<f64>, prev_line: &mut usize, t: f64, line: us
 /// Reads a KITTI `times.txt`: one time in seconds per line, finite and strictly increasing.
 /// Blank lines and `#` lines are skipped; a file without a time is an error.
 pub fn read_times(path: &Path) -> Result<Vec<f64>> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
-    let name = path.display().to_string();
-    let at = |line: usize| format!("{name}:{line}");
     let mut times: Vec<f64> = Vec::new();
     let mut prev_line = 0usize;
-    let mut vals = Vec::with_capacity(1);
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let s = raw.trim();
-        if s.is_empty() || s.starts_with('#') {
-            continue;
-        }
-        parse_numbers(s, &at(line), &mut vals)?;
+    let name = for_each_number_line(path, |line, here, vals| {
         if vals.len() != 1 {
-            return Err(Error::input(
-                at(line),
-                format!("{} values: expected one time per line", vals.len()),
-            ));
+            return Err(Error::input(here, format!("{} values: expected one time per line", vals.len())));
         }
-        push_later_time(&mut times, &mut prev_line, vals[0], line, &at)?;
-    }
+        push_later_time(&mut times, &mut prev_line, vals[0], line, here)
+    })?;
     if times.is_empty() {
         return Err(Error::input(name, "holds no time"));
     }
