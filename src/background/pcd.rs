@@ -141,6 +141,15 @@ fn parse_header(bytes: &[u8], name: &str) -> Result<Header> {
                 Error::input(at(l), format!("{what} `{v}` is not a non-negative integer"))
             })
         };
+        // The values of a SIZE or COUNT line: integers, none of them 0.
+        let positive = |what: &str| -> Result<Vec<usize>> {
+            vals.iter()
+                .map(|s| match uint(s, key)? {
+                    0 => Err(Error::input(at(l), format!("{key} 0 is not a {what}"))),
+                    n => Ok(n),
+                })
+                .collect()
+        };
         match key {
             "VERSION" => {
                 dup(raw.version.is_some())?;
@@ -162,15 +171,7 @@ fn parse_header(bytes: &[u8], name: &str) -> Result<Header> {
             }
             "SIZE" => {
                 dup(raw.size.is_some())?;
-                let mut v = Vec::with_capacity(vals.len());
-                for s in &vals {
-                    let n = uint(s, "SIZE")?;
-                    if n == 0 {
-                        return Err(Error::input(at(l), "SIZE 0 is not a field size"));
-                    }
-                    v.push(n);
-                }
-                raw.size = Some((l, v));
+                raw.size = Some((l, positive("field size")?));
             }
             "TYPE" => {
                 dup(raw.ty.is_some())?;
@@ -190,15 +191,7 @@ fn parse_header(bytes: &[u8], name: &str) -> Result<Header> {
             }
             "COUNT" => {
                 dup(raw.count.is_some())?;
-                let mut v = Vec::with_capacity(vals.len());
-                for s in &vals {
-                    let n = uint(s, "COUNT")?;
-                    if n == 0 {
-                        return Err(Error::input(at(l), "COUNT 0 is not a field count"));
-                    }
-                    v.push(n);
-                }
-                raw.count = Some((l, v));
+                raw.count = Some((l, positive("field count")?));
             }
             "WIDTH" => {
                 dup(raw.width.is_some())?;
