@@ -219,6 +219,15 @@ fn pipeline_pair(
     ))
 }
 
+/// The render pass (range + id colour targets, depth, read back) and a pipeline layout with
+/// `push_bytes` of push constants for both stages: the same for cube faces and panorama.
+fn pass_and_layout(ctx: &Arc<Context>, push_bytes: usize) -> Result<(RenderPass, PipelineLayout)> {
+    let pass = RenderPass::new_for_readback(ctx, &[RANGE_FORMAT, ID_FORMAT], DEPTH_FORMAT)?;
+    let layout =
+        PipelineLayout::with_push_constants(ctx, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT, push_bytes as u32)?;
+    Ok((pass, layout))
+}
+
 fn empty_image(index: usize, w: u32, h: u32) -> FaceImage {
     let texels = w as usize * h as usize;
     FaceImage { index, width: w, height: h, rendered: false, range_m: vec![0.0; texels], id: vec![0; texels] }
@@ -226,12 +235,7 @@ fn empty_image(index: usize, w: u32, h: u32) -> FaceImage {
 
 impl Renderer {
     pub fn new(ctx: &Arc<Context>, faces: &CubeFaces) -> Result<Renderer> {
-        let pass = RenderPass::new_for_readback(ctx, &[RANGE_FORMAT, ID_FORMAT], DEPTH_FORMAT)?;
-        let layout = PipelineLayout::with_push_constants(
-            ctx,
-            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
-            std::mem::size_of::<PushConstants>() as u32,
-        )?;
+        let (pass, layout) = pass_and_layout(ctx, std::mem::size_of::<PushConstants>())?;
         let (culled, double_sided) = pipeline_pair(ctx, &layout, &pass, RANGE_VERT, RANGE_FRAG, false)?;
         let mut targets = Vec::with_capacity(faces.faces.len());
         let mut frame = RasterFrame { faces: Vec::with_capacity(faces.faces.len()) };
@@ -246,12 +250,7 @@ impl Renderer {
     /// A renderer into one cylindrical panorama (`render.projection = "cylinder"`): the frame
     /// has one image, index 0, `pano.width` x `pano.height`.
     pub fn new_panorama(ctx: &Arc<Context>, pano: &Panorama) -> Result<Renderer> {
-        let pass = RenderPass::new_for_readback(ctx, &[RANGE_FORMAT, ID_FORMAT], DEPTH_FORMAT)?;
-        let layout = PipelineLayout::with_push_constants(
-            ctx,
-            vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
-            std::mem::size_of::<PanoramaPush>() as u32,
-        )?;
+        let (pass, layout) = pass_and_layout(ctx, std::mem::size_of::<PanoramaPush>())?;
         let direct = pipeline_pair(ctx, &layout, &pass, PANORAMA_VERT, PANORAMA_FRAG, false)?;
         let (soup_culled, soup_double_sided) = pipeline_pair(ctx, &layout, &pass, PANORAMA_SOUP_VERT, PANORAMA_SOUP_FRAG, true)?;
         let targets = vec![FaceTarget::new(ctx, &pass, pano.width, pano.height, PushConstants::default())?];
