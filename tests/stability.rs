@@ -530,23 +530,7 @@ fn grazing_floor_out_to_95_m_matches_reference_within_1e_6_relative() {
     let ctx = context();
     let mut renderer = Renderer::new(&ctx, &cube).expect("renderer");
 
-    let (n, cell, z) = (20usize, 20.0f64, -0.05f64);
-    let mut pos = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            pos.push(DVec3::new(-200.0 + i as f64 * cell, -200.0 + j as f64 * cell, z));
-        }
-    }
-    let mut idx = Vec::new();
-    let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
-    for j in 0..n {
-        for i in 0..n {
-            // Counter-clockwise seen from above (the sensor is above the floor).
-            idx.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    let mut geom = FrameGeometry::default();
-    push(&mut geom, &to_f32(&pos), &idx, 0, false);
+    let geom = grazing_floor();
     let c = compare(&mut renderer, &lookup, &geom, 1e3);
     c.print("grazing");
     let s = c.exact();
@@ -1057,22 +1041,7 @@ fn cylinder_panorama_holds_the_render_path_cases() {
     // The grazing floor, on a sensor whose elevation table is far from uniform (rows from the
     // smallest gap; beams off texel centres take the full search).
     let grazing = custom_sensor("grazing", vec![0.0, -0.03, -0.1, -0.3, -1.0, -1.33, -3.0, -10.0], 1024);
-    let (n, cell, z) = (20usize, 20.0f64, -0.05f64);
-    let mut pos = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            pos.push(DVec3::new(-200.0 + i as f64 * cell, -200.0 + j as f64 * cell, z));
-        }
-    }
-    let mut idx = Vec::new();
-    let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
-    for j in 0..n {
-        for i in 0..n {
-            idx.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    let mut geom = FrameGeometry::default();
-    push(&mut geom, &to_f32(&pos), &idx, 0, false);
+    let geom = grazing_floor();
     let c = run(&grazing, &geom, 1e3, "cyl grazing");
     let s = c.exact();
     let total = grazing.rows() * grazing.columns;
@@ -1085,4 +1054,26 @@ fn cylinder_panorama_holds_the_render_path_cases() {
     assert_eq!(Arc::strong_count(&ctx), 1);
     drop(ctx);
     assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
+}
+
+/// A 400 m floor of 20 m cells, 5 cm below the sensor: beams near the horizon graze it.
+fn grazing_floor() -> FrameGeometry {
+    let (n, cell, z) = (20usize, 20.0f64, -0.05f64);
+    let mut pos = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            pos.push(DVec3::new(-200.0 + i as f64 * cell, -200.0 + j as f64 * cell, z));
+        }
+    }
+    let mut idx = Vec::new();
+    let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    for j in 0..n {
+        for i in 0..n {
+            // Counter-clockwise seen from above (the sensor is above the floor).
+            idx.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    let mut geom = FrameGeometry::default();
+    push(&mut geom, &to_f32(&pos), &idx, 0, false);
+    geom
 }
