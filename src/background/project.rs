@@ -227,6 +227,11 @@ mod tests {
         }
     }
 
+    /// The stats of a scan that fills every cell of `s` once.
+    fn whole_grid(s: &Sensor, ring_mapped: bool) -> ProjectStats {
+        ProjectStats { kept: s.rows() * s.columns, outside_band: 0, replaced: 0, ring_mapped }
+    }
+
     #[test]
     fn own_beam_grid_is_reproduced_cell_for_cell() {
         let s = Sensor::hdl32e();
@@ -241,12 +246,7 @@ mod tests {
         let st = proj.project(&scan, &mut out);
         assert_eq!(
             st,
-            ProjectStats {
-                kept: s.rows() * s.columns,
-                outside_band: 0,
-                replaced: 0,
-                ring_mapped: false
-            }
+            whole_grid(&s, false)
         );
         assert_reproduces(&s, &out);
         // The same buffer again: same answer.
@@ -299,12 +299,7 @@ mod tests {
         let st = proj.project(&scan, &mut out);
         assert_eq!(
             st,
-            ProjectStats {
-                kept: s.rows() * s.columns,
-                outside_band: 0,
-                replaced: 0,
-                ring_mapped: true
-            }
+            whole_grid(&s, true)
         );
         assert_reproduces(&s, &out);
     }
@@ -325,12 +320,7 @@ mod tests {
         let st = proj.project(&scan, &mut out);
         assert_eq!(
             st,
-            ProjectStats {
-                kept: s.rows() * s.columns,
-                outside_band: 0,
-                replaced: 0,
-                ring_mapped: true
-            }
+            whole_grid(&s, true)
         );
         assert_reproduces(&s, &out);
 
