@@ -7,13 +7,17 @@
 //!
 //! Refinement uses the ID buffer: with the triangle that covers the beam's texel (and those of
 //! the 3x3 texels around it) the beam is re-intersected exactly, in f64, with the same
-//! watertight test as the ray-cast reference.
+//! watertight test as the ray-cast reference. `exact` settles a beam from the ID buffer only
+//! where its 3x3 texels all show one mesh with no nearer fold; a beam at a silhouette, a hole
+//! or a depth step is cast exactly through the layer's triangle clusters
+//! ([`MeshClusters`]), so it gets the reference's own hit, never the surface behind the one
+//! the raster missed.
 
 use crate::config::Refine;
 use crate::geometry::FrameGeometry;
 use crate::projection::{CubeFaces, Face, Panorama};
 use crate::raster::RasterFrame;
-use crate::raycast::intersect_triangle;
+use crate::raycast::{intersect_triangle, MeshClusters};
 use crate::sensor::Sensor;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -175,6 +179,13 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
     let n = lookup.rows * lookup.columns;
     out.clear_to(n);
     let w = lookup.columns;
+    // Beams the ID buffer cannot settle are cast exactly through the layer's clusters, built
+    // on first use (a layer with none such builds nothing).
+    let mut clusters = MeshClusters::default();
+    if refine == Refine::Exact {
+        clusters.reset(geom);
+    }
+    let clusters = &clusters;
     out.range_m
         .par_chunks_mut(w)
         .zip(out.triangle.par_chunks_mut(w))
@@ -240,17 +251,19 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         }
                         cand[..nc].sort_unstable_by_key(|c| c.triangle);
                         let centred = lookup.centred[b].then(|| (centre_id != 0).then(|| centre_id - 1));
-                        match refine_exact(dir, geom, &lookup.images[f], &cand[..nc], centred, &mut bufs) {
+                        // A hole or another mesh in the 3x3: straight to the exact cast.
+                        let mesh = geom.mesh_index_of_triangle(cand[0].triangle);
+                        let one_mesh = !any_empty && cand[1..nc].iter().all(|c| geom.mesh_index_of_triangle(c.triangle) == mesh);
+                        let settled = one_mesh
+                            .then(|| refine_exact(dir, geom, &lookup.images[f], &cand[..nc], centred, &mut bufs))
+                            .flatten()
+                            // Off the texel centres (cube faces), a hit found only by the
+                            // ring search is a triangle no texel saw: not settled either.
+                            .filter(|&(_, t)| lookup.centred[b] || cand[..nc].iter().any(|c| c.triangle == t))
+                            .filter(|&hit| no_nearer_fold(geom, &lookup.images[f], hit, &cand[..nc]));
+                        match settled.or_else(|| clusters.cast(geom, dir, &mut bufs.clusters)) {
                             Some(hit) => hit,
-                            // The beam misses every nearby triangle. Next to an empty texel this
-                            // is a silhouette: no hit. Inside a covered patch (no adjacency to
-                            // search): take the centre triangle's plane.
-                            None if any_empty || centre_id == 0 => continue,
-                            None => {
-                                let t = centre_id - 1;
-                                let r = plane_hit(dir, &geom.triangle_f64(t)).unwrap_or(img.range_m[at(u, v)] as f64);
-                                (r, t)
-                            }
+                            None => continue,
                         }
                     }
                 };
@@ -263,6 +276,7 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
 /// Scratch vectors of the ring search, one set per worker.
 #[derive(Default)]
 struct RingBuffers {
+    clusters: Vec<(f64, u32, u32)>,
     ring: Vec<u32>,
     seen: Vec<u32>,
     frontier: Vec<u32>,
@@ -388,6 +402,21 @@ fn refine_exact(
 /// A rendered candidate counts as a nearer surface when its texel range is this fraction
 /// nearer than the hit triangle's plane along the candidate's texel direction.
 const OCCLUDER_MARGIN: f64 = 0.005;
+
+/// Whether the ID buffer alone settles a beam whose refined hit is `hit`, given that every
+/// texel of its 3x3 neighbourhood shows the hit's own mesh (no silhouette, no hole, no other
+/// object): none of them was drawn clearly in front of the hit's plane (no nearer fold of the
+/// same mesh). Anything else sends the beam to the exact cluster cast: the nearest surface
+/// along a beam at a depth step need not be drawn at its texel, which is where metre-scale
+/// errors came from.
+fn no_nearer_fold(geom: &FrameGeometry, image: &ImageMap, (r, t): (f64, u32), cand: &[Cand]) -> bool {
+    let tri = geom.triangle_f64(t);
+    cand.iter().all(|c| {
+        let d = image.texel_dir(c.u, c.v).normalize();
+        let expected = plane_hit(d, &tri).unwrap_or(r);
+        (c.range_m as f64) >= expected * (1.0 - OCCLUDER_MARGIN)
+    })
+}
 
 #[cfg(test)]
 mod tests {

@@ -43,7 +43,9 @@
 //!   caster for generation: ~4x less time per frame for posed people, see `beams.rs`).
 
 mod beams;
+mod clusters;
 pub use beams::BeamCaster;
+pub use clusters::MeshClusters;
 
 use crate::geometry::{Adjacency, FrameGeometry, MeshRange};
 use glam::{DVec3, Vec3A, Vec4};
@@ -120,7 +122,7 @@ fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
 
 /// Per-ray constants of the watertight test (axis permutation and shear).
 #[derive(Clone, Copy, Debug)]
-struct RayPre {
+pub(crate) struct RayPre {
     kx: usize,
     ky: usize,
     kz: usize,
@@ -131,7 +133,7 @@ struct RayPre {
 
 impl RayPre {
     /// None for a zero or non-finite direction (such a ray hits nothing).
-    fn new(dir: DVec3) -> Option<RayPre> {
+    pub(crate) fn new(dir: DVec3) -> Option<RayPre> {
         if !dir.is_finite() {
             return None;
         }
@@ -168,7 +170,7 @@ fn is_degenerate(tri: &[DVec3; 3]) -> bool {
 }
 
 #[inline(always)]
-fn intersect_pre(r: &RayPre, tri: &[DVec3; 3], cull_back: bool) -> Option<f64> {
+pub(crate) fn intersect_pre(r: &RayPre, tri: &[DVec3; 3], cull_back: bool) -> Option<f64> {
     let a = tri[0].to_array();
     let b = tri[1].to_array();
     let c = tri[2].to_array();
