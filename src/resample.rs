@@ -8,7 +8,7 @@
 //! Refinement uses the ID buffer: with the triangle that covers the beam's texel (and those of
 //! the 3x3 texels around it) the beam is re-intersected exactly, in f64, with the same
 //! watertight test as the ray-cast reference. `exact` settles a beam from the ID buffer only
-//! where its 3x3 texels all show one mesh with no nearer fold; a beam at a silhouette, a hole
+//! where its 3x3 texels all show one object (a person, or the background) with no nearer fold; a beam at a silhouette, a hole
 //! or a depth step is cast exactly through the layer's triangle clusters
 //! ([`MeshClusters`]), so it gets the reference's own hit, never the surface behind the one
 //! the raster missed.
@@ -251,10 +251,13 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         }
                         cand[..nc].sort_unstable_by_key(|c| c.triangle);
                         let centred = lookup.centred[b].then(|| (centre_id != 0).then(|| centre_id - 1));
-                        // A hole or another mesh in the 3x3: straight to the exact cast.
-                        let mesh = geom.mesh_index_of_triangle(cand[0].triangle);
-                        let one_mesh = !any_empty && cand[1..nc].iter().all(|c| geom.mesh_index_of_triangle(c.triangle) == mesh);
-                        let settled = one_mesh
+                        // A hole or another object in the 3x3 (another person; for the
+                        // background, whose meshes share instance 0, depth steps between its
+                        // meshes are left to the fold test): straight to the exact cast.
+                        let instance = geom.mesh_of_triangle(cand[0].triangle).instance;
+                        let one_object =
+                            !any_empty && cand[1..nc].iter().all(|c| geom.mesh_of_triangle(c.triangle).instance == instance);
+                        let settled = one_object
                             .then(|| refine_exact(dir, geom, &lookup.images[f], &cand[..nc], centred, &mut bufs))
                             .flatten()
                             // Off the texel centres (cube faces), a hit found only by the
@@ -404,9 +407,9 @@ fn refine_exact(
 const OCCLUDER_MARGIN: f64 = 0.005;
 
 /// Whether the ID buffer alone settles a beam whose refined hit is `hit`, given that every
-/// texel of its 3x3 neighbourhood shows the hit's own mesh (no silhouette, no hole, no other
-/// object): none of them was drawn clearly in front of the hit's plane (no nearer fold of the
-/// same mesh). Anything else sends the beam to the exact cluster cast: the nearest surface
+/// texel of its 3x3 neighbourhood shows the hit's own object (no silhouette, no hole, no other
+/// person): none of them was drawn clearly in front of the hit's plane (no nearer fold or
+/// nearer part of the same object). Anything else sends the beam to the exact cluster cast: the nearest surface
 /// along a beam at a depth step need not be drawn at its texel, which is where metre-scale
 /// errors came from.
 fn no_nearer_fold(geom: &FrameGeometry, image: &ImageMap, (r, t): (f64, u32), cand: &[Cand]) -> bool {

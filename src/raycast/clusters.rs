@@ -2,12 +2,12 @@
 //! path cannot settle from its ID buffer (silhouettes, depth steps, holes next to surfaces).
 //!
 //! Each mesh is cut into clusters of [`CLUSTER_TRIANGLES`] consecutive triangles with a
-//! bounding sphere (f64, from the frame's f32 vertices, widened to stay conservative under
-//! rounding). A beam visits the meshes whose sphere it crosses, then their clusters whose
-//! sphere it crosses, nearest entry first, and stops when the next entry lies beyond the best
-//! hit. Every triangle it tests goes through the reference's watertight test with the
+//! bounding box (f64, from the frame's f32 vertices, widened to stay conservative under
+//! rounding), grouped by [`GROUP_CLUSTERS`]. A beam visits the meshes and groups whose box it
+//! crosses, then their clusters whose box it crosses, nearest entry first, and stops when the
+//! next entry lies beyond the best hit. Every triangle it tests goes through the reference's watertight test with the
 //! reference's tie rule (smaller range, then smaller triangle), and a cluster is skipped only
-//! when the beam misses a sphere holding all of its vertices, so the result equals the BVH
+//! when the beam misses a box holding all of its vertices, so the result equals the BVH
 //! reference and brute force bit for bit.
 //!
 //! Clusters are built per mesh on first use within a frame ([`MeshClusters::reset`] starts a
@@ -22,60 +22,65 @@ use std::sync::OnceLock;
 /// bundled people and simplified levels of detail).
 pub const CLUSTER_TRIANGLES: usize = 32;
 
+/// An axis-aligned box (f64; built from f32 vertices, so exact), widened for the rounding of
+/// the slab test. Boxes, not spheres: the background's long flat triangles (a floor, a wall)
+/// have thin boxes that a beam enters only where it reaches them, while their spheres would
+/// hold the sensor and be entered at 0 by every beam.
 #[derive(Clone, Copy, Debug)]
-struct Sphere {
-    centre: DVec3,
-    radius: f64,
+struct Bounds {
+    lo: DVec3,
+    hi: DVec3,
 }
 
-impl Sphere {
-    /// Conservative bounding sphere of `points` (f32 vertices, exact in f64) in one pass: the
-    /// centre and half diagonal of their box, widened by a relative 1e-9 and an absolute 1e-9
-    /// m for the rounding of the box and of the beam test.
-    fn of(points: impl Iterator<Item = [f32; 3]>) -> Sphere {
+impl Bounds {
+    const EMPTY: Bounds = Bounds { lo: DVec3::splat(f64::INFINITY), hi: DVec3::splat(f64::NEG_INFINITY) };
+
+    /// The box of `points`, widened (see [`Bounds::widened`]).
+    fn of(points: impl Iterator<Item = [f32; 3]>) -> Bounds {
         let (mut lo, mut hi) = (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY));
         for p in points {
             let p = glam::Vec3::from(p);
             lo = lo.min(p);
             hi = hi.max(p);
         }
-        let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-        Sphere::widened(0.5 * (lo + hi), 0.5 * (hi - lo).length())
+        Bounds { lo: lo.as_dvec3(), hi: hi.as_dvec3() }.widened()
     }
 
-    /// A sphere holding every sphere of `parts`.
-    fn around(parts: &[Sphere]) -> Sphere {
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for s in parts {
-            lo = lo.min(s.centre);
-            hi = hi.max(s.centre);
-        }
-        let centre = 0.5 * (lo + hi);
-        Sphere::widened(centre, parts.iter().map(|s| (s.centre - centre).length() + s.radius).fold(0.0, f64::max))
+    /// The box around `parts` (already widened).
+    fn around(parts: &[Bounds]) -> Bounds {
+        parts.iter().fold(Bounds::EMPTY, |a, b| Bounds { lo: a.lo.min(b.lo), hi: a.hi.max(b.hi) })
     }
 
-    fn widened(centre: DVec3, radius: f64) -> Sphere {
-        Sphere { centre, radius: radius * (1.0 + 1e-9) + 1e-9 * (1.0 + centre.length()) }
+    /// Widened by a relative 1e-9 of its coordinates' size and an absolute 1e-12 m, far above
+    /// the rounding of the slab test below.
+    fn widened(self) -> Bounds {
+        let eps = DVec3::splat(1e-9 * self.lo.abs().max(self.hi.abs()).max_element() + 1e-12);
+        Bounds { lo: self.lo - eps, hi: self.hi + eps }
     }
 
-    /// Entry distance of the ray from the origin along unit `dir`, or None when it misses.
-    /// Any point of the sphere on the ray lies at or beyond the returned distance; a sphere
-    /// whose bound is not finite is always entered (at 0).
+    /// Entry distance of the ray from the origin along unit `dir` into the box (0 when it
+    /// starts inside), or None when it misses. A box with a non-finite corner is always
+    /// entered (at 0).
     #[inline]
     fn entry(&self, dir: DVec3) -> Option<f64> {
-        if !(self.radius.is_finite() && self.centre.is_finite()) {
+        if !(self.lo.is_finite() && self.hi.is_finite()) {
             return Some(0.0);
         }
-        let along = self.centre.dot(dir);
-        if along + self.radius < 0.0 {
-            return None;
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            let (d, lo, hi) = (dir[k], self.lo[k], self.hi[k]);
+            if d == 0.0 {
+                if lo > 0.0 || hi < 0.0 {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = (lo / d, hi / d);
+            let (near, far) = if a <= b { (a, b) } else { (b, a) };
+            t0 = t0.max(near);
+            t1 = t1.min(far);
         }
-        let perp2 = (self.centre - along * dir).length_squared();
-        let r2 = self.radius * self.radius;
-        if perp2 > r2 {
-            return None;
-        }
-        Some((along - (r2 - perp2).sqrt()).max(0.0))
+        (t0 <= t1).then_some(t0)
     }
 }
 
@@ -84,22 +89,22 @@ fn vertices_of<'a>(geom: &'a FrameGeometry, indices: &'a [u32]) -> impl Iterator
     indices.iter().map(move |&i| geom.positions[i as usize])
 }
 
-/// Clusters per group: a beam tests a group's sphere before its clusters' spheres.
+/// Clusters per group: a beam tests a group's box before its clusters' boxes.
 const GROUP_CLUSTERS: usize = 16;
 
-/// One mesh's spheres: the whole mesh, its groups, its clusters.
+/// One mesh's boxes: the whole mesh, its groups, its clusters.
 #[derive(Clone, Debug)]
-struct MeshSpheres {
-    mesh: Sphere,
-    groups: Vec<Sphere>,
-    clusters: Vec<Sphere>,
+struct MeshBounds {
+    mesh: Bounds,
+    groups: Vec<Bounds>,
+    clusters: Vec<Bounds>,
 }
 
 /// Per-mesh clusters of one frame, built on demand.
 #[derive(Debug, Default)]
 pub struct MeshClusters {
     /// Per mesh of the frame, once built.
-    meshes: Vec<OnceLock<MeshSpheres>>,
+    meshes: Vec<OnceLock<MeshBounds>>,
 }
 
 impl MeshClusters {
@@ -109,14 +114,14 @@ impl MeshClusters {
         self.meshes.resize_with(geom.meshes.len(), OnceLock::new);
     }
 
-    fn mesh(&self, geom: &FrameGeometry, k: usize) -> &MeshSpheres {
+    fn mesh(&self, geom: &FrameGeometry, k: usize) -> &MeshBounds {
         self.meshes[k].get_or_init(|| {
             let m = &geom.meshes[k];
             let first = 3 * m.first_triangle as usize;
             let idx = &geom.indices[first..first + 3 * m.triangle_count as usize];
-            let clusters: Vec<Sphere> = idx.chunks(3 * CLUSTER_TRIANGLES).map(|c| Sphere::of(vertices_of(geom, c))).collect();
-            let groups: Vec<Sphere> = clusters.chunks(GROUP_CLUSTERS).map(Sphere::around).collect();
-            MeshSpheres { mesh: Sphere::around(&groups), groups, clusters }
+            let clusters: Vec<Bounds> = idx.chunks(3 * CLUSTER_TRIANGLES).map(|c| Bounds::of(vertices_of(geom, c))).collect();
+            let groups: Vec<Bounds> = clusters.chunks(GROUP_CLUSTERS).map(Bounds::around).collect();
+            MeshBounds { mesh: Bounds::around(&groups), groups, clusters }
         })
     }
 
@@ -223,12 +228,18 @@ mod tests {
     }
 
     #[test]
-    fn a_sphere_entry_is_never_beyond_its_surface() {
-        let s = Sphere::of([[10.0f32, 0.0, 0.0], [12.0, 0.0, 0.0], [11.0, 1.0, 0.0]].into_iter());
-        assert!(Sphere::around(&[s]).radius >= s.radius);
+    fn a_box_entry_is_never_beyond_its_surface() {
+        let s = Bounds::of([[10.0f32, 0.0, 0.0], [12.0, 0.0, 0.0], [11.0, 1.0, 0.0]].into_iter());
+        assert!(Bounds::around(&[s]).lo.cmple(s.lo).all());
         let e = s.entry(DVec3::X).unwrap();
-        assert!(e <= 10.0 && e > 9.8, "{e}");
+        assert!(e <= 10.0 && e > 9.99, "{e}");
         assert!(s.entry(-DVec3::X).is_none());
         assert!(s.entry(DVec3::Y).is_none());
+        // A flat box around the sensor (a floor under it): entered only where the beam reaches it.
+        let floor = Bounds::of([[-20.0f32, -20.0, -1.0], [20.0, 20.0, -1.0]].into_iter());
+        let down = DVec3::new(1.0, 0.0, -1.0).normalize();
+        let e = floor.entry(down).unwrap();
+        assert!((e - 2f64.sqrt()).abs() < 1e-6, "{e}");
+        assert!(floor.entry(DVec3::X).is_none());
     }
 }
