@@ -8,10 +8,10 @@
 //! Refinement uses the ID buffer: with the triangle that covers the beam's texel (and those of
 //! the 3x3 texels around it) the beam is re-intersected exactly, in f64, with the same
 //! watertight test as the ray-cast reference. `exact` settles a beam from the ID buffer only
-//! where its 3x3 texels all show one object (a person, or the background) with no nearer fold; a beam at a silhouette, a hole
-//! or a depth step is cast exactly through the layer's triangle clusters
-//! ([`MeshClusters`]), so it gets the reference's own hit, never the surface behind the one
-//! the raster missed.
+//! where its 3x3 texels all show one object (a person, or the background) with no nearer
+//! fold; a beam at a silhouette, a hole or a depth step is cast exactly through the layer's
+//! triangle clusters ([`MeshClusters`]), so it gets the reference's own hit, never the
+//! surface behind the one the raster missed.
 
 use crate::config::Refine;
 use crate::geometry::FrameGeometry;
@@ -369,12 +369,7 @@ fn refine_exact(
     centred: Option<Option<u32>>,
     b: &mut RingBuffers,
 ) -> Option<(f64, u32)> {
-    // Whether candidate `c` was rendered clearly in front of the plane of hit (r, t).
-    let in_front = |(r, t): (f64, u32), c: &Cand| {
-        let d = image.texel_dir(c.u, c.v).normalize();
-        let expected = plane_hit(d, &geom.triangle_f64(t)).unwrap_or(r);
-        (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
-    };
+    let in_front = |hit: (f64, u32), c: &Cand| drawn_in_front(geom, image, hit, c);
     let mut best = None;
     if let Some(Some(t)) = centred {
         test_triangle(dir, geom, t, &mut best);
@@ -406,19 +401,22 @@ fn refine_exact(
 /// nearer than the hit triangle's plane along the candidate's texel direction.
 const OCCLUDER_MARGIN: f64 = 0.005;
 
+/// Whether candidate `c` was rendered clearly in front of the plane of hit `(r, t)`, along the
+/// candidate's own texel direction.
+fn drawn_in_front(geom: &FrameGeometry, image: &ImageMap, (r, t): (f64, u32), c: &Cand) -> bool {
+    let d = image.texel_dir(c.u, c.v).normalize();
+    let expected = plane_hit(d, &geom.triangle_f64(t)).unwrap_or(r);
+    (c.range_m as f64) < expected * (1.0 - OCCLUDER_MARGIN)
+}
+
 /// Whether the ID buffer alone settles a beam whose refined hit is `hit`, given that every
-/// texel of its 3x3 neighbourhood shows the hit's own object (no silhouette, no hole, no other
-/// person): none of them was drawn clearly in front of the hit's plane (no nearer fold or
-/// nearer part of the same object). Anything else sends the beam to the exact cluster cast: the nearest surface
-/// along a beam at a depth step need not be drawn at its texel, which is where metre-scale
-/// errors came from.
-fn no_nearer_fold(geom: &FrameGeometry, image: &ImageMap, (r, t): (f64, u32), cand: &[Cand]) -> bool {
-    let tri = geom.triangle_f64(t);
-    cand.iter().all(|c| {
-        let d = image.texel_dir(c.u, c.v).normalize();
-        let expected = plane_hit(d, &tri).unwrap_or(r);
-        (c.range_m as f64) >= expected * (1.0 - OCCLUDER_MARGIN)
-    })
+/// texel of its 3x3 neighbourhood shows the hit's own object (no silhouette, no hole, no
+/// other person): none of them was drawn clearly in front of the hit's plane (no nearer fold
+/// or nearer part of the same object). Anything else sends the beam to the exact cluster
+/// cast: the nearest surface along a beam at a depth step need not be drawn at its texel,
+/// which is where metre-scale errors came from.
+fn no_nearer_fold(geom: &FrameGeometry, image: &ImageMap, hit: (f64, u32), cand: &[Cand]) -> bool {
+    !cand.iter().any(|c| drawn_in_front(geom, image, hit, c))
 }
 
 #[cfg(test)]

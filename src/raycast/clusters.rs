@@ -5,10 +5,10 @@
 //! bounding box (f64, from the frame's f32 vertices, widened to stay conservative under
 //! rounding), grouped by [`GROUP_CLUSTERS`]. A beam visits the meshes and groups whose box it
 //! crosses, then their clusters whose box it crosses, nearest entry first, and stops when the
-//! next entry lies beyond the best hit. Every triangle it tests goes through the reference's watertight test with the
-//! reference's tie rule (smaller range, then smaller triangle), and a cluster is skipped only
-//! when the beam misses a box holding all of its vertices, so the result equals the BVH
-//! reference and brute force bit for bit.
+//! next entry lies beyond the best hit. Every triangle it tests goes through the reference's
+//! watertight test with the reference's tie rule (smaller range, then smaller triangle), and
+//! a cluster is skipped only when the beam misses a box holding all of its vertices, so the
+//! result equals the BVH reference and brute force bit for bit.
 //!
 //! Clusters are built per mesh on first use within a frame ([`MeshClusters::reset`] starts a
 //! frame), from any thread: a frame whose people are all settled by the raster builds none.
