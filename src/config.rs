@@ -163,6 +163,10 @@ pub struct RenderConfig {
     /// Level of detail: the coarsest level whose geometric error, seen from the sensor, stays
     /// under this angle (milliradians). 0 = always the full mesh.
     pub lod_max_error_mrad: f64,
+    /// Raster backend with exact refinement: the people are drawn as proxies built from
+    /// their coarsest level of detail whose recorded error is at most this (metres), pushed
+    /// outward to enclose the measured mesh (`src/proxy.rs`). 0 = the measured mesh itself.
+    pub proxy_max_error_m: f64,
     /// Keep background holes (no return) even where a person stands in front (the paper's
     /// choice); by default the person is measured.
     pub keep_holes: bool,
@@ -239,6 +243,7 @@ impl Default for RenderConfig {
             oversample: 2.0,
             refine: Refine::Exact,
             lod_max_error_mrad: 1.0,
+            proxy_max_error_m: 0.04,
             keep_holes: false,
         }
     }
@@ -332,6 +337,9 @@ impl Config {
             return bad("render.oversample", format!("{} must be in [0.25, 16]", self.render.oversample));
         }
         non_negative("render.lod_max_error_mrad", self.render.lod_max_error_mrad)?;
+        if !(self.render.proxy_max_error_m.is_finite() && (0.0..=0.5).contains(&self.render.proxy_max_error_m)) {
+            return bad("render.proxy_max_error_m", format!("{} must be in [0, 0.5]", self.render.proxy_max_error_m));
+        }
         positive("humans.tracks_frame_period_s", self.humans.tracks_frame_period_s)?;
         let tf = &self.humans.tracks_transform;
         if !(tf.rotation_deg.is_finite() && tf.translation_m.iter().all(|v| v.is_finite()) && tf.scale.is_finite() && tf.scale > 0.0) {

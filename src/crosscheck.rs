@@ -283,7 +283,9 @@ fn seam_mask(gen: &Generator) -> Vec<bool> {
 }
 
 /// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames.
-pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
+pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
+    // What is checked is the raster backend, whatever `auto` would pick on this device.
+    cfg.render.backend = crate::config::Backend::Raster;
     let mut gen = Generator::new(cfg, opts.validation)?;
     let seam = seam_mask(&gen);
     let dirs = gen.lookup.dirs.clone();
@@ -324,6 +326,13 @@ pub fn crosscheck(cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
                     if *r == Refine::Exact {
                         t_resample.push(t2.elapsed().as_secs_f64() * 1e3);
                     }
+                }
+                // With proxies (the raster backend's exact path) the exact mode is theirs:
+                // drawn and cast as `generate` does.
+                if let Some(people) = gen.people.as_mut() {
+                    let t2 = Instant::now();
+                    people.render(&gen.scratch.proxies, humans, &mut hits[2])?;
+                    *t_resample.last_mut().expect("pushed above") = t2.elapsed().as_secs_f64() * 1e3;
                 }
             }
             let t3 = Instant::now();

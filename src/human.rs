@@ -398,7 +398,19 @@ impl HumanModel {
         placed: &mut Vec<Affine3A>,
         out: &mut [[f32; 3]],
     ) {
-        let l = &self.lods[lod];
+        self.skin_lod_into_slice(&self.lods[lod], joints, transform, placed, out);
+    }
+
+    /// `skin_into_slice` for any mesh skinned to this model's skeleton (one of its LODs, or a
+    /// proxy built from one: `crate::proxy`).
+    pub fn skin_lod_into_slice(
+        &self,
+        l: &Lod,
+        joints: &[Mat4],
+        transform: &Mat4,
+        placed: &mut Vec<Affine3A>,
+        out: &mut [[f32; 3]],
+    ) {
         assert_eq!(out.len(), l.positions.len(), "skinning into a slice of another size");
         if joints.is_empty() {
             out.par_iter_mut().zip(l.positions.par_iter()).for_each(|(o, p)| *o = transform.transform_point3(*p).into());
@@ -553,6 +565,7 @@ fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], erro
     if positions.iter().any(|p| !p.is_finite()) {
         return Err(gltf_err(path, "a vertex position is not finite"));
     }
+    let indices = spatially_ordered(&positions, &indices);
     // Compact: keep only the vertices this LOD's triangles use, in first-use order.
     let mut remap = vec![u32::MAX; positions.len()];
     let mut lod = Lod {
@@ -575,6 +588,39 @@ fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], erro
     }
     lod.adjacency = Arc::new(Adjacency::build(&lod.indices));
     Ok(lod)
+}
+
+/// The triangles of `indices` reordered along a Morton curve of their bind-pose centroids, so
+/// that runs of consecutive triangles are compact in space: the exact casts bound runs of 32
+/// (`crate::raycast::MeshClusters`), and compact runs keep those boxes tight. Each triangle
+/// keeps its vertex order (winding); only the order of the triangles changes.
+fn spatially_ordered(positions: &[Vec3], indices: &[u32]) -> Vec<u32> {
+    let centroid = |t: &[u32]| (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize]) / 3.0;
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for t in indices.chunks_exact(3) {
+        let c = centroid(t);
+        lo = lo.min(c);
+        hi = hi.max(c);
+    }
+    let scale = 1023.0 / (hi - lo).max_element().max(1e-9);
+    // Spreads the low 10 bits of `v` to every third bit.
+    let spread = |v: u32| {
+        let mut x = v & 0x3ff;
+        x = (x | (x << 16)) & 0x030000ff;
+        x = (x | (x << 8)) & 0x0300f00f;
+        x = (x | (x << 4)) & 0x030c30c3;
+        (x | (x << 2)) & 0x09249249
+    };
+    let mut keyed: Vec<(u32, u32)> = indices
+        .chunks_exact(3)
+        .enumerate()
+        .map(|(k, t)| {
+            let q = ((centroid(t) - lo) * scale).round();
+            (spread(q.x as u32) | (spread(q.y as u32) << 1) | (spread(q.z as u32) << 2), k as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.iter().flat_map(|&(_, k)| indices[3 * k as usize..3 * k as usize + 3].iter().copied()).collect()
 }
 
 /// Hip (leg) height as a fraction of stature (Winter, Biomechanics and Motor Control of Human

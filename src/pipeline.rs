@@ -8,12 +8,14 @@
 
 use crate::config::{Backend, CompressionChoice, Config, Projection};
 use crate::error::{Error, Result};
-use crate::geometry::{Adjacency, FrameGeometry};
+use crate::geometry::{Adjacency, FrameGeometry, MeshLayout};
 use crate::gpu::{Context, ContextOptions, DeviceChoice};
 use crate::human::{HumanModel, MODEL_TO_BODY};
 use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter, WriterOptions};
 use crate::post::{composite, PostParams};
+use crate::people::PeopleRaster;
 use crate::projection::{CubeFaces, Panorama};
+use crate::proxy::ModelProxies;
 use crate::raster::Renderer;
 use crate::raycast::{BeamCaster, BvhCache};
 use crate::resample::{resample, BeamHits, BeamLookup};
@@ -54,6 +56,11 @@ pub struct Generator {
     pub cube: CubeFaces,
     pub lookup: BeamLookup,
     pub renderer: Renderer,
+    /// Raster backend, exact refinement: the people drawn as proxies at beam resolution and
+    /// cast exactly (`crate::people`); `None` otherwise.
+    pub people: Option<PeopleRaster>,
+    /// Per model, the proxies of its levels of detail (with `people`).
+    proxies: Vec<ModelProxies>,
     pub scratch: Scratch,
     /// Per environment mesh: its vertex range in `environment.positions`, local indices and
     /// triangle one-rings (computed once).
@@ -126,6 +133,8 @@ struct EnvDraw {
 pub struct Scratch {
     pub background: FrameGeometry,
     pub humans: FrameGeometry,
+    /// The people's proxies, one mesh per person in `humans` order (with `Generator::people`).
+    pub proxies: FrameGeometry,
     pub bg_hits: BeamHits,
     pub human_hits: BeamHits,
     /// The recorded background of the current frame (target grid ranges), when there is one.
@@ -153,6 +162,7 @@ struct PersonScratch {
     joints: Vec<Mat4>,
     placed: Vec<glam::Affine3A>,
     bounds: ([f32; 3], f32),
+    proxy_bounds: ([f32; 3], f32),
 }
 
 /// The sensor and people at one frame (world frame).
@@ -307,6 +317,13 @@ impl Generator {
             Backend::Auto => Backend::Raster,
             b => b,
         };
+        let (people, proxies) = if backend == Backend::Raster && cfg.render.refine == crate::config::Refine::Exact {
+            let max_error = cfg.render.proxy_max_error_m as f32;
+            let proxies: Vec<ModelProxies> = models.par_iter().map(|m| ModelProxies::build(m, max_error, 1.0)).collect();
+            (Some(PeopleRaster::new(&ctx, &sensor)?), proxies)
+        } else {
+            (None, Vec::new())
+        };
         let mut scratch = Scratch::default();
         // PEDSCAN_BVH_REFIT=0 rebuilds every BVH every frame (for comparison).
         if std::env::var("PEDSCAN_BVH_REFIT").is_ok_and(|v| v == "0") {
@@ -329,6 +346,8 @@ impl Generator {
             cube,
             lookup,
             renderer,
+            people,
+            proxies,
             scratch,
             env_meshes,
             export_geometry: None,
@@ -456,13 +475,7 @@ impl Generator {
         if !in_place {
             s.humans.lay_out(s.layout_next.iter().map(|&(instance, m, lod)| {
                 let l = &models[m].lods[lod];
-                crate::geometry::MeshLayout {
-                    vertex_count: l.positions.len() as u32,
-                    triangle_count: l.triangle_count() as u32,
-                    instance,
-                    double_sided: false,
-                    adjacency: Some(l.adjacency.clone()),
-                }
+                MeshLayout::of_lod(l, instance, false, Some(l.adjacency.clone()))
             }));
         }
         // One person per task: joint matrices, skinning into its own vertices, its indices
@@ -487,6 +500,34 @@ impl Generator {
         for (m, p) in s.humans.meshes.iter_mut().zip(&s.person_scratch) {
             (m.centre, m.radius) = p.bounds;
         }
+        if self.people.is_some() {
+            let proxies = &self.proxies;
+            if !in_place {
+                // Drawn from both sides: a beam that meets a proxy, whatever the winding of
+                // the face it meets, may hit that person.
+                s.proxies.lay_out(
+                    s.layout_next.iter().map(|&(instance, m, lod)| MeshLayout::of_lod(&proxies[m].lods[lod], instance, true, None)),
+                );
+            }
+            s.proxies
+                .mesh_slices_mut()
+                .into_par_iter()
+                .zip(s.person_scratch.par_iter_mut())
+                .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
+                .for_each(|(((first, out, indices), p), (&(_, m, lod), &(transform, _)))| {
+                    let proxy = &proxies[m].lods[lod];
+                    models[m].skin_lod_into_slice(proxy, &p.joints, &transform, &mut p.placed, out);
+                    if !in_place {
+                        for (d, &i) in indices.iter_mut().zip(&proxy.indices) {
+                            *d = i + first;
+                        }
+                    }
+                    p.proxy_bounds = crate::geometry::bounding_sphere(out);
+                });
+            for (m, p) in s.proxies.meshes.iter_mut().zip(&s.person_scratch) {
+                (m.centre, m.radius) = p.proxy_bounds;
+            }
+        }
         std::mem::swap(&mut s.layout, &mut s.layout_next);
         Ok(())
     }
@@ -498,9 +539,9 @@ impl Generator {
         let n = self.lookup.dirs.len();
         let s = &mut self.scratch;
         let t = &mut self.timings;
-        for (geom, hits, cache, stage) in [
-            (&s.background, &mut s.bg_hits, &mut s.bvh_background, &mut t.background_s),
-            (&s.humans, &mut s.human_hits, &mut s.bvh_humans, &mut t.humans_s),
+        for (is_people, geom, hits, cache, stage) in [
+            (false, &s.background, &mut s.bg_hits, &mut s.bvh_background, &mut t.background_s),
+            (true, &s.humans, &mut s.human_hits, &mut s.bvh_humans, &mut t.humans_s),
         ] {
             let t0 = std::time::Instant::now();
             if geom.meshes.is_empty() {
@@ -508,6 +549,10 @@ impl Generator {
                 continue;
             }
             match backend {
+                Backend::Raster | Backend::Auto if is_people && self.people.is_some() => {
+                    let people = self.people.as_mut().expect("checked");
+                    people.render(&s.proxies, geom, hits)?;
+                }
                 Backend::Raster | Backend::Auto => {
                     let frame = self.renderer.render(geom)?;
                     resample(&self.lookup, frame, geom, refine, hits);

@@ -1,19 +1,14 @@
 //! The bundled humans as the runtime sees them: heights, recorded LOD error bounds, walking,
 //! and what a model without skin or animation gets.
 
+mod common;
+
 use glam::{Mat4, Vec3};
 use pedscan::human::HumanModel;
 use std::path::{Path, PathBuf};
 
 fn bundled() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "glb"))
-        .collect();
-    v.sort();
-    v
+    common::bundled_humans()
 }
 
 /// Parses `h1700_w60` into (1.700 m, 60 kg).

@@ -20,7 +20,7 @@ use std::sync::OnceLock;
 
 /// Triangles per cluster: consecutive in the mesh's index order (spatially coherent for the
 /// bundled people and simplified levels of detail).
-pub const CLUSTER_TRIANGLES: usize = 32;
+pub const CLUSTER_TRIANGLES: usize = 16;
 
 /// An axis-aligned box (f64; built from f32 vertices, so exact), widened for the rounding of
 /// the slab test. Boxes, not spheres: the background's long flat triangles (a floor, a wall)
@@ -61,6 +61,23 @@ impl Bounds {
     /// Entry distance of the ray from the origin along unit `dir` into the box (0 when it
     /// starts inside), or None when it misses. A box with a non-finite corner is always
     /// entered (at 0).
+    /// [`Self::entry`] with the beam's reciprocal direction precomputed (`Beam`): the same
+    /// answer without a division.
+    #[inline]
+    fn entry_beam(&self, beam: &Beam) -> Option<f64> {
+        if !beam.all_nonzero {
+            return self.entry(beam.dir);
+        }
+        if !(self.lo.is_finite() && self.hi.is_finite()) {
+            return Some(0.0);
+        }
+        let a = self.lo * beam.inv;
+        let b = self.hi * beam.inv;
+        let t0 = a.min(b).max_element().max(0.0);
+        let t1 = a.max(b).min_element();
+        (t0 <= t1).then_some(t0)
+    }
+
     #[inline]
     fn entry(&self, dir: DVec3) -> Option<f64> {
         if !(self.lo.is_finite() && self.hi.is_finite()) {
@@ -85,12 +102,60 @@ impl Bounds {
 }
 
 /// The vertices named by `indices`.
+/// Distance along unit `dir` (from the origin) at which it enters the sphere, if it does
+/// (0 from inside). The radius is padded so f32 rounding of the centre never loses a hit.
+fn sphere_entry(centre: [f32; 3], radius: f32, dir: DVec3) -> Option<f64> {
+    let c = glam::Vec3::from(centre).as_dvec3();
+    let r = radius as f64 * (1.0 + 1e-6) + 1e-6;
+    let tc = c.dot(dir);
+    let d2 = c.length_squared() - tc * tc;
+    if d2 > r * r {
+        return None;
+    }
+    Some((tc - (r * r - d2).max(0.0).sqrt()).max(0.0))
+}
+
+/// A beam direction with its reciprocal, for box entries without divisions.
+struct Beam {
+    dir: DVec3,
+    dir32: glam::Vec3,
+    inv: DVec3,
+    all_nonzero: bool,
+}
+
+impl Beam {
+    fn new(dir: DVec3) -> Beam {
+        Beam { dir, dir32: dir.as_vec3(), inv: dir.recip(), all_nonzero: dir.x != 0.0 && dir.y != 0.0 && dir.z != 0.0 }
+    }
+
+    /// Whether the beam certainly misses triangle `[a, b, c]`: it lies strictly outside one of
+    /// the planes through the origin and an edge, and strictly inside another (a beam through
+    /// the triangle, either winding, lies on one side of all three). Computed in f32 with a
+    /// tolerance of 1e-5 |p|_1 |q|_1 per edge (p, q), far above the rounding of the f32 cross
+    /// and dot products (a few f32 epsilons times |p| |q|), so a beam the exact test hits is
+    /// never dropped; the exact test decides the rest.
+    #[inline]
+    fn misses(&self, [a, b, c]: [glam::Vec3; 3]) -> bool {
+        let d = self.dir32;
+        let l1 = |v: glam::Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+        let (la, lb, lc) = (l1(a), l1(b), l1(c));
+        let e = [(d.dot(a.cross(b)), la * lb), (d.dot(b.cross(c)), lb * lc), (d.dot(c.cross(a)), lc * la)];
+        let (mut out, mut inside) = (false, false);
+        for (v, scale) in e {
+            let tol = 1e-5 * scale + 1e-30;
+            out |= v < -tol;
+            inside |= v > tol;
+        }
+        out && inside
+    }
+}
+
 fn vertices_of<'a>(geom: &'a FrameGeometry, indices: &'a [u32]) -> impl Iterator<Item = [f32; 3]> + 'a {
     indices.iter().map(move |&i| geom.positions[i as usize])
 }
 
 /// Clusters per group: a beam tests a group's box before its clusters' boxes.
-const GROUP_CLUSTERS: usize = 16;
+const GROUP_CLUSTERS: usize = 32;
 
 /// One mesh's boxes: the whole mesh, its groups, its clusters.
 #[derive(Clone, Debug)]
@@ -114,6 +179,14 @@ impl MeshClusters {
         self.meshes.resize_with(geom.meshes.len(), OnceLock::new);
     }
 
+    /// Builds the boxes of every mesh now, one mesh per task, instead of on first use.
+    pub fn build_all(&self, geom: &FrameGeometry) {
+        use rayon::prelude::*;
+        (0..self.meshes.len()).into_par_iter().for_each(|k| {
+            self.mesh(geom, k);
+        });
+    }
+
     fn mesh(&self, geom: &FrameGeometry, k: usize) -> &MeshBounds {
         self.meshes[k].get_or_init(|| {
             let m = &geom.meshes[k];
@@ -125,51 +198,98 @@ impl MeshClusters {
         })
     }
 
-    /// The exact nearest hit `(range, triangle)` of the beam along unit `dir` over every mesh
-    /// of `geom` (the layer the raster drew), equal to the reference's. `clusters` is scratch.
+    /// The nearest hit of `dir` over every mesh of `geom` (ties: smaller triangle), exactly the
+    /// brute-force answer.
     pub fn cast(&self, geom: &FrameGeometry, dir: DVec3, clusters: &mut Vec<(f64, u32, u32)>) -> Option<(f64, u32)> {
+        self.cast_seeded(geom, dir, &[], clusters)
+    }
+
+    /// [`Self::cast`], with the meshes in `seeds` cast first: their nearest hit bounds the
+    /// rest, and any other mesh whose bounding sphere the beam enters only beyond that hit is
+    /// skipped without building its boxes. The answer is the same as `cast`'s whatever the
+    /// seeds; good seeds (the person a proxy shows on the beam) only make it cheaper.
+    pub fn cast_seeded(
+        &self,
+        geom: &FrameGeometry,
+        dir: DVec3,
+        seeds: &[u32],
+        clusters: &mut Vec<(f64, u32, u32)>,
+    ) -> Option<(f64, u32)> {
         let ray = RayPre::new(dir)?;
-        let (mut best_t, mut best_tri) = (f64::INFINITY, u32::MAX);
-        // Candidate clusters of every mesh the beam enters: (entry, mesh, cluster).
-        clusters.clear();
+        let beam = Beam::new(dir);
+        let mut best = (f64::INFINITY, u32::MAX);
+        for &k in seeds {
+            self.cast_mesh(geom, &beam, &ray, k as usize, &mut best, clusters);
+        }
         for (k, m) in geom.meshes.iter().enumerate() {
-            if m.triangle_count == 0 {
+            if m.triangle_count == 0 || seeds.contains(&(k as u32)) {
                 continue;
             }
-            let s = self.mesh(geom, k);
-            if s.mesh.entry(dir).is_none() {
-                continue;
+            if sphere_entry(m.centre, m.radius, dir).is_some_and(|e| e <= best.0) {
+                self.cast_mesh(geom, &beam, &ray, k, &mut best, clusters);
             }
-            for (g, group) in s.groups.iter().enumerate() {
-                if group.entry(dir).is_none() {
-                    continue;
+        }
+        (best.1 != u32::MAX).then_some(best)
+    }
+
+    /// Folds the nearest hit of mesh `k` into `best` (ties: smaller triangle), visiting its
+    /// clusters nearest entry first and stopping at the first one that enters beyond `best`.
+    fn cast_mesh(&self, geom: &FrameGeometry, beam: &Beam, ray: &RayPre, k: usize, best: &mut (f64, u32), clusters: &mut Vec<(f64, u32, u32)>) {
+        let m = &geom.meshes[k];
+        if m.triangle_count == 0 {
+            return;
+        }
+        let s = self.mesh(geom, k);
+        if s.mesh.entry_beam(beam).is_none_or(|e| e > best.0) {
+            return;
+        }
+        // Front to back: the groups the beam enters, nearest first; within each, its clusters
+        // nearest first; anything entered beyond the best hit so far is skipped.
+        clusters.clear();
+        for (g, group) in s.groups.iter().enumerate() {
+            if let Some(e) = group.entry_beam(beam) {
+                if e <= best.0 {
+                    clusters.push((e, k as u32, g as u32));
                 }
-                let first = g * GROUP_CLUSTERS;
-                let end = (first + GROUP_CLUSTERS).min(s.clusters.len());
-                for c in first..end {
-                    if let Some(e) = s.clusters[c].entry(dir) {
+            }
+        }
+        let groups = clusters.len();
+        clusters[..groups].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2)));
+        for gi in 0..groups {
+            let (g_entry, _, g) = clusters[gi];
+            if g_entry > best.0 {
+                break;
+            }
+            let first = g as usize * GROUP_CLUSTERS;
+            let end = (first + GROUP_CLUSTERS).min(s.clusters.len());
+            for c in first..end {
+                if let Some(e) = s.clusters[c].entry_beam(beam) {
+                    if e <= best.0 {
                         clusters.push((e, k as u32, c as u32));
                     }
                 }
             }
-        }
-        clusters.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        for &(entry, k, c) in clusters.iter() {
-            if entry > best_t {
-                break;
-            }
-            let m = &geom.meshes[k as usize];
-            let first = m.first_triangle + c * CLUSTER_TRIANGLES as u32;
-            let end = (first + CLUSTER_TRIANGLES as u32).min(m.first_triangle + m.triangle_count);
-            for t in first..end {
-                if let Some(r) = intersect_pre(&ray, &geom.triangle_f64(t), !m.double_sided) {
-                    if better(r, t, best_t, best_tri) {
-                        (best_t, best_tri) = (r, t);
+            clusters[groups..].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2)));
+            for ci in groups..clusters.len() {
+                let (entry, _, c) = clusters[ci];
+                if entry > best.0 {
+                    break;
+                }
+                let first = m.first_triangle + c * CLUSTER_TRIANGLES as u32;
+                let end = (first + CLUSTER_TRIANGLES as u32).min(m.first_triangle + m.triangle_count);
+                for t in first..end {
+                    if beam.misses(geom.triangle(t)) {
+                        continue;
+                    }
+                    if let Some(r) = intersect_pre(ray, &geom.triangle_f64(t), !m.double_sided) {
+                        if better(r, t, best.0, best.1) {
+                            *best = (r, t);
+                        }
                     }
                 }
             }
+            clusters.truncate(groups);
         }
-        (best_tri != u32::MAX).then_some((best_t, best_tri))
     }
 }
 
@@ -216,6 +336,10 @@ mod tests {
         let want = cast_brute_force(&geom, &dirs, f64::MAX, |_| true);
         let mut hits = 0;
         for (k, (&dir, want)) in dirs.iter().zip(&want).enumerate() {
+            // Whatever meshes seed the cast, the answer is the same.
+            let seeds: Vec<u32> = (0..6u32).filter(|m| (k as u32 >> m) & 1 == 1).take(k % 4).collect();
+            let seeded = clusters.cast_seeded(&geom, dir, &seeds, &mut scratch);
+            assert_eq!(seeded, want.is_hit().then_some((want.range_m, want.triangle)), "beam {k}, seeds {seeds:?}");
             match clusters.cast(&geom, dir, &mut scratch) {
                 Some((r, t)) => {
                     hits += 1;
