@@ -22,7 +22,7 @@ use crate::gpu::Context;
 use crate::projection::Panorama;
 use crate::raster::{RasterFrame, Renderer};
 use crate::raycast::MeshClusters;
-use crate::resample::{BeamHits, BeamLookup};
+use crate::resample::{texels_3x3, BeamHits, BeamLookup};
 use crate::sensor::Sensor;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -105,12 +105,8 @@ pub fn cast_covered(
                 // beam off its texel centre, the straight panorama chord of a curved proxy
                 // edge, the rasteriser's sub-texel snapping).
                 add(img.id[(v * fw + u) as usize]);
-                for dv in -1i64..=1 {
-                    for du in -1i64..=1 {
-                        let uu = (u as i64 + du).rem_euclid(fw as i64) as u32;
-                        let vv = (v as i64 + dv).clamp(0, fh as i64 - 1) as u32;
-                        add(img.id[(vv * fw + uu) as usize]);
-                    }
+                for (uu, vv) in texels_3x3((u, v), (fw, fh), true) {
+                    add(img.id[(vv * fw + uu) as usize]);
                 }
                 if seeds.is_empty() {
                     continue;

@@ -147,6 +147,17 @@ impl BeamLookup {
     }
 }
 
+/// The 3x3 texels around `(u, v)` in an image of `size`, row by row: columns wrap around
+/// when `wraps` (the panorama) and clamp to the edge otherwise; rows clamp.
+pub fn texels_3x3((u, v): (u32, u32), (w, h): (u32, u32), wraps: bool) -> impl Iterator<Item = (u32, u32)> {
+    (-1i64..=1).flat_map(move |dv| {
+        (-1i64..=1).map(move |du| {
+            let uu = if wraps { (u as i64 + du).rem_euclid(w as i64) } else { (u as i64 + du).clamp(0, w as i64 - 1) };
+            (uu as u32, (v as i64 + dv).clamp(0, h as i64 - 1) as u32)
+        })
+    })
+}
+
 /// Per-beam result of one render path: range (0 = no hit) and global triangle index.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BeamHits {
@@ -224,26 +235,18 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         let mut cand = [Cand::default(); 9];
                         let mut nc = 0;
                         let mut any_empty = false;
-                        for dv in -1i64..=1 {
-                            for du in -1i64..=1 {
-                                let uu = if wraps {
-                                    (u as i64 + du).rem_euclid(fw as i64) as u32
-                                } else {
-                                    (u as i64 + du).clamp(0, fw as i64 - 1) as u32
-                                };
-                                let vv = (v as i64 + dv).clamp(0, fh as i64 - 1) as u32;
-                                let id = img.id[at(uu, vv)];
-                                let r = img.range_m[at(uu, vv)];
-                                if id == 0 {
-                                    any_empty = true;
-                                } else if let Some(c) = cand[..nc].iter_mut().find(|c| c.triangle == id - 1) {
-                                    if r < c.range_m {
-                                        (c.range_m, c.u, c.v) = (r, uu, vv);
-                                    }
-                                } else {
-                                    cand[nc] = Cand { triangle: id - 1, range_m: r, u: uu, v: vv };
-                                    nc += 1;
+                        for (uu, vv) in texels_3x3((u, v), (fw, fh), wraps) {
+                            let id = img.id[at(uu, vv)];
+                            let r = img.range_m[at(uu, vv)];
+                            if id == 0 {
+                                any_empty = true;
+                            } else if let Some(c) = cand[..nc].iter_mut().find(|c| c.triangle == id - 1) {
+                                if r < c.range_m {
+                                    (c.range_m, c.u, c.v) = (r, uu, vv);
                                 }
+                            } else {
+                                cand[nc] = Cand { triangle: id - 1, range_m: r, u: uu, v: vv };
+                                nc += 1;
                             }
                         }
                         if nc == 0 {
