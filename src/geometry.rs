@@ -39,19 +39,6 @@ pub struct MeshLayout {
     pub adjacency: Option<Arc<Adjacency>>,
 }
 
-impl MeshLayout {
-    /// The layout of a skinned mesh (a person's level of detail or proxy).
-    pub fn of_lod(l: &crate::human::Lod, instance: u32, double_sided: bool, adjacency: Option<Arc<Adjacency>>) -> MeshLayout {
-        MeshLayout {
-            vertex_count: l.positions.len() as u32,
-            triangle_count: l.triangle_count() as u32,
-            instance,
-            double_sided,
-            adjacency,
-        }
-    }
-}
-
 /// Triangles of one frame in the sensor frame: positions, absolute indices, meshes.
 #[derive(Clone, Debug, Default)]
 pub struct FrameGeometry {

@@ -1,37 +1,37 @@
 //! pedscan: automatically labeled LiDAR sequences of walking people.
 //!
-//! Modules follow the data flow of one frame: `sensor` (beam model) -> `scene` (humans,
-//! trajectories, sensor poses, background) -> `human` (glTF, skinning, gait) -> `geometry`
-//! (posed triangles in the sensor frame) -> `projection` + `raster` on `gpu` (Vulkan) ->
-//! `resample` (beam grid) -> `post` (composite, labels, velocity) -> `output` (HDF5, XML, PNG).
-//! `raycast` is the independent CPU reference over the same triangles.
+//! One module (a folder where it has parts) per stage, listed here in the data flow of a
+//! frame:
+//!
+//! 1. `config` (TOML + flags, checked once) and `sensor` (the beam model);
+//! 2. `input`: recorded backgrounds, sensor poses and pedestrian tracks;
+//! 3. `scene`: the environment and its walkable area, and each sequence's plan (sensor
+//!    path, people, walks);
+//! 4. `human`: glTF people, gait and skinning, and their conservative proxies;
+//! 5. `geometry`: the posed triangles of a frame in the sensor frame;
+//! 6. `backend`: the nearest surface per beam, by Vulkan raster (`backend::raster`, on `gpu`)
+//!    or the CPU ray caster (`raycast`), both behind one trait;
+//! 7. `post`: composite people over the background, labels, instances, velocities;
+//! 8. `output`: HDF5, XML, PNG, PLY.
+//!
+//! `generator` runs the stages for every frame; `commands` holds `generate`'s job and the
+//! tools beside it (crosscheck, bench, contact sheet); `plot` draws the bench's figures.
 
-pub mod background;
-pub mod bench;
 pub mod config;
-pub mod crosscheck;
-pub mod error;
-pub mod geometry;
-pub mod gpu;
-pub mod human;
-pub mod output;
-pub mod panorama;
-pub mod people;
-pub mod pipeline;
-pub mod planner;
-pub mod plot;
-pub mod post;
-pub mod projection;
-pub mod proxy;
-pub mod raster;
-pub mod raycast;
-pub mod resample;
-pub mod run;
-pub mod scene;
 pub mod sensor;
-pub mod sheet;
-pub mod sequence;
-pub mod tracks;
+pub mod input;
+pub mod scene;
+pub mod human;
+pub mod geometry;
+pub mod backend;
+pub mod gpu;
+pub mod raycast;
+pub mod post;
+pub mod output;
+pub mod generator;
+pub mod commands;
+pub mod plot;
+pub mod error;
 
 pub use error::{Error, Result};
 

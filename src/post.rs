@@ -11,7 +11,7 @@
 use crate::config::VelocityModel;
 use crate::geometry::FrameGeometry;
 use crate::output::{FrameOutput, OutputSet};
-use crate::resample::{BeamHits, NO_TRIANGLE};
+use crate::backend::{BeamHits, NO_TRIANGLE};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 

@@ -177,6 +177,24 @@ impl Sensor {
         v
     }
 
+    /// Could any beam meet a sphere (sensor frame)? Every azimuth is swept, so only the
+    /// sphere's cone of elevations is held against the band of the rows (with 1e-9 rad for
+    /// rounding), and the range limit; conservative, exact up to that margin.
+    pub fn may_see_sphere(&self, centre: DVec3, radius: f64) -> bool {
+        let dist = centre.length();
+        if dist - radius > self.max_range_m {
+            return false;
+        }
+        if dist <= radius {
+            return true;
+        }
+        let half = (radius / dist).asin() + 1e-9;
+        let el = centre.z.atan2(centre.x.hypot(centre.y));
+        let top = self.elevation_deg.iter().cloned().fold(f64::MIN, f64::max).to_radians();
+        let bottom = self.elevation_deg.iter().cloned().fold(f64::MAX, f64::min).to_radians();
+        el - half <= top && el + half >= bottom
+    }
+
     /// Column of a sensor-frame direction (x, y): `floor(0.5 * (1 - atan2(y, x) / pi) * W)`,
     /// wrapped into `0..W`.
     pub fn column_of(&self, x: f64, y: f64) -> usize {

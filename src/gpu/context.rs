@@ -29,17 +29,10 @@ pub enum DeviceChoice {
 /// How to create a [`Context`].
 #[derive(Clone, Debug, Default)]
 pub struct ContextOptions {
-    /// Enable `VK_LAYER_KHRONOS_validation` with a counting messenger. Also turned on by the
-    /// environment variable `PEDSCAN_VALIDATION=1`. A missing layer is an error.
+    /// Enable `VK_LAYER_KHRONOS_validation` with a counting messenger (`--validation`,
+    /// `debug.validation`). A missing layer is an error.
     pub validation: bool,
     pub device: DeviceChoice,
-}
-
-/// True when `PEDSCAN_VALIDATION` asks for validation (`1`, `true`, `yes`, `on`).
-pub fn validation_from_env() -> bool {
-    std::env::var("PEDSCAN_VALIDATION")
-        .map(|v| matches!(v.trim().to_ascii_lowercase().as_str(), "1" | "true" | "yes" | "on"))
-        .unwrap_or(false)
 }
 
 /// Counters the debug messenger writes into. Boxed, so its address is stable for the
@@ -165,9 +158,9 @@ fn choose<'a>(devices: &'a [DeviceInfo], choice: &DeviceChoice) -> Result<&'a De
 }
 
 impl Context {
-    /// Creates the context. Validation is on if `options.validation` or `PEDSCAN_VALIDATION=1`.
+    /// Creates the context, with the validation layer if `options.validation`.
     pub fn new(options: &ContextOptions) -> Result<Context> {
-        let validation = options.validation || validation_from_env();
+        let validation = options.validation;
         let entry = load_entry()?;
         let counters = Box::new(Counters {
             errors: Arc::new(AtomicUsize::new(0)),

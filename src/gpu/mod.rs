@@ -13,7 +13,7 @@ pub mod pipeline;
 
 pub use buffer::{Buffer, BufferDesc};
 pub use command::{CommandRecorder, Commands};
-pub use context::{validation_from_env, Context, ContextOptions, DeviceChoice};
+pub use context::{Context, ContextOptions, DeviceChoice};
 pub use image::{Image, ImageDesc};
 pub use pipeline::{Framebuffer, GraphicsPipeline, PipelineDesc, PipelineLayout, RenderPass};
 

@@ -2,12 +2,12 @@
 //! the sensor's trajectory, the people (model, trajectory, initial gait phase, stride) and the
 //! frame times. Everything here is f64 in the world frame; nothing touches the GPU.
 
-use crate::config::Config;
+use crate::config::{Config, WalkMode};
 use crate::error::{Error, Result};
 use crate::human::{stride_length_m, HumanModel, MotionMode};
-use crate::planner::WalkPath;
+use crate::scene::planner::WalkPath;
 use crate::scene::{Trajectory, WalkableGrid};
-use crate::tracks::Track;
+use crate::input::tracks::Track;
 use glam::{DMat4, DQuat, DVec2, DVec3};
 use rand::RngExt;
 use std::sync::Arc;
@@ -348,16 +348,6 @@ pub struct PlanInputs<'a> {
     pub floor_z_m: f64,
 }
 
-/// How synthetic people choose where to walk.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum WalkMode {
-    /// From a start to a goal through the walkable area, on smooth planned paths.
-    Goals,
-    /// Circular arcs at constant speed and yaw rate (`humans.yaw_rate_rps`).
-    Arcs,
-}
-
 /// Tries per person (synthetic) or per window (tracks) before giving up.
 const TRIES: usize = 2000;
 const TRACK_WINDOW_TRIES: usize = 200;
@@ -518,7 +508,7 @@ fn sample_synthetic_people(
     let uniform = |rng: &mut dyn FnMut() -> f64, r: [f64; 2]| r[0] + (r[1] - r[0]) * rng();
     let mut humans: Vec<HumanPlan> = Vec::with_capacity(count);
     let s0 = sensor.start_xy();
-    let mut planner = inp.grid.map(|_| crate::planner::Planner::new());
+    let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     for k in 0..count {
         let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
         let height = inp.models[model].height_m as f64;

@@ -12,9 +12,10 @@ use crate::config::{Config, Refine};
 use crate::error::{Error, Result};
 use crate::geometry::FrameGeometry;
 use crate::output::png::{save_png, turbo};
-use crate::pipeline::Generator;
+use crate::backend::{self, Backend, BeamHits, Gpu, LayerKind, NO_TRIANGLE};
+use crate::config::BackendChoice;
+use crate::generator::Generator;
 use crate::raycast::{self, Bvh, Hit};
-use crate::resample::{resample, BeamHits, NO_TRIANGLE};
 use image::RgbImage;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -32,7 +33,6 @@ pub struct CrosscheckOptions {
     pub json: Option<PathBuf>,
     pub png: Option<PathBuf>,
     pub export_geometry: Option<PathBuf>,
-    pub validation: bool,
 }
 
 /// Range-error statistics, metres.
@@ -276,22 +276,28 @@ pub fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// Which beams lie within `SEAM_TEXELS` texels of a cube-face seam (the panorama: of its
-/// azimuth wrap).
-fn seam_mask(gen: &Generator) -> Vec<bool> {
-    (0..gen.lookup.dirs.len()).map(|b| gen.lookup.seam_distance_texels(b) < SEAM_TEXELS).collect()
-}
-
-/// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames.
+/// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames. What is checked is the
+/// backend `render.backend` names, the raster backend for `auto` (whatever `auto` would pick
+/// on this device): three of them, with no refinement, the plane and exact refinement (the
+/// generator's); for the ray caster the three are the same.
 pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
-    // What is checked is the raster backend, whatever `auto` would pick on this device.
-    cfg.render.backend = crate::config::Backend::Raster;
-    let mut gen = Generator::new(cfg, opts.validation)?;
-    let seam = seam_mask(&gen);
-    let dirs = gen.lookup.dirs.clone();
-    let max_range = gen.sensor.max_range_m;
+    if cfg.render.backend == BackendChoice::Auto {
+        cfg.render.backend = BackendChoice::Raster;
+    }
+    cfg.render.refine = Refine::Exact;
+    let mut gpu = Gpu::new(&cfg.device, cfg.debug.validation);
+    let mut gen = Generator::with_gpu(cfg.clone(), &mut gpu)?;
+    let mut others: Vec<Box<dyn Backend>> = Vec::new();
+    for refine in [Refine::None, Refine::Plane] {
+        let mut c = cfg.clone();
+        c.render.refine = refine;
+        others.push(backend::create(&c, gen.sensor(), &[], &mut gpu)?);
+    }
+    drop(gpu);
+    let seam = gen.backend().near_seam(SEAM_TEXELS);
+    let dirs = gen.beam_dirs().to_vec();
+    let max_range = gen.sensor().max_range_m;
     let mut modes = [ModeAcc::new(), ModeAcc::new(), ModeAcc::new()];
-    let refines = [Refine::None, Refine::Plane, Refine::Exact];
     let mut hits = [BeamHits::default(), BeamHits::default(), BeamHits::default()];
     let mut bg_hits = BeamHits::default();
     let mut bg_errors = Vec::new();
@@ -301,40 +307,25 @@ pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
     let mut best_strip_beams = 0usize;
     let mut frames = 0usize;
     let mut per_frame = Vec::new();
-    let first = gen.cfg.first_sequence;
-    for index in first..first + gen.cfg.sequences {
+    for index in cfg.first_sequence..cfg.first_sequence + cfg.sequences {
         let plan = gen.plan(index)?;
         for k in 0..plan.times_s.len() {
             let t0 = Instant::now();
             let state = gen.frame_state(&plan, k);
             gen.pose_frame(&plan, &state)?;
             t_pose.push(t0.elapsed().as_secs_f64() * 1e3);
-            let n = dirs.len();
-            // Humans: one render, three resamplings.
-            let humans = &gen.scratch.humans;
-            if humans.meshes.is_empty() {
-                for h in &mut hits {
-                    h.clear_to(n);
-                }
-            } else {
+            // Humans: each mode's backend on the same posed people.
+            for (m, other) in others.iter_mut().enumerate() {
                 let t1 = Instant::now();
-                let frame = gen.renderer.render(humans)?;
-                t_render.push(t1.elapsed().as_secs_f64() * 1e3);
-                for (m, r) in refines.iter().enumerate() {
-                    let t2 = Instant::now();
-                    resample(&gen.lookup, frame, humans, *r, &mut hits[m]);
-                    if *r == Refine::Exact {
-                        t_resample.push(t2.elapsed().as_secs_f64() * 1e3);
-                    }
-                }
-                // With proxies (the raster backend's exact path) the exact mode is theirs:
-                // drawn and cast as `generate` does.
-                if let Some(people) = gen.people.as_mut() {
-                    let t2 = Instant::now();
-                    people.render(&gen.scratch.proxies, humans, &mut hits[2])?;
-                    *t_resample.last_mut().expect("pushed above") = t2.elapsed().as_secs_f64() * 1e3;
+                gen.cast_with(&mut **other, LayerKind::People, &mut hits[m])?;
+                if m == 0 {
+                    t_render.push(t1.elapsed().as_secs_f64() * 1e3);
                 }
             }
+            let t2 = Instant::now();
+            gen.cast_layer(LayerKind::People, &mut hits[2])?;
+            t_resample.push(t2.elapsed().as_secs_f64() * 1e3);
+            let humans = gen.posed().people;
             let t3 = Instant::now();
             let bvh = Bvh::build(humans);
             t_build.push(t3.elapsed().as_secs_f64() * 1e3);
@@ -356,12 +347,10 @@ pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
                 let xu: Vec<u32> = hits[0].triangle.iter().map(|&t| if t == NO_TRIANGLE { 0 } else { humans.mesh_of_triangle(t).instance }).collect();
                 strip = Some(Strip { raster_range: hits[2].range_m.clone(), raster_instance: xi, reference_range: rr, reference_instance: ri, unrefined_instance: xu });
             }
-            // Background: exact refinement against the reference.
-            let bg = &gen.scratch.background;
-            if !bg.meshes.is_empty() {
-                let frame = gen.renderer.render(bg)?;
-                resample(&gen.lookup, frame, bg, Refine::Exact, &mut bg_hits);
-                let reference = raycast::cast_frame(bg, &dirs, max_range);
+            // Background: the generator's backend (exact refinement) against the reference.
+            if !gen.posed().background.meshes.is_empty() {
+                gen.cast_layer(LayerKind::Background, &mut bg_hits)?;
+                let reference = raycast::cast_frame(gen.posed().background, &dirs, max_range);
                 for (b, r) in reference.iter().enumerate() {
                     let rh = bg_hits.triangle[b] != NO_TRIANGLE;
                     if rh || r.is_hit() {
@@ -375,7 +364,7 @@ pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
             }
             if let Some(dir) = &opts.export_geometry {
                 let path = dir.join(crate::output::sequence_stem(index)).join(format!("frame_{k:06}.ply"));
-                crate::output::ply::write_humans_ply(&path, humans)?;
+                crate::output::ply::write_humans_ply(&path, gen.posed().people)?;
             }
             frames += 1;
         }
@@ -383,11 +372,11 @@ pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
     let [none, plane, exact] = modes;
     let report = Report {
         frames,
-        sensor: gen.sensor.name.clone(),
-        projection: format!("{:?}", gen.cfg.render.projection).to_lowercase(),
-        oversample: gen.cfg.render.oversample,
-        lod_max_error_mrad: gen.cfg.render.lod_max_error_mrad,
-        device: gen.renderer.context().device_name(),
+        sensor: gen.sensor().name.clone(),
+        projection: format!("{:?}", cfg.render.projection).to_lowercase(),
+        oversample: cfg.render.oversample,
+        lod_max_error_mrad: cfg.render.lod_max_error_mrad,
+        device: gen.backend().device_name(),
         unrefined: none.finish(),
         plane: plane.finish(),
         refined: exact.finish(),
@@ -407,15 +396,12 @@ pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
         write_atomic(p, text.as_bytes())?;
     }
     if let (Some(p), Some(s)) = (&opts.png, &strip) {
-        save_png(&strip_png(gen.sensor.rows(), gen.sensor.columns, s), p)?;
+        save_png(&strip_png(gen.sensor().rows(), gen.sensor().columns, s), p)?;
     }
-    let counter = gen.renderer.context().validation_counter();
-    let validating = gen.renderer.context().validation_enabled();
-    drop(gen);
-    let errors = counter.load(std::sync::atomic::Ordering::SeqCst);
-    if validating && errors > 0 {
-        return Err(Error::Gpu(format!("{errors} Vulkan validation errors")));
+    for other in others {
+        backend::finish(other)?;
     }
+    gen.finish()?;
     Ok(report)
 }
 

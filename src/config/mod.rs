@@ -2,20 +2,29 @@
 //! command-line flags, then checked once into values the pipeline can use without re-checking.
 //! The resolved configuration is written into every output file as TOML text.
 
+mod flags;
+pub use flags::Flags;
+
 use crate::error::{Error, Result};
 use crate::human::MotionMode;
-pub use crate::sequence::WalkMode;
-use crate::tracks::{TrackFormat, Transform2};
+use crate::input::tracks::{TrackFormat, Transform2};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Where the bundled data (humans, default scene) lives: `$PEDSCAN_DATA`, else the `data/`
-/// folder of the source tree pedscan was built from.
+/// Where the bundled data (humans, default scene) lives: the `data/` folder of the source
+/// tree pedscan was built from (`humans.models` and `scene.background` point elsewhere).
 pub fn data_dir() -> PathBuf {
-    match std::env::var_os("PEDSCAN_DATA") {
-        Some(p) => PathBuf::from(p),
-        None => PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/data")),
-    }
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/data"))
+}
+
+/// How synthetic people choose where to walk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum WalkMode {
+    /// From a start to a goal through the walkable area, on smooth planned paths.
+    Goals,
+    /// Circular arcs at constant speed and yaw rate (`humans.yaw_rate_rps`).
+    Arcs,
 }
 
 /// How the raster result is refined per beam.
@@ -31,10 +40,10 @@ pub enum Refine {
     Exact,
 }
 
-/// How beams find the surfaces of a frame.
+/// How beams find the surfaces of a frame (`crate::backend`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
-pub enum Backend {
+pub enum BackendChoice {
     /// Raster on a GPU, the ray caster on a CPU Vulkan device (lavapipe), where the benchmark
     /// measures the ray caster faster at better accuracy (README, Performance).
     Auto,
@@ -67,6 +76,17 @@ pub enum VelocityModel {
     Rigid,
 }
 
+/// How the ray-cast backend casts (`debug.caster`): the same hits either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Caster {
+    /// Triangles binned into the beams they can reach (the fast default).
+    #[default]
+    Beams,
+    /// Every beam traced through a BVH per layer, refit to each pose (the reference).
+    Bvh,
+}
+
 /// HDF5 compression of the per-frame chunks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -96,6 +116,10 @@ pub struct Config {
     pub scene: SceneConfig,
     pub render: RenderConfig,
     pub output: OutputConfig,
+    /// Knobs for measuring and debugging; they never change what is written, so they are
+    /// not recorded in the outputs.
+    #[serde(skip_serializing_if = "DebugConfig::is_default")]
+    pub debug: DebugConfig,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -153,7 +177,7 @@ pub struct SceneConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct RenderConfig {
     /// Raster (default) or CPU ray cast.
-    pub backend: Backend,
+    pub backend: BackendChoice,
     /// Raster views: cube faces (default) or one cylindrical panorama.
     pub projection: Projection,
     /// Texels per beam spacing: at a cube-face centre; for the cylinder, texels per column and
@@ -182,6 +206,33 @@ pub struct OutputConfig {
     pub background: bool,
 }
 
+/// `[debug]`: switches that change how a run computes, never what it writes.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct DebugConfig {
+    /// Ray-cast backend: `beams` (binned, default) or `bvh` (the reference caster).
+    pub caster: Caster,
+    /// With `caster = "bvh"`: refit the BVHs across frames (default) or rebuild them.
+    pub bvh_refit: bool,
+    /// Compress and write frame k on a thread of its own while frame k+1 is computed
+    /// (default); off writes on the frame thread (to measure the overlap).
+    pub overlap_write: bool,
+    /// The Vulkan validation layer (slow; also `--validation`).
+    pub validation: bool,
+}
+
+impl Default for DebugConfig {
+    fn default() -> Self {
+        DebugConfig { caster: Caster::Beams, bvh_refit: true, overlap_write: true, validation: false }
+    }
+}
+
+impl DebugConfig {
+    fn is_default(&self) -> bool {
+        *self == DebugConfig::default()
+    }
+}
+
 impl Default for Config {
     fn default() -> Self {
         Config {
@@ -197,6 +248,7 @@ impl Default for Config {
             scene: SceneConfig::default(),
             render: RenderConfig::default(),
             output: OutputConfig::default(),
+            debug: DebugConfig::default(),
         }
     }
 }
@@ -215,7 +267,7 @@ impl Default for HumansConfig {
             walk: WalkMode::Goals,
             tracks: PathBuf::new(),
             tracks_format: TrackFormat::Csv,
-            tracks_frame_period_s: crate::tracks::DEFAULT_FRAME_PERIOD_S,
+            tracks_frame_period_s: crate::input::tracks::DEFAULT_FRAME_PERIOD_S,
             tracks_transform: Transform2::default(),
         }
     }
@@ -238,7 +290,7 @@ impl Default for SceneConfig {
 impl Default for RenderConfig {
     fn default() -> Self {
         RenderConfig {
-            backend: Backend::Auto,
+            backend: BackendChoice::Auto,
             projection: Projection::Cube,
             oversample: 2.0,
             refine: Refine::Exact,
@@ -300,6 +352,7 @@ impl Config {
         let mut c = self.clone();
         c.out = Config::default().out;
         c.device = Config::default().device;
+        c.debug = DebugConfig::default();
         c.to_toml()
     }
 

@@ -4,7 +4,7 @@
 
 use crate::config::Config;
 use crate::error::{Error, Result};
-use crate::pipeline::Generator;
+use crate::generator::Generator;
 use std::fmt;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -18,7 +18,7 @@ pub struct Summary {
     pub seconds: f64,
     pub device: String,
     /// Seconds per stage (`--timings` prints them).
-    pub timings: crate::pipeline::StageTimes,
+    pub timings: crate::generator::StageTimes,
 }
 
 impl fmt::Display for Summary {
@@ -37,16 +37,17 @@ impl fmt::Display for Summary {
 }
 
 /// Runs a whole `generate` job. `progress`: draw a progress bar on a terminal.
-pub fn generate(cfg: Config, validation: bool, progress: bool, export_geometry: Option<PathBuf>) -> Result<Summary> {
+pub fn generate(cfg: Config, progress: bool, export_geometry: Option<PathBuf>) -> Result<Summary> {
     let out = cfg.out.clone();
     if out.exists() && !out.is_dir() {
         return Err(Error::input(out.display(), "output path exists and is not a folder"));
     }
     // Inputs are checked (and the GPU started) before anything is created on disk.
-    let mut gen = Generator::new(cfg, validation)?;
+    let mut gen = Generator::new(cfg)?;
     std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
-    gen.export_geometry = export_geometry;
-    let total = (gen.cfg.sequences * gen.cfg.frames) as u64;
+    gen.set_export_geometry(export_geometry);
+    let cfg = gen.config().clone();
+    let total = (cfg.sequences * cfg.frames) as u64;
     let bar = if progress { indicatif::ProgressBar::new(total) } else { indicatif::ProgressBar::hidden() };
     bar.set_style(
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} frames, {per_sec}, eta {eta} {msg}")
@@ -55,32 +56,22 @@ pub fn generate(cfg: Config, validation: bool, progress: bool, export_geometry: 
     );
     let start = Instant::now();
     let mut files = Vec::new();
-    let first = gen.cfg.first_sequence;
-    for index in first..first + gen.cfg.sequences {
+    for index in cfg.first_sequence..cfg.first_sequence + cfg.sequences {
         bar.set_message(format!("seq_{index:06}"));
         let written = gen.write_sequence(index, &out, || bar.inc(1))?;
         files.extend(written);
     }
     bar.finish_and_clear();
     let summary = Summary {
-        sequences: gen.cfg.sequences,
-        frames: gen.cfg.sequences * gen.cfg.frames,
+        sequences: cfg.sequences,
+        frames: cfg.sequences * cfg.frames,
         files,
         seconds: start.elapsed().as_secs_f64(),
-        timings: gen.timings,
-        device: match gen.backend {
-            crate::config::Backend::Raycast => "the CPU ray caster".into(),
-            _ => gen.renderer.context().device_name(),
-        },
+        timings: gen.timings(),
+        device: gen.backend().device_name(),
     };
     // With validation on, any validation error (leaks at device destruction included) fails
     // the run, so tests of the binary see them.
-    let counter = gen.renderer.context().validation_counter();
-    let validating = gen.renderer.context().validation_enabled();
-    drop(gen);
-    let errors = counter.load(std::sync::atomic::Ordering::SeqCst);
-    if validating && errors > 0 {
-        return Err(Error::Gpu(format!("{errors} Vulkan validation errors (see the messages above)")));
-    }
+    gen.finish()?;
     Ok(summary)
 }

@@ -29,7 +29,7 @@
 //! posed triangles exactly as for the cube faces.
 
 use crate::geometry::{FrameGeometry, MeshRange};
-use crate::projection::{Panorama, NEAR_M, PANORAMA_EDGE_TOLERANCE_TEXELS};
+use super::projection::{Panorama, NEAR_M, PANORAMA_EDGE_TOLERANCE_TEXELS};
 use glam::{DVec3, Vec3};
 use std::f64::consts::{PI, TAU};
 

@@ -11,9 +11,10 @@ use crate::gpu::{Context, ContextOptions};
 use crate::human::{HumanModel, MODEL_TO_BODY};
 use crate::output::png::turbo;
 use crate::plot::font::{draw_text, text_width};
-use crate::projection::CubeFaces;
-use crate::raster::Renderer;
-use crate::resample::{resample, BeamHits, BeamLookup, NO_TRIANGLE};
+use crate::backend::raster::projection::CubeFaces;
+use crate::backend::raster::renderer::Renderer;
+use crate::backend::raster::resample::{resample, BeamLookup};
+use crate::backend::{BeamHits, NO_TRIANGLE};
 use crate::sensor::Sensor;
 use glam::{DMat4, DVec3, Mat4};
 use image::RgbImage;
@@ -91,7 +92,7 @@ pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) ->
 
 /// Loads `models` and writes the sheet to `out` (temporary name, then rename).
 pub fn write_contact_sheet(model_paths: &[std::path::PathBuf], phases: &[f32], out: &Path, validation: bool) -> Result<()> {
-    let files = crate::pipeline::model_files(model_paths)?;
+    let files = crate::human::model_files(model_paths)?;
     let models = files.iter().map(|f| HumanModel::load(f, true)).collect::<Result<Vec<_>>>()?;
     let img = contact_sheet(&models, phases, validation)?;
     crate::output::png::save_png(&img, out)

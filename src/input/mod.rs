@@ -1,6 +1,7 @@
-//! Recorded backgrounds: per-frame point clouds from the formats people have (KITTI `.bin`,
-//! PCD, raw Velodyne `.pcap`), sensor poses (KITTI `poses.txt`, TUM), and the projection of a
-//! recorded frame onto the target sensor's beam grid.
+//! Stage 0: recorded inputs. Backgrounds as per-frame point clouds from the formats people
+//! have (KITTI `.bin`, PCD, raw Velodyne `.pcap`), sensor poses (KITTI `poses.txt`, TUM),
+//! the projection of a recorded frame onto the target sensor's beam grid, and recorded
+//! pedestrian tracks ([`tracks`]: ETH/UCY, ATC, CSV).
 //!
 //! Every reader returns [`Scan`]s in the *recording* sensor's frame (x forward, y left, z up,
 //! metres). Bad input is an [`crate::Error::input`] naming the file and the line or record.
@@ -11,6 +12,7 @@ pub mod pcd;
 pub mod poses;
 pub mod project;
 pub mod recording;
+pub mod tracks;
 
 pub use recording::Recording;
 

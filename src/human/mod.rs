@@ -9,13 +9,40 @@
 //! Gait: the phase advances by distance walked / stride length; the stride length comes from
 //! Alexander's relation between relative stride and Froude number (see [`stride_length_m`]).
 
+
+pub mod proxy;
+
 use crate::error::{Error, Result};
-use crate::geometry::Adjacency;
+use crate::geometry::{Adjacency, MeshLayout};
 use glam::{Affine3A, Mat4, Quat, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// Lists model files: a folder gives its `.glb` / `.gltf` files in name order.
+pub fn model_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut found: Vec<PathBuf> = std::fs::read_dir(p)
+                .map_err(|e| Error::io(p, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| matches!(f.extension().and_then(|e| e.to_str()), Some("glb") | Some("gltf")))
+                .collect();
+            found.sort();
+            if found.is_empty() {
+                return Err(Error::input(p.display(), "folder holds no .glb or .gltf human"));
+            }
+            files.extend(found);
+        } else if p.is_file() {
+            files.push(p.clone());
+        } else {
+            return Err(Error::input(p.display(), "human model file or folder does not exist"));
+        }
+    }
+    Ok(files)
+}
 
 /// glTF model frame (y up, facing +Z) -> body frame (z up, facing +x):
 /// a +90 deg turn about x (y up -> z up) followed by +90 deg about z (facing -y -> +x).
@@ -123,6 +150,10 @@ pub struct Lod {
 }
 
 impl Lod {
+    /// The layout of this mesh skinned into a frame (a person's level of detail or proxy).
+    pub fn layout(&self, instance: u32, double_sided: bool, adjacency: Option<Arc<Adjacency>>) -> MeshLayout {
+        MeshLayout { vertex_count: self.positions.len() as u32, triangle_count: self.triangle_count() as u32, instance, double_sided, adjacency }
+    }
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
@@ -402,7 +433,7 @@ impl HumanModel {
     }
 
     /// `skin_into_slice` for any mesh skinned to this model's skeleton (one of its LODs, or a
-    /// proxy built from one: `crate::proxy`).
+    /// proxy built from one: `crate::human::proxy`).
     pub fn skin_lod_into_slice(
         &self,
         l: &Lod,

@@ -4,7 +4,7 @@
 //! the proxies (a few hundred to a few thousand triangles a person instead of 26,756) into a
 //! panorama whose texel centres are the beams: a beam no proxy covers hits no person; a beam
 //! a proxy covers is cast exactly, starting with the person drawn there
-//! (`crate::people::refine_people`).
+//! (`crate::backend::raster::people::refine_people`).
 //!
 //! In: a [`HumanModel`] and its levels of detail (bind pose, model frame, with the recorded
 //! geometric error of each against LOD 0). Out: per level of detail the person can be drawn
@@ -22,7 +22,7 @@
 //! parts a coarse level collapses. `tests/proxy.rs` checks coverage for every bundled person
 //! at 16 gait phases from six views (about a million hit rays: with a 5 mm margin 5 rays
 //! missed the proxy, with 15 mm one, with 25 mm none), and that it fails when the offset is
-//! shrunk. The raster adds one texel of slack on top (`crate::people`).
+//! shrunk. The raster adds one texel of slack on top (`crate::backend::raster::people`).
 
 use crate::geometry::Adjacency;
 use crate::human::{HumanModel, Lod};

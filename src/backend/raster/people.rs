@@ -1,5 +1,5 @@
 //! The raster backend's people layer (with `render.refine = "exact"`): conservative proxies
-//! ([`crate::proxy`]) are rasterised into a cylindrical panorama at beam resolution, whose
+//! ([`crate::human::proxy`]) are rasterised into a cylindrical panorama at beam resolution, whose
 //! texel centres are the beams, with an ID buffer naming the proxy triangle drawn at each
 //! texel; then every beam a proxy covers is cast exactly through the people's triangle
 //! clusters, the person drawn there first ([`MeshClusters::cast_seeded`]).
@@ -19,10 +19,11 @@
 use crate::error::Result;
 use crate::geometry::FrameGeometry;
 use crate::gpu::Context;
-use crate::projection::Panorama;
-use crate::raster::{RasterFrame, Renderer};
+use super::projection::Panorama;
+use super::renderer::{RasterFrame, Renderer};
 use crate::raycast::MeshClusters;
-use crate::resample::{texels_3x3, BeamHits, BeamLookup};
+use super::resample::{texels_3x3, BeamLookup};
+use crate::backend::BeamHits;
 use crate::sensor::Sensor;
 use rayon::prelude::*;
 use std::sync::Arc;

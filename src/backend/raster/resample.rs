@@ -15,15 +15,13 @@
 
 use crate::config::Refine;
 use crate::geometry::FrameGeometry;
-use crate::projection::{CubeFaces, Face, Panorama};
-use crate::raster::RasterFrame;
+use super::projection::{CubeFaces, Face, Panorama};
+use super::renderer::RasterFrame;
+use crate::backend::BeamHits;
 use crate::raycast::{intersect_triangle, MeshClusters};
 use crate::sensor::Sensor;
 use glam::DVec3;
 use rayon::prelude::*;
-
-/// No triangle hit.
-pub const NO_TRIANGLE: u32 = u32::MAX;
 
 /// How many one-rings around the rendered triangles exact refinement searches when the beam
 /// hits none of them (triangles up to ~4x smaller than a texel).
@@ -156,22 +154,6 @@ pub fn texels_3x3((u, v): (u32, u32), (w, h): (u32, u32), wraps: bool) -> impl I
             (uu as u32, (v as i64 + dv).clamp(0, h as i64 - 1) as u32)
         })
     })
-}
-
-/// Per-beam result of one render path: range (0 = no hit) and global triangle index.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct BeamHits {
-    pub range_m: Vec<f32>,
-    pub triangle: Vec<u32>,
-}
-
-impl BeamHits {
-    pub fn clear_to(&mut self, n: usize) {
-        self.range_m.clear();
-        self.range_m.resize(n, 0.0);
-        self.triangle.clear();
-        self.triangle.resize(n, NO_TRIANGLE);
-    }
 }
 
 /// Intersection of the beam with the plane of a triangle (f64), if in front.

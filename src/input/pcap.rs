@@ -737,7 +737,7 @@ mod tests {
         let rec = read(&capture(&packets).bytes).unwrap();
         assert!(!rec.scans.is_empty());
         let target = crate::sensor::Sensor::hdl32e();
-        let projector = crate::background::project::Projector::new(&target);
+        let projector = crate::input::project::Projector::new(&target);
         let mut ranges = Vec::new();
         let stats = projector.project(&rec.scans[0], &mut ranges);
         assert!(stats.ring_mapped);

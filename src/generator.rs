@@ -1,77 +1,75 @@
 //! The generator: runs the stages of every frame of every sequence, in data-flow order:
 //! sample the sequence -> pose people and background in the sensor frame (f64 -> f32) ->
-//! rasterize (Vulkan) -> resample to the beam grid -> composite, label, velocity -> write.
+//! nearest surface per beam (a [`Backend`]: raster or ray cast) -> composite, label,
+//! velocity -> write. Its state is private; commands drive it through a few methods.
 //!
 //! Each sequence draws from its own random stream (ChaCha8, stream = sequence index), so a
 //! sequence's content depends only on the seed, the configuration and its index: never on
 //! thread count, on which other sequences ran, or on the GPU.
 
-use crate::config::{Backend, CompressionChoice, Config, Projection};
+use crate::backend::{self, Backend, BeamHits, Gpu, Layer, LayerKind};
+use crate::input::recording::is_recording;
+use crate::input::Recording;
+use crate::config::{CompressionChoice, Config};
 use crate::error::{Error, Result};
-use crate::geometry::{Adjacency, FrameGeometry, MeshLayout};
-use crate::gpu::{Context, ContextOptions, DeviceChoice};
-use crate::human::{HumanModel, MODEL_TO_BODY};
+use crate::geometry::{Adjacency, FrameGeometry};
+use crate::human::{model_files, HumanModel, MODEL_TO_BODY};
 use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter, WriterOptions};
 use crate::post::{composite, PostParams};
-use crate::people::PeopleRaster;
-use crate::projection::{CubeFaces, Panorama};
-use crate::proxy::ModelProxies;
-use crate::raster::Renderer;
-use crate::raycast::{BeamCaster, BvhCache};
-use crate::resample::{resample, BeamHits, BeamLookup};
-use crate::scene::{Environment, WalkableGrid};
+use crate::scene::{Environment, WalkableGrid, WALKABLE_CELL_M};
 use crate::sensor::Sensor;
-use crate::background::recording::is_recording;
-use crate::background::Recording;
-use crate::sequence::{sample_plan, PlanInputs, PoseTrack, SequencePlan};
-use crate::tracks::{read_tracks, Track, TrackOptions};
+use crate::scene::sequence::{sample_plan, PlanInputs, PoseTrack, SequencePlan};
+use crate::input::tracks::{read_tracks, Track, TrackOptions};
 use glam::{DMat3, DMat4, DVec3, Mat4};
 use rand::SeedableRng;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// Cell size of the walkable-area grid, metres.
-pub const WALKABLE_CELL_M: f64 = 0.1;
-
 /// Bounding-sphere radius of a person as a fraction of height (arms and legs mid-swing).
 const BODY_RADIUS_PER_HEIGHT: f64 = 0.75;
 
-/// Everything loaded once for a run.
+/// Everything loaded once for a run, and the per-frame buffers.
 pub struct Generator {
-    pub cfg: Config,
-    pub sensor: Sensor,
-    pub models: Vec<HumanModel>,
-    pub environment: Option<Environment>,
-    pub grid: Option<WalkableGrid>,
+    cfg: Config,
+    sensor: Sensor,
+    /// The sensor's beam directions (row-major).
+    dirs: Vec<DVec3>,
+    models: Vec<HumanModel>,
+    environment: Option<Environment>,
+    grid: Option<WalkableGrid>,
     /// A recorded background sequence (instead of an environment).
-    pub recording: Option<Recording>,
+    recording: Option<Recording>,
     /// Recorded sensor poses with their times (from `scene.poses`, or a static sensor under a
     /// recording without poses): the sensor follows them.
-    pub sensor_poses: Option<(Vec<f64>, Vec<DMat4>)>,
+    sensor_poses: Option<(Vec<f64>, Vec<DMat4>)>,
     /// Recorded pedestrian tracks (world frame), when `humans.tracks` is set.
-    pub tracks: Vec<Arc<Track>>,
-    /// The backend that runs: `render.backend` with `auto` resolved for the device.
-    pub backend: Backend,
-    pub cube: CubeFaces,
-    pub lookup: BeamLookup,
-    pub renderer: Renderer,
-    /// Raster backend, exact refinement: the people drawn as proxies at beam resolution and
-    /// cast exactly (`crate::people`); `None` otherwise.
-    pub people: Option<PeopleRaster>,
-    /// Per model, the proxies of its levels of detail (with `people`).
-    proxies: Vec<ModelProxies>,
-    pub scratch: Scratch,
+    tracks: Vec<Arc<Track>>,
+    /// The nearest surface per beam: raster or ray cast (`render.backend`, `auto` resolved).
+    backend: Box<dyn Backend>,
+    scratch: Scratch,
     /// Per environment mesh: its vertex range in `environment.positions`, local indices and
     /// triangle one-rings (computed once).
     env_meshes: Vec<EnvDraw>,
     /// Write each frame's posed humans as PLY under this folder (`--export-geometry`).
-    pub export_geometry: Option<PathBuf>,
+    export_geometry: Option<PathBuf>,
     /// Seconds spent per stage so far (see `--timings`).
-    pub timings: StageTimes,
-    /// Ray-cast backend: trace every beam through a BVH refit per frame instead of binning
-    /// the triangles into beams (same hits; `PEDSCAN_CASTER=bvh`, to compare their speed).
-    bvh_caster: bool,
+    timings: StageTimes,
+}
+
+/// One posed frame as the backends see it (see [`Generator::posed`]).
+pub struct Posed<'a> {
+    pub background: &'a FrameGeometry,
+    pub people: &'a FrameGeometry,
+    /// The people's proxies, one mesh per person (empty unless the backend draws proxies).
+    pub proxies: &'a FrameGeometry,
+}
+
+fn layer_of(s: &Scratch, kind: LayerKind) -> Layer<'_> {
+    match kind {
+        LayerKind::Background => Layer::Background(&s.background),
+        LayerKind::People => Layer::People { people: &s.humans, proxies: &s.proxies },
+    }
 }
 
 /// Wall-clock seconds spent per stage of the frames generated so far. The writer runs on its
@@ -84,7 +82,7 @@ pub struct StageTimes {
     pub plan_s: f64,
     /// Load a recorded frame, pose the background, skin and place the people.
     pub pose_s: f64,
-    /// Ray caster: refit or build the bottom-level trees (background and people).
+    /// Ray caster with `debug.caster = "bvh"`: refit or build the trees (both layers).
     pub bvh_s: f64,
     /// Render (raster) or cast (ray caster) the background and resample it.
     pub background_s: f64,
@@ -109,7 +107,7 @@ impl std::fmt::Display for StageTimes {
             ("people", self.humans_s),
             ("post", self.post_s),
         ] {
-            // The BVH stage exists only with PEDSCAN_CASTER=bvh.
+            // The BVH stage exists only with `debug.caster = "bvh"`.
             if name == "bvh refit" && s == 0.0 {
                 continue;
             }
@@ -130,15 +128,16 @@ struct EnvDraw {
 
 /// Per-frame buffers, reused (no per-frame allocation in steady state).
 #[derive(Default)]
-pub struct Scratch {
-    pub background: FrameGeometry,
-    pub humans: FrameGeometry,
-    /// The people's proxies, one mesh per person in `humans` order (with `Generator::people`).
-    pub proxies: FrameGeometry,
-    pub bg_hits: BeamHits,
-    pub human_hits: BeamHits,
+struct Scratch {
+    background: FrameGeometry,
+    humans: FrameGeometry,
+    /// The people's proxies, one mesh per person in `humans` order (when the backend draws
+    /// proxies).
+    proxies: FrameGeometry,
+    bg_hits: BeamHits,
+    human_hits: BeamHits,
     /// The recorded background of the current frame (target grid ranges), when there is one.
-    pub recorded: Option<Vec<f32>>,
+    recorded: Option<Vec<f32>>,
     /// The people in `humans` (instance, model, level of detail), last frame and this one,
     /// and this frame's placements (sensor from model, gait phase).
     layout: Vec<(u32, usize, usize)>,
@@ -147,13 +146,6 @@ pub struct Scratch {
     /// Per drawn person: joint matrices, placed joints and bounding sphere (in-place poses).
     person_scratch: Vec<PersonScratch>,
     env_sensor: Vec<[f32; 3]>,
-    /// Ray-cast backend: bottom-level BVHs kept across frames (refit to each pose), one
-    /// cache for the background and one for the people.
-    bvh_background: BvhCache,
-    bvh_humans: BvhCache,
-    /// Ray-cast backend: the binned beam-grid caster and its output.
-    beams: Option<BeamCaster>,
-    cast: Vec<crate::raycast::Hit>,
 }
 
 /// Per drawn person, reused across frames: joint matrices, placed joints, bounding sphere.
@@ -178,44 +170,16 @@ pub struct FrameState {
     pub recorded_frame: Option<usize>,
 }
 
-/// Lists model files: a folder gives its `.glb` / `.gltf` files in name order.
-pub fn model_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    for p in paths {
-        if p.is_dir() {
-            let mut found: Vec<PathBuf> = std::fs::read_dir(p)
-                .map_err(|e| Error::io(p, e))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| matches!(f.extension().and_then(|e| e.to_str()), Some("glb") | Some("gltf")))
-                .collect();
-            found.sort();
-            if found.is_empty() {
-                return Err(Error::input(p.display(), "folder holds no .glb or .gltf human"));
-            }
-            files.extend(found);
-        } else if p.is_file() {
-            files.push(p.clone());
-        } else {
-            return Err(Error::input(p.display(), "human model file or folder does not exist"));
-        }
-    }
-    Ok(files)
-}
-
-/// Picks the Vulkan device from the config's `device` string.
-pub fn device_choice(s: &str) -> DeviceChoice {
-    match s {
-        "" | "auto" => DeviceChoice::Auto,
-        s => match s.parse::<usize>() {
-            Ok(i) => DeviceChoice::Index(i),
-            Err(_) => DeviceChoice::Name(s.to_string()),
-        },
-    }
-}
-
 impl Generator {
-    /// Checks the configuration, loads sensor, people and environment, starts the GPU.
-    pub fn new(cfg: Config, validation: bool) -> Result<Generator> {
+    /// Checks the configuration, loads sensor, people and environment, creates the backend
+    /// (which, for raster, opens the Vulkan device).
+    pub fn new(cfg: Config) -> Result<Generator> {
+        let mut gpu = Gpu::new(&cfg.device, cfg.debug.validation);
+        Generator::with_gpu(cfg, &mut gpu)
+    }
+
+    /// [`Generator::new`] on a Vulkan context shared with other backends of the run.
+    pub fn with_gpu(cfg: Config, gpu: &mut Gpu) -> Result<Generator> {
         cfg.validate()?;
         let sensor = Sensor::from_name_or_file(&cfg.sensor)?;
         let needs_animation = cfg.humans.motion.animates();
@@ -244,7 +208,7 @@ impl Generator {
         let sensor_poses = match &recording {
             Some(rec) => Some((rec.times_s.clone(), (0..rec.len()).map(|k| rec.pose(k)).collect::<Vec<_>>())),
             None if !cfg.scene.poses.as_os_str().is_empty() => {
-                let p = crate::background::poses::read_poses(&cfg.scene.poses)?;
+                let p = crate::input::poses::read_poses(&cfg.scene.poses)?;
                 let times = match p.times_s {
                     Some(t) => t,
                     None => (0..p.world_from_sensor.len()).map(|k| k as f64 / sensor.rate_hz).collect(),
@@ -274,7 +238,7 @@ impl Generator {
                 None => (cfg.frames - 1) as f64 / sensor.rate_hz,
             };
             let n = all.len();
-            let kept = crate::tracks::drop_short(all, duration);
+            let kept = crate::input::tracks::drop_short(all, duration);
             if kept.is_empty() && cfg.humans.count[1] > 0 {
                 return Err(Error::input(
                     cfg.humans.tracks.display(),
@@ -302,38 +266,9 @@ impl Generator {
                 })
                 .collect()
         });
-        // The cube faces also cull people no beam can reach (`pose_frame`), whatever the views.
-        let cube = CubeFaces::new(&sensor, cfg.render.oversample);
-        let ctx = Arc::new(Context::new(&ContextOptions { validation, device: device_choice(&cfg.device) })?);
-        let (lookup, renderer) = match cfg.render.projection {
-            Projection::Cube => (BeamLookup::new(&sensor, &cube), Renderer::new(&ctx, &cube)?),
-            Projection::Cylinder => {
-                let pano = Panorama::new(&sensor, cfg.render.oversample);
-                (BeamLookup::new_panorama(&sensor, &pano), Renderer::new_panorama(&ctx, &pano)?)
-            }
-        };
-        let backend = match cfg.render.backend {
-            Backend::Auto if ctx.is_cpu() => Backend::Raycast,
-            Backend::Auto => Backend::Raster,
-            b => b,
-        };
-        let (people, proxies) = if backend == Backend::Raster && cfg.render.refine == crate::config::Refine::Exact {
-            let max_error = cfg.render.proxy_max_error_m as f32;
-            let proxies: Vec<ModelProxies> = models.par_iter().map(|m| ModelProxies::build(m, max_error, 1.0)).collect();
-            (Some(PeopleRaster::new(&ctx, &sensor)?), proxies)
-        } else {
-            (None, Vec::new())
-        };
-        let mut scratch = Scratch::default();
-        // PEDSCAN_BVH_REFIT=0 rebuilds every BVH every frame (for comparison).
-        if std::env::var("PEDSCAN_BVH_REFIT").is_ok_and(|v| v == "0") {
-            scratch.bvh_background = BvhCache::disabled();
-            scratch.bvh_humans = BvhCache::disabled();
-        }
-        if backend == Backend::Raycast {
-            scratch.beams = Some(BeamCaster::new(&lookup.dirs, lookup.rows, lookup.columns));
-        }
+        let backend = backend::create(&cfg, &sensor, &models, gpu)?;
         Ok(Generator {
+            dirs: sensor.beam_dirs(),
             cfg,
             sensor,
             models,
@@ -343,17 +278,56 @@ impl Generator {
             sensor_poses,
             tracks,
             backend,
-            cube,
-            lookup,
-            renderer,
-            people,
-            proxies,
-            scratch,
+            scratch: Scratch::default(),
             env_meshes,
             export_geometry: None,
             timings: StageTimes::default(),
-            bvh_caster: std::env::var("PEDSCAN_CASTER").is_ok_and(|v| v == "bvh"),
         })
+    }
+
+    /// The checked configuration.
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    /// The sensor.
+    pub fn sensor(&self) -> &Sensor {
+        &self.sensor
+    }
+
+    /// The sensor's beam directions (row-major).
+    pub fn beam_dirs(&self) -> &[DVec3] {
+        &self.dirs
+    }
+
+    /// The backend that runs.
+    pub fn backend(&self) -> &dyn Backend {
+        &*self.backend
+    }
+
+    /// Seconds spent per stage so far.
+    pub fn timings(&self) -> StageTimes {
+        self.timings
+    }
+
+    /// Also write each frame's posed people as PLY under `dir` (`--export-geometry`).
+    pub fn set_export_geometry(&mut self, dir: Option<PathBuf>) {
+        self.export_geometry = dir;
+    }
+
+    /// The frame [`Generator::pose_frame`] posed last.
+    pub fn posed(&self) -> Posed<'_> {
+        Posed { background: &self.scratch.background, people: &self.scratch.humans, proxies: &self.scratch.proxies }
+    }
+
+    /// The people layer's hits of the frame [`Generator::render_posed`] cast last.
+    pub fn human_hits(&self) -> &BeamHits {
+        &self.scratch.human_hits
+    }
+
+    /// Ends the run: releases the backend and reports Vulkan validation errors, if on.
+    pub fn finish(self) -> Result<()> {
+        backend::finish(self.backend)
     }
 
     /// The random stream of sequence `index`.
@@ -379,7 +353,7 @@ impl Generator {
         let recorded_grid;
         let (grid, floor_z_m) = match (&self.recording, start) {
             (Some(rec), Some(s)) if self.cfg.humans.count[1] > 0 => {
-                let (z, g) = rec.walkable(s..s + frames, self.cfg.scene.floor_z_m)?;
+                let (z, g) = crate::scene::recorded::walkable(rec, s..s + frames, self.cfg.scene.floor_z_m)?;
                 recorded_grid = g;
                 (Some(&recorded_grid), z)
             }
@@ -428,6 +402,15 @@ impl Generator {
     /// skipping people no beam can reach. Fills `scratch.background` and `scratch.humans`, and
     /// `scratch.recorded` with the recorded background frame, if any.
     pub fn pose_frame(&mut self, plan: &SequencePlan, state: &FrameState) -> Result<()> {
+        self.pose_frame_at(plan, state, self.cfg.render.lod_max_error_mrad)
+    }
+
+    /// [`Generator::pose_frame`] with every person at full detail (the reference of `bench`).
+    pub fn pose_frame_full_detail(&mut self, plan: &SequencePlan, state: &FrameState) -> Result<()> {
+        self.pose_frame_at(plan, state, 0.0)
+    }
+
+    fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64) -> Result<()> {
         let sensor_from_world = state.world_from_sensor.inverse();
         let s = &mut self.scratch;
         match (&self.recording, state.recorded_frame) {
@@ -444,7 +427,7 @@ impl Generator {
             }
         }
         // Who is drawn, at which level of detail: (instance, model, lod), and where.
-        let lod_rad = self.cfg.render.lod_max_error_mrad * 1e-3;
+        let lod_rad = lod_max_error_mrad * 1e-3;
         s.layout_next.clear();
         s.placements.clear();
         for (k, h) in plan.humans.iter().enumerate() {
@@ -456,10 +439,7 @@ impl Generator {
             let r = BODY_RADIUS_PER_HEIGHT * height;
             let centre = sensor_from_body.transform_point3(DVec3::new(0.0, 0.0, 0.5 * height));
             let dist = centre.length();
-            if dist - r > self.sensor.max_range_m {
-                continue;
-            }
-            if !self.cube.faces.iter().any(|f| f.sees_sphere(centre.as_vec3(), r as f32)) {
+            if !self.sensor.may_see_sphere(centre, r) {
                 continue;
             }
             let near = (dist - r).max(0.1);
@@ -475,7 +455,7 @@ impl Generator {
         if !in_place {
             s.humans.lay_out(s.layout_next.iter().map(|&(instance, m, lod)| {
                 let l = &models[m].lods[lod];
-                MeshLayout::of_lod(l, instance, false, Some(l.adjacency.clone()))
+                l.layout(instance, false, Some(l.adjacency.clone()))
             }));
         }
         // One person per task: joint matrices, skinning into its own vertices, its indices
@@ -500,13 +480,12 @@ impl Generator {
         for (m, p) in s.humans.meshes.iter_mut().zip(&s.person_scratch) {
             (m.centre, m.radius) = p.bounds;
         }
-        if self.people.is_some() {
-            let proxies = &self.proxies;
+        if let Some(proxies) = self.backend.proxies() {
             if !in_place {
                 // Drawn from both sides: a beam that meets a proxy, whatever the winding of
                 // the face it meets, may hit that person.
                 s.proxies.lay_out(
-                    s.layout_next.iter().map(|&(instance, m, lod)| MeshLayout::of_lod(&proxies[m].lods[lod], instance, true, None)),
+                    s.layout_next.iter().map(|&(instance, m, lod)| proxies[m].lods[lod].layout(instance, true, None)),
                 );
             }
             s.proxies
@@ -532,54 +511,20 @@ impl Generator {
         Ok(())
     }
 
-    /// Renders and resamples the posed frame into `scratch.bg_hits` / `scratch.human_hits`.
+    /// Finds the nearest surface per beam of the posed frame, layer by layer, into
+    /// `scratch.bg_hits` / `scratch.human_hits` (a recorded background replaces the first).
     pub fn render_posed(&mut self) -> Result<()> {
-        let refine = self.cfg.render.refine;
-        let backend = self.backend;
-        let n = self.lookup.dirs.len();
         let s = &mut self.scratch;
         let t = &mut self.timings;
-        for (is_people, geom, hits, cache, stage) in [
-            (false, &s.background, &mut s.bg_hits, &mut s.bvh_background, &mut t.background_s),
-            (true, &s.humans, &mut s.human_hits, &mut s.bvh_humans, &mut t.humans_s),
+        for (layer, hits, stage) in [
+            (Layer::Background(&s.background), &mut s.bg_hits, &mut t.background_s),
+            (Layer::People { people: &s.humans, proxies: &s.proxies }, &mut s.human_hits, &mut t.humans_s),
         ] {
             let t0 = std::time::Instant::now();
-            if geom.meshes.is_empty() {
-                hits.clear_to(n);
-                continue;
-            }
-            match backend {
-                Backend::Raster | Backend::Auto if is_people && self.people.is_some() => {
-                    let people = self.people.as_mut().expect("checked");
-                    people.render(&s.proxies, geom, hits)?;
-                }
-                Backend::Raster | Backend::Auto => {
-                    let frame = self.renderer.render(geom)?;
-                    resample(&self.lookup, frame, geom, refine, hits);
-                }
-                Backend::Raycast => {
-                    // Ranges are limited later, in the post-pass, as for the raster path.
-                    let t1;
-                    let cast = if self.bvh_caster {
-                        let bvh = cache.build_or_refit(geom);
-                        t.bvh_s += t0.elapsed().as_secs_f64();
-                        t1 = std::time::Instant::now();
-                        s.cast = crate::raycast::cast(geom, bvh, &self.lookup.dirs, f64::MAX);
-                        &s.cast
-                    } else {
-                        t1 = std::time::Instant::now();
-                        let caster = s.beams.as_mut().expect("the ray-cast backend has a beam caster");
-                        caster.cast(geom, f64::MAX, &mut s.cast);
-                        &s.cast
-                    };
-                    hits.clear_to(0);
-                    hits.range_m.extend(cast.iter().map(|h| h.range_m as f32));
-                    hits.triangle.extend(cast.iter().map(|h| h.triangle));
-                    *stage += t1.elapsed().as_secs_f64();
-                    continue;
-                }
-            }
-            *stage += t0.elapsed().as_secs_f64();
+            self.backend.cast(layer, hits)?;
+            let build = self.backend.take_build_seconds();
+            t.bvh_s += build;
+            *stage += t0.elapsed().as_secs_f64() - build;
         }
         if let Some(r) = &s.recorded {
             s.bg_hits.range_m.clone_from(r);
@@ -587,11 +532,22 @@ impl Generator {
         Ok(())
     }
 
+    /// One layer of the posed frame through the generator's backend, into `hits`.
+    pub fn cast_layer(&mut self, kind: LayerKind, hits: &mut BeamHits) -> Result<()> {
+        let s = &self.scratch;
+        self.backend.cast(layer_of(s, kind), hits)
+    }
+
+    /// One layer of the posed frame through another backend (`crosscheck` holds several).
+    pub fn cast_with(&self, backend: &mut dyn Backend, kind: LayerKind, hits: &mut BeamHits) -> Result<()> {
+        backend.cast(layer_of(&self.scratch, kind), hits)
+    }
+
     /// Composites the rendered frame into `out`.
     pub fn post(&self, state: &FrameState, out: &mut FrameOutput) {
         let rot = DMat3::from_mat4(state.world_from_sensor);
         let params = PostParams {
-            dirs: &self.lookup.dirs,
+            dirs: &self.dirs,
             columns: self.sensor.columns,
             min_range_m: self.sensor.min_range_m,
             max_range_m: self.sensor.max_range_m,
@@ -659,7 +615,7 @@ impl Generator {
     pub fn provenance(&self, plan: &SequencePlan) -> Vec<(String, String)> {
         let name = |p: &Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
         let bg = &self.cfg.scene.background;
-        let backend = if self.backend == Backend::Raycast { "raycast" } else { "raster" };
+        let backend = if self.backend.choice() == crate::config::BackendChoice::Raycast { "raycast" } else { "raster" };
         let mut v = vec![("backend".to_string(), backend.to_string()), (
             "background".to_string(),
             match (&self.recording, &self.environment) {
@@ -681,7 +637,7 @@ impl Generator {
             v.push(("tracks".into(), name(&self.cfg.humans.tracks)));
             let mut ids = Vec::new();
             for h in &plan.humans {
-                if let crate::sequence::HumanPath::Track(t) = &h.trajectory {
+                if let crate::scene::sequence::HumanPath::Track(t) = &h.trajectory {
                     ids.push(t.track.id.to_string());
                     if ids.len() == 1 {
                         v.push(("tracks_window_start_s".into(), format!("{}", t.t0_s)));
@@ -708,8 +664,9 @@ impl Generator {
             },
         };
         let mut writer = SequenceWriter::create(out_dir, &meta, &opts)?;
-        // PEDSCAN_OVERLAP_WRITE=0 writes each frame on this thread (to measure the overlap).
-        if std::env::var("PEDSCAN_OVERLAP_WRITE").is_ok_and(|v| v == "0") {
+        // `debug.overlap_write = false` writes each frame on this thread (to measure the
+        // overlap).
+        if !self.cfg.debug.overlap_write {
             let mut out = FrameOutput::default();
             for k in 0..plan.times_s.len() {
                 self.frame_and_export(&plan, index, k, &mut out)?;

@@ -6,10 +6,18 @@
 //! rate is 0): smooth, with exact positions, velocities and headings at any time, so the
 //! velocity labels need no numerical differentiation.
 
+
+pub mod planner;
+pub mod recorded;
+pub mod sequence;
+
 use crate::error::{Error, Result};
 use glam::{DMat4, DVec2, DVec3};
 use rand::RngExt;
 use std::path::Path;
+
+/// Cell size of the walkable-area grid, metres.
+pub const WALKABLE_CELL_M: f64 = 0.1;
 
 /// A static environment in the world frame (f64).
 #[derive(Clone, Debug, Default)]

@@ -10,9 +10,10 @@
 use crate::config::{Config, Refine};
 use crate::error::{Error, Result};
 use crate::output::{FrameOutput, SequenceWriter, WriterOptions};
-use crate::pipeline::Generator;
+use crate::config::BackendChoice;
+use crate::generator::Generator;
 use crate::raycast::{self, Bvh};
-use crate::crosscheck::{median, ErrorStats, Tally};
+use crate::commands::crosscheck::{median, ErrorStats, Tally};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -148,7 +149,7 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
 /// Runs one point in this process (the child side of `bench`).
 pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     let mut cfg = base.clone();
-    cfg.render.backend = if spec.projection == "raycast" { crate::config::Backend::Raycast } else { crate::config::Backend::Raster };
+    cfg.render.backend = if spec.projection == "raycast" { BackendChoice::Raycast } else { BackendChoice::Raster };
     cfg.render.projection = match spec.projection.as_str() {
         "cube" | "raycast" => crate::config::Projection::Cube,
         "cylinder" => crate::config::Projection::Cylinder,
@@ -174,7 +175,7 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
         cfg.humans.min_separation_m = 0.5;
     }
     let out = tempdir_for_point()?;
-    let mut gen = Generator::new(cfg, false)?;
+    let mut gen = Generator::new(cfg)?;
     let _ = std::fs::remove_file(&sensor_file);
     let (mut t_pose, mut t_render, mut t_post, mut t_write, mut t_total) = (vec![], vec![], vec![], vec![], vec![]);
     let (mut t_build, mut t_cast) = (vec![], vec![]);
@@ -184,7 +185,7 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     let meta = gen.meta(0, &plan);
     let mut writer = SequenceWriter::create(&out, &meta, &WriterOptions::default())?;
     let mut frame = FrameOutput::default();
-    let dirs = gen.lookup.dirs.clone();
+    let dirs = gen.beam_dirs().to_vec();
     for k in 0..plan.times_s.len() {
         let t0 = Instant::now();
         let state = gen.frame_state(&plan, k);
@@ -201,19 +202,17 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
         t_post.push((t3 - t2).as_secs_f64() * 1e3);
         t_write.push((t4 - t3).as_secs_f64() * 1e3);
         t_total.push((t4 - t0).as_secs_f64() * 1e3);
-        triangles += gen.scratch.humans.triangle_count() as u64 + gen.scratch.background.triangle_count() as u64;
+        let posed = gen.posed();
+        triangles += posed.people.triangle_count() as u64 + posed.background.triangle_count() as u64;
         // Untimed: the reference over full-detail people, and the raster human layer.
-        let raster = gen.scratch.human_hits.clone();
-        let lod = gen.cfg.render.lod_max_error_mrad;
-        gen.cfg.render.lod_max_error_mrad = 0.0;
-        gen.pose_frame(&plan, &state)?;
-        gen.cfg.render.lod_max_error_mrad = lod;
-        let geom = &gen.scratch.humans;
+        let raster = gen.human_hits().clone();
+        gen.pose_frame_full_detail(&plan, &state)?;
+        let geom = gen.posed().people;
         let tb = Instant::now();
         let bvh = Bvh::build(geom);
         t_build.push(tb.elapsed().as_secs_f64() * 1e3);
         let tc = Instant::now();
-        let reference = raycast::cast(geom, &bvh, &dirs, gen.sensor.max_range_m);
+        let reference = raycast::cast(geom, &bvh, &dirs, gen.sensor().max_range_m);
         t_cast.push(tc.elapsed().as_secs_f64() * 1e3);
         tally.add(&raster, &reference);
     }

@@ -9,7 +9,7 @@
 //! All rendered faces go into one command buffer and one submit.
 //!
 //! With a [`Panorama`] (`Renderer::new_panorama`) the frame has ONE image, the cylindrical
-//! panorama; [`PanoramaPrep`](crate::panorama::PanoramaPrep) decides per mesh between a direct
+//! panorama; [`PanoramaPrep`](crate::backend::raster::panorama::PanoramaPrep) decides per mesh between a direct
 //! draw from the shared buffers and the CPU-prepared triangle list (azimuth wrap, vertical
 //! axis, large triangles). Nothing visible: no GPU work, as for the cube.
 
@@ -19,8 +19,8 @@ use crate::gpu::{
     spirv_words, Buffer, BufferDesc, CommandRecorder, Commands, Context, Framebuffer, GraphicsPipeline, Image, ImageDesc,
     PipelineDesc, PipelineLayout, RenderPass,
 };
-use crate::panorama::{PanoramaPrep, PrepStats, SoupList, SoupVertex};
-use crate::projection::{CubeFaces, Face, Panorama};
+use super::panorama::{PanoramaPrep, PrepStats, SoupList, SoupVertex};
+use super::projection::{CubeFaces, Face, Panorama};
 use ash::vk;
 use glam::Vec3;
 use std::sync::Arc;

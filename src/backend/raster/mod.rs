@@ -1,0 +1,116 @@
+//! The raster backend: Vulkan draws the posed triangles into views whose texels map to the
+//! beams, with an ID buffer naming the triangle drawn at each texel; the CPU resamples the
+//! views to the beam grid and refines each beam's range. In data-flow order:
+//!
+//! - `projection`: the views (4 cube side faces with band frusta, or one cylindrical
+//!   panorama) and their exact texel <-> direction mappings.
+//! - `panorama`: the CPU half of drawing into the panorama (the azimuth wrap, curved edges).
+//! - `renderer`: the Vulkan pipelines and per-frame draw + read-back.
+//! - `resample`: views -> beam grid, with no refinement, the triangle's plane, or exact
+//!   re-intersection of the triangles around the texel (the default).
+//! - `people`: with exact refinement, the people are drawn as conservative proxies
+//!   ([`crate::human::proxy`]) at beam resolution and every beam a proxy covers is cast
+//!   exactly through the people's triangle clusters.
+
+pub mod panorama;
+pub mod people;
+pub mod projection;
+pub mod renderer;
+pub mod resample;
+
+use super::{Backend, BeamHits, Layer};
+use crate::config::{BackendChoice, Projection, Refine, RenderConfig};
+use crate::error::Result;
+use crate::gpu::Context;
+use crate::human::HumanModel;
+use people::PeopleRaster;
+use projection::{CubeFaces, Panorama};
+use crate::human::proxy::ModelProxies;
+use rayon::prelude::*;
+use renderer::Renderer;
+use resample::{resample, BeamLookup};
+use std::sync::atomic::AtomicUsize;
+use std::sync::Arc;
+
+/// The Vulkan raster path as a [`Backend`].
+pub struct RasterBackend {
+    refine: Refine,
+    lookup: BeamLookup,
+    renderer: Renderer,
+    /// With exact refinement: the people drawn as proxies at beam resolution and cast exactly.
+    people: Option<PeopleRaster>,
+    /// Per model, the proxies of its levels of detail (with `people`).
+    proxies: Vec<ModelProxies>,
+}
+
+impl RasterBackend {
+    /// The views of `render.projection` at `render.oversample` for `sensor` on `ctx`; with
+    /// exact refinement, the people's proxies (`render.proxy_max_error_m`) for `models`.
+    pub fn new(ctx: Arc<Context>, sensor: &crate::sensor::Sensor, render: &RenderConfig, models: &[HumanModel]) -> Result<RasterBackend> {
+        let (lookup, renderer) = match render.projection {
+            Projection::Cube => {
+                let cube = CubeFaces::new(sensor, render.oversample);
+                (BeamLookup::new(sensor, &cube), Renderer::new(&ctx, &cube)?)
+            }
+            Projection::Cylinder => {
+                let pano = Panorama::new(sensor, render.oversample);
+                (BeamLookup::new_panorama(sensor, &pano), Renderer::new_panorama(&ctx, &pano)?)
+            }
+        };
+        let (people, proxies) = if render.refine == Refine::Exact {
+            let max_error = render.proxy_max_error_m as f32;
+            let proxies: Vec<ModelProxies> = models.par_iter().map(|m| ModelProxies::build(m, max_error, 1.0)).collect();
+            (Some(PeopleRaster::new(&ctx, sensor)?), proxies)
+        } else {
+            (None, Vec::new())
+        };
+        Ok(RasterBackend { refine: render.refine, lookup, renderer, people, proxies })
+    }
+
+    /// The Vulkan context it draws with.
+    pub fn context(&self) -> &Arc<Context> {
+        self.renderer.context()
+    }
+}
+
+impl Backend for RasterBackend {
+    fn choice(&self) -> BackendChoice {
+        BackendChoice::Raster
+    }
+
+    fn device_name(&self) -> String {
+        self.context().device_name()
+    }
+
+    fn proxies(&self) -> Option<&[ModelProxies]> {
+        self.people.is_some().then_some(&self.proxies[..])
+    }
+
+    fn cast(&mut self, layer: Layer<'_>, hits: &mut BeamHits) -> Result<()> {
+        let geom = match layer {
+            Layer::Background(g) => g,
+            Layer::People { people, .. } => people,
+        };
+        if geom.meshes.is_empty() {
+            hits.clear_to(self.lookup.dirs.len());
+            return Ok(());
+        }
+        match (layer, self.people.as_mut()) {
+            (Layer::People { people, proxies }, Some(raster)) => raster.render(proxies, people, hits),
+            _ => {
+                let frame = self.renderer.render(geom)?;
+                resample(&self.lookup, frame, geom, self.refine, hits);
+                Ok(())
+            }
+        }
+    }
+
+    fn near_seam(&self, texels: f64) -> Vec<bool> {
+        (0..self.lookup.dirs.len()).map(|b| self.lookup.seam_distance_texels(b) < texels).collect()
+    }
+
+    fn validation_counter(&self) -> Option<Arc<AtomicUsize>> {
+        let ctx = self.context();
+        ctx.validation_enabled().then(|| ctx.validation_counter())
+    }
+}

@@ -1,0 +1,8 @@
+//! The commands beside `generate`'s pipeline, one file each: `run` (the `generate` job over
+//! every sequence), `crosscheck` (a backend against the ray-cast reference), `bench` (time
+//! against error, in child processes), `sheet` (a contact sheet of the people).
+
+pub mod bench;
+pub mod crosscheck;
+pub mod run;
+pub mod sheet;
