@@ -8,9 +8,7 @@
 //! f64 reference may disagree). On failure actual / expected PNGs are written to
 //! `$TMPDIR/pedscan-gpu-raster/`.
 
-mod common;
-
-use common::{context, finish};
+use crate::common::{self, context, finish};
 
 use glam::{DVec3, Vec3};
 use pedscan::geometry::FrameGeometry;

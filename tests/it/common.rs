@@ -54,7 +54,6 @@ pub fn box_f64(lo: DVec3, hi: DVec3, outward: bool) -> (Vec<DVec3>, Vec<u32>) {
 }
 
 /// The bundled humans (`data/humans/*.glb`), in name order.
-#[allow(dead_code)]
 pub fn bundled_humans() -> Vec<std::path::PathBuf> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans");
     let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(&dir)
