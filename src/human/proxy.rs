@@ -19,7 +19,7 @@
 //! neighbouring faces turn away from its normal, so every face plane moves by at least that
 //! much) encloses LOD `t` where those estimates hold. [`PROXY_MARGIN_M`] is added for what
 //! they do not see: skinning of the offset itself, poses between the sampled phases, thin
-//! parts a coarse level collapses. `tests/proxy.rs` checks coverage for every bundled person
+//! parts a coarse level collapses. `tests/it/proxy.rs` checks coverage for every bundled person
 //! at 16 gait phases from six views (about a million hit rays: with a 5 mm margin 5 rays
 //! missed the proxy, with 15 mm one, with 25 mm none), and that it fails when the offset is
 //! shrunk. The raster adds one texel of slack on top (`crate::backend::raster::people`).
@@ -30,7 +30,7 @@ use glam::Vec3;
 use std::sync::Arc;
 
 /// Added to every proxy's offset, metres (the smallest margin of 5, 15 and 25 mm with which
-/// `tests/proxy.rs` finds no uncovered ray).
+/// `tests/it/proxy.rs` finds no uncovered ray).
 pub const PROXY_MARGIN_M: f32 = 0.025;
 
 /// A vertex is pushed at most this many times the offset (where its faces turn sharply

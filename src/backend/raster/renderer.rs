@@ -36,7 +36,7 @@ static PANORAMA_SOUP_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/pan
 /// sensor when `dot((b - a) x (c - a), a) < 0` (counter-clockwise seen from the viewer).
 /// The face camera (right, up, forward) is left-handed and Vulkan's framebuffer y points
 /// down; the two flips cancel, so the viewer's counter-clockwise stays Vulkan's
-/// `COUNTER_CLOCKWISE`. Proven by `tests/gpu_raster.rs::back_face_culling_keeps_the_near_side`.
+/// `COUNTER_CLOCKWISE`. Proven by `tests/it/gpu_raster.rs::back_face_culling_keeps_the_near_side`.
 pub const FRONT_FACE: vk::FrontFace = vk::FrontFace::COUNTER_CLOCKWISE;
 
 pub const RANGE_FORMAT: vk::Format = vk::Format::R32_SFLOAT;

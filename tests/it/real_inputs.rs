@@ -2,30 +2,10 @@
 //! frames with KITTI poses and `times.txt`), recorded pedestrian tracks, and their broken
 //! variants. Every input is written by the test itself.
 
+use crate::common::{expect_input_error, ok, pedscan};
 use glam::{DMat4, DVec3};
 use pedscan::sensor::Sensor;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn pedscan(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pedscan"))
-        .args(args)
-        .current_dir(dir)
-        .env("PEDSCAN_VALIDATION", "1")
-        .output()
-        .expect("run pedscan")
-}
-
-fn ok(o: &Output) {
-    assert!(o.status.success(), "pedscan failed ({:?}):\n{}", o.status.code(), String::from_utf8_lossy(&o.stderr));
-}
-
-fn expect_input_error(args: &[&str], dir: &Path, needle: &str) {
-    let o = pedscan(args, dir);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "exit code for {args:?}: {err}");
-    assert!(err.contains(needle), "message for {args:?} should name `{needle}`: {err}");
-}
 
 const RATE_HZ: f64 = 10.0;
 const SPEED: f64 = 1.0;

@@ -10,13 +10,9 @@
 //! renderer and context. All inputs are built in the test; the only file read is a bundled
 //! human of the repository (`data/humans/h1700_w60.glb`).
 //!
-//! Run with `cargo test --test stability -- --nocapture` to see the measured values.
+//! Run with `cargo test --test it stability:: -- --nocapture` to see the measured values.
 
-mod common;
-
-use common::{context, finish};
-
-use common::box_f64;
+use crate::common::{box_f64, context, finish};
 use glam::{DMat4, DVec2, DVec3, Mat4, Vec3};
 use pedscan::config::{Config, Refine};
 use pedscan::geometry::{Adjacency, FrameGeometry};

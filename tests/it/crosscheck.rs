@@ -1,15 +1,7 @@
 //! `pedscan crosscheck` and `--export-geometry`, run as a user would (lavapipe, validation on).
 
+use crate::common::{ok, pedscan};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn pedscan(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pedscan")).args(args).current_dir(dir).env("PEDSCAN_VALIDATION", "1").output().expect("run pedscan")
-}
-
-fn ok(o: &Output) {
-    assert!(o.status.success(), "pedscan failed ({:?}):\n{}", o.status.code(), String::from_utf8_lossy(&o.stderr));
-}
 
 #[test]
 fn crosscheck_writes_the_report_strip_and_geometry_and_exact_mode_agrees() {

@@ -5,7 +5,7 @@
 //! along the beam the proxy lies does not matter.) The same check with the offset shrunk must
 //! fail, or it would prove nothing.
 
-mod common;
+use crate::common;
 
 use glam::{DVec3, Mat4, Vec3};
 use pedscan::geometry::FrameGeometry;

@@ -8,13 +8,11 @@
 //! f64 reference may disagree). On failure actual / expected PNGs are written to
 //! `$TMPDIR/pedscan-gpu-raster/`.
 
-mod common;
-
-use common::{context, finish};
+use crate::common::{self, context, finish};
 
 use glam::{DVec3, Vec3};
 use pedscan::geometry::FrameGeometry;
-use pedscan::gpu::{Context, ContextOptions};
+use pedscan::gpu::Context;
 use pedscan::projection::{CubeFaces, Face};
 use pedscan::raster::{FaceImage, Renderer};
 use pedscan::sensor::Sensor;
@@ -323,77 +321,6 @@ fn ellipsoid_is_outward_and_renders_its_near_side() {
     let expect = DVec3::new(5.0, 0.0, -0.6).length() - 0.25;
     assert!((nearest - expect).abs() < 0.01, "nearest {nearest} expected {expect}");
     finish(renderer, ctx);
-}
-
-/// Benchmark, not a test: `cargo test --test gpu_raster bench -- --ignored --nocapture`.
-/// Validation follows `PEDSCAN_VALIDATION` (off by default, it slows lavapipe a lot).
-#[test]
-#[ignore]
-fn bench_25k_triangles() {
-    let ctx = Arc::new(Context::new(&ContextOptions::default()).unwrap());
-    let faces = cube();
-    let mut renderer = Renderer::new(&ctx, &faces).unwrap();
-    let mut geom = FrameGeometry::default();
-    // 25,344 triangles, a human-sized ellipsoid 5 m ahead (one face).
-    let (p, i) = ellipsoid(DVec3::new(5.0, 0.5, -0.9), DVec3::new(0.25, 0.2, 0.85), 99, 128);
-    geom.push_mesh(&p, &i, 1, false);
-    let mut times = Vec::new();
-    for _ in 0..21 {
-        let t = std::time::Instant::now();
-        renderer.render(&geom).unwrap();
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    let stats = renderer.stats();
-    times.sort_by(f64::total_cmp);
-    println!(
-        "{}: {} triangles, {} faces, {} draws: median {:.2} ms (min {:.2}, max {:.2}) over {} renders",
-        ctx.device_name(),
-        geom.triangle_count(),
-        stats.faces_rendered,
-        stats.draws,
-        times[times.len() / 2],
-        times[0],
-        times[times.len() - 1],
-        times.len()
-    );
-    // Ten such humans around the sensor (all 4 faces).
-    let mut geom = FrameGeometry::default();
-    for k in 0..10 {
-        let az = k as f64 * std::f64::consts::TAU / 10.0;
-        let c = DVec3::new(6.0 * az.cos(), 6.0 * az.sin(), -0.9);
-        let (p, i) = ellipsoid(c, DVec3::new(0.25, 0.2, 0.85), 99, 128);
-        geom.push_mesh(&p, &i, k + 1, false);
-    }
-    let mut times = Vec::new();
-    for _ in 0..11 {
-        let t = std::time::Instant::now();
-        renderer.render(&geom).unwrap();
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    times.sort_by(f64::total_cmp);
-    let stats = renderer.stats();
-    println!(
-        "{} triangles (10 ellipsoids), {} faces, {} draws, {} triangles submitted: median {:.2} ms",
-        geom.triangle_count(),
-        stats.faces_rendered,
-        stats.draws,
-        stats.triangles_submitted,
-        times[times.len() / 2]
-    );
-    // The same ten on the panorama.
-    let pano = Panorama::new(&Sensor::hdl32e(), 2.0);
-    let mut pr = Renderer::new_panorama(&ctx, &pano).unwrap();
-    let mut times = Vec::new();
-    for _ in 0..11 {
-        let t = std::time::Instant::now();
-        pr.render(&geom).unwrap();
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    times.sort_by(f64::total_cmp);
-    println!("panorama {}x{}: {:?}: median {:.2} ms", pano.width, pano.height, pr.stats(), times[times.len() / 2]);
-    drop(pr);
-    drop(renderer);
-    drop(ctx);
 }
 
 /// The canary's canary: an invalid call must be counted, or the zero counts above mean
@@ -739,99 +666,6 @@ fn panorama_matches_the_ray_cast_reference_on_posed_people() {
     let errors = ctx.validation_counter();
     drop(ctx);
     assert_eq!(errors.load(Ordering::SeqCst), 0);
-}
-
-/// Benchmark, not a test: `cargo test --release --test gpu_raster bench_cube_vs_cylinder --
-/// --ignored --nocapture`. The default scene (hall + people) posed by the pipeline, then the
-/// render and the resampling of each layer timed for both projections on the same frames.
-/// `PEDSCAN_BENCH_HUMANS` (default 10), `PEDSCAN_BENCH_COLUMNS` (1024), `PEDSCAN_BENCH_OVERSAMPLE` (2),
-/// `PEDSCAN_BENCH_ONLY` (`cube` or `cylinder`: time one, e.g. under a profiler).
-#[test]
-#[ignore]
-fn bench_cube_vs_cylinder() {
-    use pedscan::config::{Config, Projection};
-    use pedscan::pipeline::Generator;
-    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
-    let humans = env("PEDSCAN_BENCH_HUMANS", 10.0) as usize;
-    let columns = env("PEDSCAN_BENCH_COLUMNS", 1024.0) as usize;
-    let oversample = env("PEDSCAN_BENCH_OVERSAMPLE", 2.0);
-    let sensor_file = std::env::temp_dir().join(format!("pedscan-bench-cyl-{columns}.toml"));
-    let elev: Vec<String> = Sensor::hdl32e().elevation_deg.iter().map(|e| e.to_string()).collect();
-    std::fs::write(&sensor_file, format!("elevation_deg = [{}]\ncolumns = {columns}\n", elev.join(", "))).unwrap();
-    let mut gens: Vec<Generator> = [Projection::Cube, Projection::Cylinder]
-        .iter()
-        .map(|&p| {
-            let mut cfg = Config::default();
-            cfg.humans.count = [humans, humans];
-            cfg.frames = 8;
-            cfg.render.projection = p;
-            cfg.render.oversample = oversample;
-            cfg.sensor = sensor_file.display().to_string();
-            Generator::new(cfg, false).unwrap()
-        })
-        .collect();
-    let plan = gens[0].plan(0).unwrap();
-    let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    // [projection][layer]: render, resample none, resample exact, prep (cylinder)
-    let mut t = vec![vec![vec![Vec::new(); 4]; 2]; 2];
-    let mut tris = [0u64; 2];
-    for k in 0..plan.times_s.len() {
-        for rep in 0..5 {
-            for (g, gen) in gens.iter_mut().enumerate() {
-                if std::env::var("PEDSCAN_BENCH_ONLY").is_ok_and(|o| o != ["cube", "cylinder"][g]) {
-                    continue;
-                }
-                let state = gen.frame_state(&plan, k);
-                gen.pose_frame(&plan, &state);
-                for layer in 0..2 {
-                    let geom = if layer == 0 { &gen.scratch.background } else { &gen.scratch.humans };
-                    if rep == 0 && layer == 1 {
-                        tris[g] += geom.triangle_count() as u64;
-                    }
-                    if let Some(p) = gen.renderer.panorama() {
-                        let mut prep = pedscan::panorama::PanoramaPrep::default();
-                        let t0 = std::time::Instant::now();
-                        prep.prepare(p, geom);
-                        t[g][layer][3].push(ms(t0));
-                    }
-                    let t0 = std::time::Instant::now();
-                    let frame = gen.renderer.render(geom).unwrap();
-                    t[g][layer][0].push(ms(t0));
-                    let mut hits = BeamHits::default();
-                    for (i, refine) in [(1, Refine::None), (2, Refine::Exact)] {
-                        let t0 = std::time::Instant::now();
-                        resample(&gen.lookup, frame, geom, refine, &mut hits);
-                        t[g][layer][i].push(ms(t0));
-                    }
-                    if rep == 0 && k == 0 {
-                        eprintln!("{} layer {layer}: {:?}", ["cube", "cylinder"][g], gen.renderer.stats());
-                    }
-                }
-            }
-        }
-    }
-    for (g, name) in ["cube", "cylinder"].iter().enumerate() {
-        for (layer, lname) in ["background", "people"].iter().enumerate() {
-            let mut row = t[g][layer].clone();
-            if row[0].is_empty() {
-                continue;
-            }
-            let prep = if row[3].is_empty() { 0.0 } else { median(&mut row[3]) };
-            let render_min = row[0].iter().cloned().fold(f64::MAX, f64::min);
-            println!(
-                "{name:>8} {lname:>10}: render {:.2} ms (min {render_min:.2}; CPU prep {prep:.2}), resample none {:.2}, exact {:.2}",
-                median(&mut row[0]),
-                median(&mut row[1]),
-                median(&mut row[2])
-            );
-        }
-    }
-    println!("{humans} people, {columns} columns, oversample {oversample}; human triangles per frame {}", tris[0] / plan.times_s.len() as u64);
-    let _ = std::fs::remove_file(&sensor_file);
 }
 
 #[test]

@@ -3,6 +3,8 @@
 use glam::DVec3;
 use pedscan::gpu::{Context, ContextOptions, DeviceChoice};
 use pedscan::raster::Renderer;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
@@ -54,14 +56,44 @@ pub fn box_f64(lo: DVec3, hi: DVec3, outward: bool) -> (Vec<DVec3>, Vec<u32>) {
 }
 
 /// The bundled humans (`data/humans/*.glb`), in name order.
-#[allow(dead_code)]
-pub fn bundled_humans() -> Vec<std::path::PathBuf> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans");
-    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(&dir)
+pub fn bundled_humans() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "glb"))
         .collect();
     v.sort();
     v
+}
+
+/// Runs the built `pedscan` binary in `dir`, as a user would, with the Vulkan validation
+/// layer on.
+pub fn pedscan(args: &[&str], dir: &Path) -> Output {
+    pedscan_with_env(args, dir, &[])
+}
+
+/// [`pedscan`] with extra environment variables for the run.
+pub fn pedscan_with_env(args: &[&str], dir: &Path, envs: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pedscan"))
+        .args(args)
+        .current_dir(dir)
+        // The one place the runs of the binary get validation (a missing layer fails the run).
+        .env("PEDSCAN_VALIDATION", "1")
+        .envs(envs.iter().copied())
+        .output()
+        .expect("run pedscan")
+}
+
+/// Asserts that a run succeeded, showing its stderr when not.
+pub fn ok(o: &Output) {
+    assert!(o.status.success(), "pedscan failed ({:?}):\n{}", o.status.code(), String::from_utf8_lossy(&o.stderr));
+}
+
+/// Asserts that a run is refused as an input error (exit code 2) whose message names `needle`.
+pub fn expect_input_error(args: &[&str], dir: &Path, needle: &str) {
+    let o = pedscan(args, dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "exit code for {args:?}: {err}");
+    assert!(err.contains(needle), "message for {args:?} should name `{needle}`: {err}");
 }

@@ -1,7 +1,7 @@
 //! The bundled humans as the runtime sees them: heights, recorded LOD error bounds, walking,
 //! and what a model without skin or animation gets.
 
-mod common;
+use crate::common;
 
 use glam::{Mat4, Vec3};
 use pedscan::human::HumanModel;

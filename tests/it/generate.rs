@@ -1,26 +1,8 @@
 //! End to end: runs the built `pedscan` binary on lavapipe (validation layer on) in a temporary
 //! folder and reads the files back, checking the data contract of the README.
 
+use crate::common::{expect_input_error, ok, pedscan, pedscan_with_env};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn pedscan(args: &[&str], dir: &Path, envs: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_pedscan"));
-    c.args(args).current_dir(dir).env("PEDSCAN_VALIDATION", "1");
-    for (k, v) in envs {
-        c.env(k, v);
-    }
-    c.output().expect("run pedscan")
-}
-
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "pedscan failed ({:?}):\n{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
 
 fn files_in(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
@@ -77,7 +59,6 @@ fn generate_writes_consistent_labeled_sequences() {
     let o = pedscan(
         &["generate", "--out", "out", "--frames", "5", "--sequences", "2", "--humans", "4..6", "--seed", "11", "--png", "--backend", "raster"],
         dir,
-        &[],
     );
     ok(&o);
     let out = dir.join("out");
@@ -160,21 +141,14 @@ fn same_seed_gives_bit_identical_files_whatever_the_thread_count() {
     for backend in ["raster", "raycast"] {
         let args = |out: &'static str| vec!["generate", "--out", out, "--frames", "3", "--humans", "3..3", "--seed", "3", "--backend", backend];
         let (a_dir, b_dir) = if backend == "raster" { ("a", "b") } else { ("c", "d") };
-        ok(&pedscan(&args(a_dir), dir, &[("RAYON_NUM_THREADS", "1"), ("LP_NUM_THREADS", "1")]));
-        ok(&pedscan(&args(b_dir), dir, &[("RAYON_NUM_THREADS", "2")]));
+        ok(&pedscan_with_env(&args(a_dir), dir, &[("RAYON_NUM_THREADS", "1"), ("LP_NUM_THREADS", "1")]));
+        ok(&pedscan_with_env(&args(b_dir), dir, &[("RAYON_NUM_THREADS", "2")]));
         for f in ["seq_000000.h5", "seq_000000.xml"] {
             let a = std::fs::read(dir.join(a_dir).join(f)).unwrap();
             let b = std::fs::read(dir.join(b_dir).join(f)).unwrap();
             assert!(a == b, "{backend}: {f} differs between 1 and 2 threads");
         }
     }
-}
-
-fn expect_input_error(args: &[&str], dir: &Path, needle: &str) {
-    let o = pedscan(args, dir, &[]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "exit code for {args:?}: {err}");
-    assert!(err.contains(needle), "message for {args:?} should name `{needle}`: {err}");
 }
 
 #[test]
@@ -201,8 +175,8 @@ fn bad_input_is_named_exits_2_and_leaves_no_files() {
 fn info_summarises_a_file() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    ok(&pedscan(&["generate", "--out", "o", "--frames", "2", "--humans", "2..2"], dir, &[]));
-    let o = pedscan(&["info", "o/seq_000000.h5"], dir, &[]);
+    ok(&pedscan(&["generate", "--out", "o", "--frames", "2", "--humans", "2..2"], dir));
+    let o = pedscan(&["info", "o/seq_000000.h5"], dir);
     ok(&o);
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("hdl32e"), "{text}");
@@ -212,7 +186,7 @@ fn info_summarises_a_file() {
 fn outputs_not_asked_for_are_not_stored_and_unknown_ones_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    ok(&pedscan(&["generate", "--out", "o", "--frames", "2", "--humans", "2..2", "--outputs", "range,label,instance,velocity"], dir, &[]));
+    ok(&pedscan(&["generate", "--out", "o", "--frames", "2", "--humans", "2..2", "--outputs", "range,label,instance,velocity"], dir));
     let f = hdf5::File::open(dir.join("o/seq_000000.h5")).unwrap();
     assert!(f.dataset("velocity").is_ok());
     assert!(f.dataset("xyz").is_err(), "xyz was not asked for");
@@ -231,8 +205,8 @@ fn keep_holes_keeps_background_holes_in_front_of_which_people_stand() {
     filled.extend(["--out", "filled"]);
     let mut kept = args.to_vec();
     kept.extend(["--out", "kept", "--keep-holes"]);
-    ok(&pedscan(&filled, dir, &[]));
-    ok(&pedscan(&kept, dir, &[]));
+    ok(&pedscan(&filled, dir));
+    ok(&pedscan(&kept, dir));
     let a = read_seq(&dir.join("filled/seq_000000.h5"));
     let b = read_seq(&dir.join("kept/seq_000000.h5"));
     let humans_a = a.label.iter().filter(|l| **l == 1).count();
@@ -251,8 +225,8 @@ fn raycast_backend_agrees_with_the_raster_backend() {
     raster.extend(["--out", "raster", "--backend", "raster"]);
     let mut cast = args.to_vec();
     cast.extend(["--out", "cast", "--backend", "raycast"]);
-    ok(&pedscan(&raster, dir, &[]));
-    ok(&pedscan(&cast, dir, &[]));
+    ok(&pedscan(&raster, dir));
+    ok(&pedscan(&cast, dir));
     let a = read_seq(&dir.join("raster/seq_000000.h5"));
     let b = read_seq(&dir.join("cast/seq_000000.h5"));
     assert_eq!((a.frames, a.rows, a.cols), (b.frames, b.rows, b.cols));

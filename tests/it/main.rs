@@ -1,0 +1,14 @@
+//! The integration tests, one crate (one link of the library, one binary to run): each
+//! module was a test binary of its own. `cargo test --test it <module>::` runs one of them.
+
+mod common;
+
+mod beam_caster;
+mod crosscheck;
+mod generate;
+mod gpu_raster;
+mod humans;
+mod output;
+mod proxy;
+mod real_inputs;
+mod stability;
