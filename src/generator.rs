@@ -295,6 +295,11 @@ impl Generator {
         &self.sensor
     }
 
+    /// The people's models, in the order plans index them.
+    pub fn models(&self) -> &[HumanModel] {
+        &self.models
+    }
+
     /// The sensor's beam directions (row-major).
     pub fn beam_dirs(&self) -> &[DVec3] {
         &self.dirs

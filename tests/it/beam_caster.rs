@@ -3,16 +3,17 @@
 //! the HDL-32E, a VLP-16 and a 2048-column grid. Every beam must agree bit for bit (range and
 //! triangle); the two share only the ray/triangle test.
 
-use pedscan::config::{Backend, Config};
-use pedscan::pipeline::Generator;
+use pedscan::config::{BackendChoice, Config};
+use pedscan::generator::Generator;
 use pedscan::raycast::{cast, BeamCaster, Bvh};
+
 fn compare(sensor: &str, humans: usize, sequences: usize, frames: &[usize]) {
     let mut cfg = Config::default();
-    cfg.render.backend = Backend::Raycast;
+    cfg.render.backend = BackendChoice::Raycast;
     cfg.humans.count = [humans, humans];
     cfg.sensor = sensor.to_string();
-    let mut gen = Generator::new(cfg, false).expect("generator");
-    let mut caster = BeamCaster::new(&gen.lookup.dirs, gen.lookup.rows, gen.lookup.columns);
+    let mut gen = Generator::new(cfg).expect("generator");
+    let mut caster = BeamCaster::new(gen.beam_dirs(), gen.sensor().rows(), gen.sensor().columns);
     let mut got = Vec::new();
     let (mut human_hits, mut checked) = (0, 0);
     for index in 0..sequences {
@@ -20,12 +21,13 @@ fn compare(sensor: &str, humans: usize, sequences: usize, frames: &[usize]) {
         for &k in frames {
             let state = gen.frame_state(&plan, k);
             gen.pose_frame(&plan, &state).expect("pose");
-            for (layer, geom) in [("background", &gen.scratch.background), ("people", &gen.scratch.humans)] {
+            let posed = gen.posed();
+            for (layer, geom) in [("background", posed.background), ("people", posed.people)] {
                 if geom.meshes.is_empty() {
                     continue;
                 }
                 caster.cast(geom, f64::MAX, &mut got);
-                let reference = cast(geom, &Bvh::build(geom), &gen.lookup.dirs, f64::MAX);
+                let reference = cast(geom, &Bvh::build(geom), gen.beam_dirs(), f64::MAX);
                 for (b, (g, r)) in got.iter().zip(&reference).enumerate() {
                     assert!(
                         g.triangle == r.triangle && g.range_m.to_bits() == r.range_m.to_bits(),
@@ -59,18 +61,18 @@ fn beam_caster_equals_the_bvh_for_a_person_brushing_the_sensor_and_far_away() {
     // One posed person moved so that its surface passes 0.3 m from the sensor (it then covers
     // a large part of the grid, around the z axis too), and the same person 80 m behind.
     let mut cfg = Config::default();
-    cfg.render.backend = Backend::Raycast;
+    cfg.render.backend = BackendChoice::Raycast;
     cfg.humans.count = [1, 1];
     cfg.scene.background = std::path::PathBuf::new();
-    let mut gen = Generator::new(cfg, false).expect("generator");
+    let mut gen = Generator::new(cfg).expect("generator");
     let plan = gen.plan(0).expect("plan");
     let state = gen.frame_state(&plan, 0);
     gen.pose_frame(&plan, &state).expect("pose");
-    let person = gen.scratch.humans.clone();
+    let person = gen.posed().people.clone();
     assert_eq!(person.meshes.len(), 1, "the person must be drawn");
     let indices: Vec<u32> = person.indices.clone();
     let centre = glam::Vec3::from(person.meshes[0].centre);
-    let mut caster = BeamCaster::new(&gen.lookup.dirs, gen.lookup.rows, gen.lookup.columns);
+    let mut caster = BeamCaster::new(gen.beam_dirs(), gen.sensor().rows(), gen.sensor().columns);
     let mut got = Vec::new();
     for (name, offset) in [
         ("0.3 m ahead", -centre + glam::Vec3::new(0.55, 0.0, 0.0)),
@@ -81,7 +83,7 @@ fn beam_caster_equals_the_bvh_for_a_person_brushing_the_sensor_and_far_away() {
         let mut geom = pedscan::geometry::FrameGeometry::default();
         geom.push_mesh(&moved, &indices, 1, false);
         caster.cast(&geom, f64::MAX, &mut got);
-        let reference = cast(&geom, &Bvh::build(&geom), &gen.lookup.dirs, f64::MAX);
+        let reference = cast(&geom, &Bvh::build(&geom), gen.beam_dirs(), f64::MAX);
         let hits = reference.iter().filter(|h| h.is_hit()).count();
         assert!(hits > 0, "{name}: the person must be hit");
         for (b, (g, r)) in got.iter().zip(&reference).enumerate() {

@@ -13,8 +13,8 @@ use crate::common::{self, context, finish};
 use glam::{DVec3, Vec3};
 use pedscan::geometry::FrameGeometry;
 use pedscan::gpu::Context;
-use pedscan::projection::{CubeFaces, Face};
-use pedscan::raster::{FaceImage, Renderer};
+use pedscan::backend::raster::projection::{CubeFaces, Face};
+use pedscan::backend::raster::renderer::{FaceImage, Renderer};
 use pedscan::sensor::Sensor;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -347,9 +347,10 @@ fn validation_layer_counts_an_invalid_call() {
 
 use pedscan::config::Refine;
 use pedscan::geometry::Adjacency;
-use pedscan::projection::Panorama;
+use pedscan::backend::raster::projection::Panorama;
 use pedscan::raycast::{cast_frame, Hit};
-use pedscan::resample::{resample, BeamHits, BeamLookup, NO_TRIANGLE};
+use pedscan::backend::raster::resample::{resample, BeamLookup};
+use pedscan::backend::{BeamHits, NO_TRIANGLE};
 
 /// Beam level: exact refinement must reproduce the closed form on every beam.
 const EXACT_ABS_TOL_M: f64 = 1e-5;

@@ -10,7 +10,7 @@ use crate::common;
 use glam::{DVec3, Mat4, Vec3};
 use pedscan::geometry::FrameGeometry;
 use pedscan::human::{HumanModel, MODEL_TO_BODY};
-use pedscan::proxy::ModelProxies;
+use pedscan::human::proxy::ModelProxies;
 use pedscan::raycast::{self, Bvh};
 use std::path::{Path, PathBuf};
 

@@ -265,10 +265,10 @@ fn a_window_of_frame_files_is_read_once() {
     write_recording(tmp.path(), 12);
     let velo = tmp.path().join("velodyne");
     let poses = tmp.path().join("poses.txt");
-    let open = || pedscan::background::Recording::open(&velo, Some(&poses), &Sensor::hdl32e()).unwrap();
+    let open = || pedscan::input::Recording::open(&velo, Some(&poses), &Sensor::hdl32e()).unwrap();
     let (rec, fresh) = (open(), open());
-    let read = |r: &pedscan::background::Recording| r.files_read.load(std::sync::atomic::Ordering::Relaxed);
-    rec.walkable(3..9, None).unwrap();
+    let read = |r: &pedscan::input::Recording| r.files_read.load(std::sync::atomic::Ordering::Relaxed);
+    pedscan::scene::recorded::walkable(&rec, 3..9, None).unwrap();
     assert_eq!(read(&rec), 6);
     let (mut img, mut expected) = (Vec::new(), Vec::new());
     for k in (3..9).chain([10, 4]) {

@@ -17,14 +17,15 @@ use glam::{DMat4, DVec2, DVec3, Mat4, Vec3};
 use pedscan::config::{Config, Refine};
 use pedscan::geometry::{Adjacency, FrameGeometry};
 use pedscan::human::{stride_length_m, HumanModel, MotionMode, MODEL_TO_BODY};
-use pedscan::pipeline::Generator;
-use pedscan::projection::CubeFaces;
-use pedscan::raster::Renderer;
+use pedscan::generator::Generator;
+use pedscan::backend::raster::projection::CubeFaces;
+use pedscan::backend::raster::renderer::Renderer;
 use pedscan::raycast::{cast_frame, Hit};
-use pedscan::resample::{resample, BeamHits, BeamLookup, NO_TRIANGLE};
+use pedscan::backend::raster::resample::{resample, BeamLookup};
+use pedscan::backend::{BeamHits, NO_TRIANGLE};
 use pedscan::scene::Trajectory;
 use pedscan::sensor::Sensor;
-use pedscan::sequence::{sample_plan, HumanPlan, SequencePlan};
+use pedscan::scene::sequence::{sample_plan, HumanPlan, SequencePlan};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -199,6 +200,7 @@ fn generator_config() -> Config {
     cfg.humans.models = vec![PathBuf::from(HUMAN)];
     cfg.scene.background = PathBuf::new();
     cfg.frames = 1;
+    cfg.render.backend = pedscan::config::BackendChoice::Raycast;
     cfg
 }
 
@@ -235,29 +237,34 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
     // at most 0.1 % of the hit beams (a 1-ulp change of a sensor-frame f32 vertex may flip a
     // beam exactly on a silhouette; measured: 0).
     const TOL_M: f64 = 1e-4;
-    let mut gen = Generator::new(generator_config(), true).expect("generator");
-    let errors = gen.renderer.context().validation_counter();
+    // The generator poses (on the ray caster: no device of its own); the raster path under
+    // test is the pipeline's default cube faces on a validating context.
+    let mut gen = Generator::new(generator_config()).expect("generator");
+    let ctx = context();
+    let cube = CubeFaces::new(gen.sensor(), OVERSAMPLE);
+    let lookup = BeamLookup::new(gen.sensor(), &cube);
+    let mut renderer = Renderer::new(&ctx, &cube).expect("renderer");
 
     // Poses the frame as the pipeline does (people via `pose_frame`; the background box
     // transformed world (f64) -> sensor (f64) -> f32 exactly as `pose_frame` does for an
     // environment), renders and resamples with exact refinement.
-    fn run(gen: &mut Generator, origin: DVec2) -> (FrameGeometry, BeamHits, SequencePlan) {
+    fn run(gen: &mut Generator, renderer: &mut Renderer, lookup: &BeamLookup, origin: DVec2) -> (FrameGeometry, BeamHits, SequencePlan) {
         let plan = far_plan(origin);
         let state = gen.frame_state(&plan, 0);
         gen.pose_frame(&plan, &state).unwrap();
-        let mut geom = gen.scratch.humans.clone();
+        let mut geom = gen.posed().people.clone();
         assert_eq!(geom.meshes.len(), 1, "the person is posed");
         let sensor_from_world = state.world_from_sensor.inverse();
         let (wp, wi) = far_box_world(&plan);
         let sp: Vec<[f32; 3]> = wp.iter().map(|p| sensor_from_world.transform_point3(*p).as_vec3().to_array()).collect();
         push(&mut geom, &sp, &wi, 0, false);
-        let frame = gen.renderer.render(&geom).expect("render");
+        let frame = renderer.render(&geom).expect("render");
         let mut hits = BeamHits::default();
-        resample(&gen.lookup, frame, &geom, Refine::Exact, &mut hits);
+        resample(lookup, frame, &geom, Refine::Exact, &mut hits);
         (geom, hits, plan)
     }
 
-    let (geom0, base, _) = run(&mut gen, DVec2::ZERO);
+    let (geom0, base, _) = run(&mut gen, &mut renderer, &lookup, DVec2::ZERO);
     let base_hits = base.triangle.iter().filter(|&&t| t != NO_TRIANGLE).count();
     let person_hits = (0..base.triangle.len())
         .filter(|&b| base.triangle[b] != NO_TRIANGLE && geom0.mesh_of_triangle(base.triangle[b]).instance == 1)
@@ -266,7 +273,7 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
     assert!(person_hits > 100 && base_hits > person_hits, "the scene is seen: {person_hits} person beams, {base_hits} total");
 
     // Cross-check the origin-centred frame against the reference once (all modes printed).
-    let c0 = compare(&mut gen.renderer, &gen.lookup, &geom0, 1e3);
+    let c0 = compare(&mut renderer, &lookup, &geom0, 1e3);
     c0.print("far origin-centred");
     let reference = c0.reference.clone();
     for (b, r) in reference.iter().enumerate() {
@@ -274,7 +281,7 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
         if r.is_hit() && e.triangle[b] != NO_TRIANGLE && (e.range_m[b] as f64 - r.range_m).abs() > EXACT_ABS_TOL_M {
             eprintln!(
                 "[far] beam {b} (row {}, col {}): exact tri {} at {:.5} m, reference tri {} at {:.5} m",
-                b / gen.lookup.columns, b % gen.lookup.columns, e.triangle[b], e.range_m[b], r.triangle, r.range_m
+                b / lookup.columns, b % lookup.columns, e.triangle[b], e.range_m[b], r.triangle, r.range_m
             );
         }
     }
@@ -291,10 +298,10 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
         .count();
     eprintln!("[far] origin-centred exact vs reference: {good} of {union} beams agree within {EXACT_ABS_TOL_M:e} m (min 99 %)");
     assert!(good as f64 >= 0.99 * union as f64, "origin-centred exact vs reference: only {good} of {union} beams agree (tolerance 99 %)");
-    let model = gen.models[0].clone();
+    let model = gen.models()[0].clone();
     for dist in [1e5, 1e6] {
         let origin = dist * DVec2::new(0.6f64.cos(), 0.6f64.sin());
-        let (geom, hits, plan) = run(&mut gen, origin);
+        let (geom, hits, plan) = run(&mut gen, &mut renderer, &lookup, origin);
         let mut max_err = 0.0f64;
         let mut set_diff = 0usize;
         for b in 0..hits.triangle.len() {
@@ -342,7 +349,7 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
             .zip(&geom0.positions)
             .map(|(a, b)| (Vec3::from(*a) - Vec3::from(*b)).length() as f64)
             .fold(0.0, f64::max);
-        let naive_ref = cast_frame(&naive, &gen.lookup.dirs, 1e3);
+        let naive_ref = cast_frame(&naive, &lookup.dirs, 1e3);
         let naive_err = (0..naive_ref.len())
             .filter(|&b| naive_ref[b].is_hit() && reference[b].is_hit())
             .map(|b| (naive_ref[b].range_m - reference[b].range_m).abs())
@@ -363,7 +370,7 @@ fn far_from_origin_sensor_relative_f64_posing_keeps_exact_ranges_within_0_1_mm()
         }
     }
     drop(gen);
-    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
+    finish(renderer, ctx);
 }
 
 // ------------------------------------------------------------------------------------------
@@ -784,15 +791,12 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
 #[test]
 fn frame_state_gait_phase_stays_below_one_after_f32_rounding() {
     // Tolerance: exact ([0, 1) as f32).
-    let gen = Generator::new(generator_config(), true).expect("generator");
-    let errors = gen.renderer.context().validation_counter();
+    let gen = Generator::new(generator_config()).expect("generator");
     let mut plan = far_plan(DVec2::ZERO);
     plan.humans[0].phase0 = 1.0 - 1e-9;
     let state = gen.frame_state(&plan, 0);
     let p = state.humans[0].gait_phase;
     eprintln!("[gait f32] phase0 1 - 1e-9 -> HumanState::gait_phase {p}");
-    drop(gen);
-    assert_eq!(errors.load(Ordering::SeqCst), 0, "validation errors (see stderr)");
     assert!((0.0..1.0).contains(&p), "HumanState::gait_phase = {p} outside [0, 1)");
 }
 
@@ -808,7 +812,7 @@ fn frame_times_k_over_rate_have_no_drift_unlike_accumulation() {
     cfg.humans.models = Vec::new();
     cfg.frames = 10_001;
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
-    let inputs = pedscan::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let inputs = pedscan::scene::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0 };
     let plan = sample_plan(&mut rng, &cfg, &inputs).expect("plan");
     assert_eq!(plan.times_s.len(), 10_001);
     let mut acc = 0.0f64;
@@ -980,7 +984,7 @@ fn cylinder_panorama_holds_the_render_path_cases() {
     // (`render.projection = "cylinder"`), with the tolerances stated there: exact mode's hit
     // set equals the reference's, ranges within 1e-5 m, same instance on every beam (the
     // grazing floor: within 1e-6 relative, hit sets agreeing on >= 99 % of beams).
-    use pedscan::projection::Panorama;
+    use pedscan::backend::raster::projection::Panorama;
     let ctx = context();
     let run = |sensor: &Sensor, geom: &FrameGeometry, max_range_m: f64, label: &str| -> Compared {
         let pano = Panorama::new(sensor, OVERSAMPLE);
