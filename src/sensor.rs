@@ -217,6 +217,36 @@ mod tests {
     use super::*;
 
     #[test]
+    fn may_see_sphere_holds_every_sphere_a_beam_meets_and_drops_those_off_the_band() {
+        let s = Sensor::hdl32e();
+        let dirs = s.beam_dirs();
+        // Spheres on a spiral of directions and distances: whenever a beam passes within the
+        // radius of the centre (in front of the sensor), the sphere must be seen.
+        let (mut seen_by_beam, mut culled) = (0, 0);
+        for k in 0..4000 {
+            let t = k as f64 * 0.618_034;
+            let el = (-60.0 + 120.0 * (t.fract())).to_radians();
+            let az = t * 2.399_963;
+            let dist = 0.5 + 150.0 * ((k as f64 * 0.371).fract());
+            let r = 0.05 + 1.5 * ((k as f64 * 0.113).fract());
+            let c = dist * DVec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+            let met = dirs.iter().any(|d| {
+                let along = c.dot(*d);
+                along > 0.0 && along - r <= s.max_range_m && (c - along * *d).length() <= r
+            });
+            let may = s.may_see_sphere(c, r);
+            assert!(!met || may, "sphere {k} at {c:?} r {r} is met by a beam but culled");
+            seen_by_beam += met as usize;
+            culled += (!may) as usize;
+        }
+        assert!(seen_by_beam > 500 && culled > 500, "the test must see both cases: {seen_by_beam} met, {culled} culled");
+        // Far beyond the range, and high above the band: not seen; containing the sensor: seen.
+        assert!(!s.may_see_sphere(DVec3::new(200.0, 0.0, 0.0), 1.0));
+        assert!(!s.may_see_sphere(DVec3::new(1.0, 0.0, 5.0), 0.5));
+        assert!(s.may_see_sphere(DVec3::new(0.1, 0.0, 0.3), 0.5));
+    }
+
+    #[test]
     fn hdl32e_table() {
         let s = Sensor::hdl32e();
         assert_eq!(s.rows(), 32);

@@ -447,6 +447,17 @@ mod tests {
     }
 
     #[test]
+    fn debug_keys_are_read_but_never_recorded() {
+        let c: Config = toml::from_str("[debug]\ncaster = \"bvh\"\nbvh_refit = false\noverlap_write = false\nvalidation = true\n").unwrap();
+        assert_eq!(c.debug, DebugConfig { caster: Caster::Bvh, bvh_refit: false, overlap_write: false, validation: true });
+        assert!(c.to_toml().contains("[debug]"));
+        let recorded = c.to_recorded_toml();
+        assert!(!recorded.contains("debug") && !recorded.contains("caster"), "{recorded}");
+        assert_eq!(recorded, Config::default().to_recorded_toml());
+        assert!(toml::from_str::<Config>("[debug]\ncaster = \"embree\"\n").is_err());
+    }
+
+    #[test]
     fn projection_is_a_render_key() {
         let c: Config = toml::from_str("[render]\nprojection = \"cylinder\"\n").unwrap();
         assert_eq!(c.render.projection, Projection::Cylinder);

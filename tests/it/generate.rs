@@ -241,3 +241,30 @@ fn raycast_backend_agrees_with_the_raster_backend() {
     let bg_same = a.bg.iter().zip(&b.bg).filter(|(x, y)| (**x - **y).abs() <= 1e-4).count();
     assert!(bg_same as f64 >= 0.999 * a.bg.len() as f64, "background ranges agree on {bg_same} of {}", a.bg.len());
 }
+
+/// The ray-cast backend needs no Vulkan at all: with no driver to be found it runs, and its
+/// BVH caster (`debug.caster = "bvh"`, a debug key never recorded) writes the very same
+/// bytes; the raster backend then fails with a message that says what it needs.
+#[test]
+fn the_ray_caster_runs_without_vulkan_and_raster_says_why_it_cannot() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let no_driver = [("VK_ICD_FILENAMES", "/nonexistent/icd.json"), ("VK_DRIVER_FILES", "/nonexistent/icd.json")];
+    let args = ["generate", "--frames", "2", "--humans", "3..3", "--seed", "4", "--backend", "raycast"];
+    let mut beams = args.to_vec();
+    beams.extend(["--out", "beams"]);
+    ok(&pedscan_with_env(&beams, dir, &no_driver));
+    std::fs::write(dir.join("bvh.toml"), "[debug]\ncaster = \"bvh\"\noverlap_write = false\n").unwrap();
+    let mut bvh = args.to_vec();
+    bvh.extend(["--out", "bvh", "--config", "bvh.toml"]);
+    ok(&pedscan_with_env(&bvh, dir, &no_driver));
+    for f in ["seq_000000.h5", "seq_000000.xml"] {
+        let (a, b) = (std::fs::read(dir.join("beams").join(f)).unwrap(), std::fs::read(dir.join("bvh").join(f)).unwrap());
+        assert!(a == b, "{f}: the BVH caster's file differs from the binned caster's");
+    }
+    let o = pedscan_with_env(&["generate", "--frames", "1", "--out", "raster", "--backend", "raster"], dir, &no_driver);
+    assert_eq!(o.status.code(), Some(1), "raster without a driver must fail");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("raster backend needs a Vulkan device") && err.contains("--backend raycast"), "{err}");
+    assert!(!dir.join("raster").exists(), "nothing is created when the backend cannot start");
+}
