@@ -1,4 +1,4 @@
-//! The posed triangles of one frame, in the sensor frame (f32), as both render paths see them:
+//! Stage 5: the posed triangles of one frame, in the sensor frame (f32), as both render paths see them:
 //! the Vulkan raster path draws them, the CPU ray-cast reference intersects them.
 //!
 //! Triangles are numbered globally in the order they are pushed; the raster ID buffer stores

@@ -1,4 +1,4 @@
-//! Stage 4: the CPU post-pass of one frame. Composites people over the background by per-beam
+//! Stage 7: the CPU post-pass of one frame. Composites people over the background by per-beam
 //! minimum range, applies the sensor's range limits, and derives labels, instances, xyz and
 //! velocities on the beam grid (sensor frame).
 //!

@@ -1,4 +1,4 @@
-//! Stage 0: the beam model (pure math). A sensor is a list of elevations (row 0 = highest),
+//! Stage 1: the beam model (pure math). A sensor is a list of elevations (row 0 = highest),
 //! a column count and range limits. Directions are unit vectors in the sensor frame
 //! (x forward, y left, z up). Column convention (RangeNet++ / SemanticKITTI):
 //! `col = floor(0.5 * (1 - atan2(y, x) / pi) * W)`; a cell's beam is its centre,

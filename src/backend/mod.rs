@@ -1,4 +1,4 @@
-//! Stage 3: the nearest surface per beam. Given the posed triangles of one frame (sensor
+//! Stage 6: the nearest surface per beam. Given the posed triangles of one frame (sensor
 //! frame, [`FrameGeometry`]), a backend answers, for every beam of the sensor's grid, the
 //! range and the triangle of the first surface the beam meets ([`BeamHits`]). Two backends
 //! implement the one [`Backend`] trait, and the generator, `crosscheck` and `bench` hold a

@@ -1,4 +1,4 @@
-//! The run configuration: a TOML file (every key optional, unknown keys rejected) merged with
+//! Stage 1: the run configuration: a TOML file (every key optional, unknown keys rejected) merged with
 //! command-line flags, then checked once into values the pipeline can use without re-checking.
 //! The resolved configuration is written into every output file as TOML text.
 
@@ -189,7 +189,7 @@ pub struct RenderConfig {
     pub lod_max_error_mrad: f64,
     /// Raster backend with exact refinement: the people are drawn as proxies built from
     /// their coarsest level of detail whose recorded error is at most this (metres), pushed
-    /// outward to enclose the measured mesh (`src/proxy.rs`). 0 = the measured mesh itself.
+    /// outward to enclose the measured mesh (`src/human/proxy.rs`). 0 = the measured mesh itself.
     pub proxy_max_error_m: f64,
     /// Keep background holes (no return) even where a person stands in front (the paper's
     /// choice); by default the person is measured.

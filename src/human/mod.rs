@@ -1,4 +1,4 @@
-//! Stage 1b: people. Loads glTF 2.0 skinned humans with a walk animation, samples the walk at
+//! Stage 4: people. Loads glTF 2.0 skinned humans with a walk animation, samples the walk at
 //! a gait phase and skins the mesh (linear-blend skinning, 4 influences) on the CPU.
 //!
 //! Model frame: the glTF's own (y up, metres). A model is expected to face glTF +Z (the glTF

@@ -1,4 +1,4 @@
-//! Stage 2a of the raster backend: conservative proxies of the people. A proxy is a coarse
+//! Stage 4, for the raster backend: conservative proxies of the people. A proxy is a coarse
 //! level of detail of a person pushed outward along its normals, so that in every pose its
 //! closed surface encloses the mesh the person is measured with. The raster backend draws
 //! the proxies (a few hundred to a few thousand triangles a person instead of 26,756) into a

@@ -1,4 +1,4 @@
-//! Stage 0: recorded inputs. Backgrounds as per-frame point clouds from the formats people
+//! Stage 2: recorded inputs. Backgrounds as per-frame point clouds from the formats people
 //! have (KITTI `.bin`, PCD, raw Velodyne `.pcap`), sensor poses (KITTI `poses.txt`, TUM),
 //! the projection of a recorded frame onto the target sensor's beam grid, and recorded
 //! pedestrian tracks ([`tracks`]: ETH/UCY, ATC, CSV).

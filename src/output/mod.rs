@@ -1,4 +1,4 @@
-//! Stage 5: writers. One sequence = one file set (`seq_NNNNNN.h5`, `seq_NNNNNN.xml`, optional
+//! Stage 8: writers. One sequence = one file set (`seq_NNNNNN.h5`, `seq_NNNNNN.xml`, optional
 //! PNGs), each written under a temporary name and renamed when complete, so a failure never
 //! leaves a partial file and never touches sequences written before.
 //!

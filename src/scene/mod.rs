@@ -1,4 +1,4 @@
-//! Stage 1a: the scene of a sequence. A static environment (glTF, rendered as background),
+//! Stage 3: the scene of a sequence. A static environment (glTF, rendered as background),
 //! its walkable area (floor minus obstacles, as a clearance grid), the sensor's trajectory and
 //! the people's trajectories, all in the world frame (right-handed, metres, z up, floor z = 0).
 //!

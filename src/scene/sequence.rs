@@ -1,4 +1,4 @@
-//! Stage 1: sampling one sequence. From a seeded RNG, a configuration and the walkable area:
+//! Stage 3: sampling one sequence. From a seeded RNG, a configuration and the walkable area:
 //! the sensor's trajectory, the people (model, trajectory, initial gait phase, stride) and the
 //! frame times. Everything here is f64 in the world frame; nothing touches the GPU.
 

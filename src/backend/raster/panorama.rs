@@ -1,4 +1,4 @@
-//! Stage 2b, cylinder: the CPU half of drawing one frame into the [`Panorama`]. It decides,
+//! Raster backend, cylinder: the CPU half of drawing one frame into the [`Panorama`]. It decides,
 //! per mesh, how the GPU may draw it, so that no triangle is lost at the azimuth wrap or
 //! smeared across the image, and no straight panorama edge strays far from the true curve.
 //!

@@ -1,4 +1,4 @@
-//! Stage 2a: the raster views. The sensor's beams are covered either by the 4 side faces of a
+//! Raster backend, views. The sensor's beams are covered either by the 4 side faces of a
 //! cube (face k looks along azimuth k * 90 deg: +x, +y, -x, -y), each with an off-centre
 //! frustum that covers only the sensor's elevation band, or by one cylindrical panorama
 //! ([`Panorama`], `render.projection = "cylinder"`). This module owns the exact texel <->

@@ -1,4 +1,4 @@
-//! Stage 2b: rasterise one frame's triangles ([`FrameGeometry`], sensor frame, f32) into the
+//! Raster backend, drawing: rasterise one frame's triangles ([`FrameGeometry`], sensor frame, f32) into the
 //! cube side faces of [`CubeFaces`] on the GPU and read back, per face and texel, the
 //! Euclidean range (metres, of the nearest surface; 0 = nothing) and the global triangle
 //! index plus one (0 = nothing). Texel layout and face frusta are those of `projection.rs`

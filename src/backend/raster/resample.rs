@@ -1,4 +1,4 @@
-//! Stage 3: from the rendered cube faces (or the panorama) to the sensor's beam grid. A lookup
+//! Raster backend, resampling: from the rendered cube faces (or the panorama) to the sensor's beam grid. A lookup
 //! computed once per sensor maps every beam to its face and texel (nearest by integer index,
 //! clamp-to-edge, deterministic at seams: see `CubeFaces::face_of`). For the panorama the
 //! lookup is direct: one image, column from azimuth (beams on texel centres), row from
