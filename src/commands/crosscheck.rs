@@ -188,7 +188,9 @@ fn frame_stats(raster: &BeamHits, reference: &[Hit]) -> (usize, f64, f64) {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Timing {
     pub pose: f64,
+    /// The people layer through the unrefined backend (render + nearest texel).
     pub raster_render: f64,
+    /// The people layer through the checked backend (exact refinement), all of it.
     pub resample_exact: f64,
     pub raycast_build: f64,
     pub raycast_cast: f64,
@@ -511,7 +513,7 @@ impl std::fmt::Display for Report {
         let t = &self.timing_ms;
         write!(
             f,
-            "median ms/frame: pose {:.2}, raster render {:.2}, resample exact {:.2}, ray-cast BVH build {:.2}, cast {:.2}",
+            "median ms/frame: pose {:.2}, people unrefined {:.2}, people exact {:.2}, ray-cast BVH build {:.2}, cast {:.2}",
             t.pose, t.raster_render, t.resample_exact, t.raycast_build, t.raycast_cast
         )
     }
