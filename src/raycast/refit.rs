@@ -311,33 +311,29 @@ mod tests {
         let mut rng = Rng(78);
         let (p, i) = octasphere(20, DVec3::new(1.0, 1.0, 1.0), DVec3::new(4.0, 0.0, 0.0));
         let a = Arc::new(Adjacency::build(&i));
-        let mut cache = BvhCache::new();
-        for step in 0..4 {
+        // One frame: the sphere as built (step 0) or with its vertices scrambled, cast through
+        // the cache and checked against brute force.
+        let frame = |step: u32, double_sided: bool, cache: &mut BvhCache, rng: &mut Rng| {
             let q: Vec<[f32; 3]> = if step == 0 {
                 p.clone()
             } else {
                 p.iter().map(|_| f32v(DVec3::new(4.0, 0.0, 0.0) + rng.unit() * 1.5 * rng.f())).collect()
             };
             let mut g = FrameGeometry::default();
-            g.push_mesh_with_adjacency(&q, &i, 1, step % 2 == 1, Some(a.clone()));
-            let dirs = refit_rays(&g, &mut rng, 3000);
+            g.push_mesh_with_adjacency(&q, &i, 1, double_sided, Some(a.clone()));
+            let dirs = refit_rays(&g, rng, 3000);
             let hits = cast(&g, cache.build_or_refit(&g), &dirs, 1e9);
             same(&hits, &cast_brute_force(&g, &dirs, 1e9, |_| true)).unwrap();
+        };
+        let mut cache = BvhCache::new();
+        for step in 0..4 {
+            frame(step, step % 2 == 1, &mut cache, &mut rng);
         }
         // double_sided changes every step: every step rebuilds (the cull flag lives in the leaves).
         assert_eq!(cache.stats().builds, 4);
         let mut cache = BvhCache::new();
         for step in 0..3 {
-            let q: Vec<[f32; 3]> = if step == 0 {
-                p.clone()
-            } else {
-                p.iter().map(|_| f32v(DVec3::new(4.0, 0.0, 0.0) + rng.unit() * 1.5 * rng.f())).collect()
-            };
-            let mut g = FrameGeometry::default();
-            g.push_mesh_with_adjacency(&q, &i, 1, false, Some(a.clone()));
-            let dirs = refit_rays(&g, &mut rng, 3000);
-            let hits = cast(&g, cache.build_or_refit(&g), &dirs, 1e9);
-            same(&hits, &cast_brute_force(&g, &dirs, 1e9, |_| true)).unwrap();
+            frame(step, false, &mut cache, &mut rng);
         }
         let st = cache.stats();
         assert!(st.quality_rebuilds >= 1, "{st:?}");
