@@ -34,7 +34,7 @@
 //!   uniform azimuth grid, rows of constant elevation in strictly descending order. The row-gap
 //!   shortcut needs two neighbouring column cells to span well under half a turn.
 
-use super::{better, intersect_pre, Hit, RayPre};
+use super::{triangle::better, intersect_pre, Hit, RayPre};
 use crate::geometry::FrameGeometry;
 use glam::DVec3;
 use rayon::prelude::*;

@@ -13,7 +13,7 @@
 //! Clusters are built per mesh on first use within a frame ([`MeshClusters::reset`] starts a
 //! frame), from any thread: a frame whose people are all settled by the raster builds none.
 
-use super::{better, intersect_pre, RayPre};
+use super::{triangle::better, intersect_pre, RayPre};
 use crate::geometry::FrameGeometry;
 use glam::DVec3;
 use std::sync::OnceLock;

@@ -1,0 +1,99 @@
+//! Exact-sign arithmetic for the watertight ray/triangle test (`triangle.rs`): Shewchuk's
+//! error-free transforms (FMA two-product, two-sum, two-diff) and `diff_of_products`, the
+//! 2x2 determinant `p * q - r * s` whose sign is always exact. Kept apart from the geometry
+//! because its correctness is arithmetic alone, and is tested as such (against i128).
+
+#[inline(always)]
+fn two_prod(a: f64, b: f64) -> (f64, f64) {
+    let x = a * b;
+    (x, a.mul_add(b, -x))
+}
+
+#[inline(always)]
+fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let x = a + b;
+    let bv = x - a;
+    let av = x - bv;
+    (x, (a - av) + (b - bv))
+}
+
+#[inline(always)]
+fn two_diff(a: f64, b: f64) -> (f64, f64) {
+    let x = a - b;
+    let bv = a - x;
+    let av = x + bv;
+    (x, (a - av) + (bv - b))
+}
+
+/// `p * q - r * s` with the exact sign: the largest component of the exact four-term
+/// nonoverlapping expansion (0.0 exactly when the exact value is 0; NaN propagates).
+#[cold]
+#[inline(never)]
+fn diff_of_products_exact(p: f64, q: f64, r: f64, s: f64) -> f64 {
+    let (a1, a0) = two_prod(p, q);
+    let (b1, b0) = two_prod(r, s);
+    // Two_Two_Diff(a1, a0, b1, b0) -> (x3, x2, x1, x0), increasing magnitude.
+    let (i, x0) = two_diff(a0, b0);
+    let (j, r0) = two_sum(a1, i);
+    let (i2, x1) = two_diff(r0, b1);
+    let (x3, x2) = two_sum(j, i2);
+    for c in [x3, x2, x1, x0] {
+        if c != 0.0 {
+            return c; // also returns NaN
+        }
+    }
+    0.0
+}
+
+/// Relative bound under which the sign of the plain f64 `p*q - r*s` is not trusted.
+const DOP_ERR: f64 = 2.0 * f64::EPSILON;
+
+/// `p * q - r * s`: the plain f64 value when its sign is certain, else the exact-sign value.
+/// Antisymmetric: `diff_of_products(r, s, p, q) == -diff_of_products(p, q, r, s)`.
+#[inline(always)]
+pub(super) fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
+    let pq = p * q;
+    let rs = r * s;
+    let d = pq - rs;
+    if d.abs() > DOP_ERR * (pq.abs() + rs.abs()) + f64::MIN_POSITIVE {
+        d
+    } else {
+        diff_of_products_exact(p, q, r, s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raycast::test_support::Rng;
+
+    /// The edge function's sign is exact where plain f64 rounds to 0 or to the wrong sign,
+    /// checked against i128 arithmetic on random 40-bit integers times powers of two.
+    #[test]
+    fn diff_of_products_has_the_exact_sign() {
+        let e = 2f64.powi(-30);
+        // (1 + e)(1 - e) - 1 = -e^2: plain f64 says 0.
+        assert_eq!((1.0 + e) * (1.0 - e) - 1.0, 0.0);
+        assert!(diff_of_products(1.0 + e, 1.0 - e, 1.0, 1.0) < 0.0);
+        assert!(diff_of_products(1.0, 1.0, 1.0 + e, 1.0 - e) > 0.0);
+        assert_eq!(diff_of_products(3.0, 5.0, 5.0, 3.0), 0.0);
+        let mut rng = Rng(99);
+        let mut fallbacks = 0;
+        for _ in 0..200_000 {
+            let base = (rng.next_u64() >> 24) as i128; // 40 bits
+            let m = |rng: &mut Rng| base + (rng.next_u64() % 3) as i128 - 1;
+            let (p, q, r, s) = (m(&mut rng), m(&mut rng), m(&mut rng), m(&mut rng));
+            let want = (p * q - r * s).signum();
+            let k = 2f64.powi(rng.below(40) as i32 - 20);
+            let got = diff_of_products(p as f64 * k, q as f64, r as f64 * k, s as f64);
+            let plain = (p as f64 * k) * q as f64 - (r as f64 * k) * s as f64;
+            if plain.signum() as i128 != want || plain == 0.0 {
+                fallbacks += 1;
+            }
+            let sign = if got > 0.0 { 1 } else if got < 0.0 { -1 } else { 0 };
+            assert_eq!(sign, want, "{p} {q} {r} {s}");
+            assert_eq!(diff_of_products(r as f64 * k, s as f64, p as f64 * k, q as f64), -got);
+        }
+        assert!(fallbacks > 1000, "{fallbacks}");
+    }
+}
