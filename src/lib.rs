@@ -25,7 +25,6 @@ pub mod human;
 pub mod geometry;
 pub mod backend;
 pub mod gpu;
-pub mod raycast;
 pub mod post;
 pub mod output;
 pub mod generator;

@@ -13,10 +13,12 @@
 //! Both call hits with the same watertight f64 ray/triangle test and tie rule. `auto` is
 //! resolved once, per device, by [`resolve`].
 
+mod exact;
 pub mod raster;
-mod raycast_backend;
+pub mod raycast;
+pub mod triangle;
 
-pub use raycast_backend::RaycastBackend;
+pub use raycast::RaycastBackend;
 
 use crate::config::{BackendChoice, Caster, Config};
 use crate::error::{Error, Result};

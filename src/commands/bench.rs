@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::output::{FrameOutput, SequenceWriter, WriterOptions};
 use crate::config::BackendChoice;
 use crate::generator::Generator;
-use crate::raycast::{self, Bvh};
+use crate::backend::raycast::{self, Bvh};
 use crate::commands::crosscheck::{median, ErrorStats, Tally};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

@@ -15,7 +15,7 @@ use crate::output::png::{save_png, turbo};
 use crate::backend::{self, Backend, BeamHits, Gpu, LayerKind, NO_TRIANGLE};
 use crate::config::BackendChoice;
 use crate::generator::Generator;
-use crate::raycast::{self, Bvh, Hit};
+use crate::backend::raycast::{self, Bvh, Hit};
 use image::RgbImage;
 use serde::Serialize;
 use std::path::{Path, PathBuf};

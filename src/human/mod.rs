@@ -623,7 +623,7 @@ fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], erro
 
 /// The triangles of `indices` reordered along a Morton curve of their bind-pose centroids, so
 /// that runs of consecutive triangles are compact in space: the exact casts bound runs of 32
-/// (`crate::raycast::MeshClusters`), and compact runs keep those boxes tight. Each triangle
+/// (`crate::backend::raster::clusters::MeshClusters`), and compact runs keep those boxes tight. Each triangle
 /// keeps its vertex order (winding); only the order of the triangles changes.
 fn spatially_ordered(positions: &[Vec3], indices: &[u32]) -> Vec<u32> {
     let centroid = |t: &[u32]| (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize]) / 3.0;

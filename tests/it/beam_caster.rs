@@ -5,7 +5,7 @@
 
 use pedscan::config::{BackendChoice, Config};
 use pedscan::generator::Generator;
-use pedscan::raycast::{cast, BeamCaster, Bvh};
+use pedscan::backend::raycast::{cast, BeamCaster, Bvh};
 
 fn compare(sensor: &str, humans: usize, sequences: usize, frames: &[usize]) {
     let mut cfg = Config::default();

@@ -348,7 +348,7 @@ fn validation_layer_counts_an_invalid_call() {
 use pedscan::config::Refine;
 use pedscan::geometry::Adjacency;
 use pedscan::backend::raster::projection::Panorama;
-use pedscan::raycast::{cast_frame, Hit};
+use pedscan::backend::raycast::{cast_frame, Hit};
 use pedscan::backend::raster::resample::{resample, BeamLookup};
 use pedscan::backend::{BeamHits, NO_TRIANGLE};
 
@@ -550,7 +550,7 @@ fn panorama_large_walls_close_by_are_split_and_exact() {
         geom.push_mesh_with_adjacency(&p, &i, 0, true, Some(Arc::new(Adjacency::build(&i))));
         let tris = [[0usize, 1, 2], [0, 2, 3]].map(|t| t.map(|k| DVec3::from(q[k])));
         let expected = |d: DVec3| -> Option<f64> {
-            tris.iter().filter_map(|t| pedscan::raycast::intersect_triangle(d.normalize(), t, false)).reduce(f64::min)
+            tris.iter().filter_map(|t| pedscan::backend::raycast::intersect_triangle(d.normalize(), t, false)).reduce(f64::min)
         };
         let frame = renderer.render(&geom).unwrap().clone();
         let stats = renderer.stats();

@@ -11,7 +11,7 @@ use glam::{DVec3, Mat4, Vec3};
 use pedscan::geometry::FrameGeometry;
 use pedscan::human::{HumanModel, MODEL_TO_BODY};
 use pedscan::human::proxy::ModelProxies;
-use pedscan::raycast::{self, Bvh};
+use pedscan::backend::raycast::{self, Bvh};
 use std::path::{Path, PathBuf};
 
 fn bundled() -> Vec<PathBuf> {

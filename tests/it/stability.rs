@@ -20,7 +20,7 @@ use pedscan::human::{stride_length_m, HumanModel, MotionMode, MODEL_TO_BODY};
 use pedscan::generator::Generator;
 use pedscan::backend::raster::projection::CubeFaces;
 use pedscan::backend::raster::renderer::Renderer;
-use pedscan::raycast::{cast_frame, Hit};
+use pedscan::backend::raycast::{cast_frame, Hit};
 use pedscan::backend::raster::resample::{resample, BeamLookup};
 use pedscan::backend::{BeamHits, NO_TRIANGLE};
 use pedscan::scene::Trajectory;

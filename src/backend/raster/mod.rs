@@ -12,6 +12,7 @@
 //!   ([`crate::human::proxy`]) at beam resolution and every beam a proxy covers is cast
 //!   exactly through the people's triangle clusters.
 
+pub mod clusters;
 pub mod panorama;
 pub mod people;
 pub mod projection;

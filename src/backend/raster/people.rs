@@ -21,7 +21,7 @@ use crate::geometry::FrameGeometry;
 use crate::gpu::Context;
 use super::projection::Panorama;
 use super::renderer::{RasterFrame, Renderer};
-use crate::raycast::MeshClusters;
+use crate::backend::raster::clusters::MeshClusters;
 use super::resample::{texels_3x3, BeamLookup};
 use crate::backend::BeamHits;
 use crate::sensor::Sensor;

@@ -13,7 +13,7 @@
 //! Clusters are built per mesh on first use within a frame ([`MeshClusters::reset`] starts a
 //! frame), from any thread: a frame whose people are all settled by the raster builds none.
 
-use super::{triangle::better, intersect_pre, RayPre};
+use crate::backend::triangle::{better, intersect_pre, RayPre};
 use crate::geometry::FrameGeometry;
 use glam::DVec3;
 use std::sync::OnceLock;
@@ -296,7 +296,7 @@ impl MeshClusters {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raycast::cast_brute_force;
+    use crate::backend::raycast::cast_brute_force;
 
     /// Random little triangles around the sensor, in several meshes (one double-sided), some
     /// far, some on the beam grid's rows: every beam's cluster cast equals brute force.

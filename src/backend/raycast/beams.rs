@@ -6,7 +6,7 @@
 //! building (or refitting) a BVH over the posed triangles and tracing every beam through it,
 //! [`BeamCaster::cast`] walks the triangles once, bounds each one's projection in beam-grid
 //! coordinates (columns from the azimuth, rows from the sine of the elevation), and runs the
-//! same watertight f64 ray/triangle test ([`super::intersect_pre`]) for the beams inside that
+//! same watertight f64 ray/triangle test ([`crate::backend::triangle::intersect_pre`]) for the beams inside that
 //! bound only. A posed person is ~27k triangles a third of a beam spacing wide at 10 m, so
 //! almost every triangle is dropped after a few f32 comparisons, and the BVH refit of a frame
 //! (O(triangles), with the triangles copied into slots) is not needed at all.
@@ -34,7 +34,7 @@
 //!   uniform azimuth grid, rows of constant elevation in strictly descending order. The row-gap
 //!   shortcut needs two neighbouring column cells to span well under half a turn.
 
-use super::{triangle::better, intersect_pre, Hit, RayPre};
+use crate::backend::triangle::{better, intersect_pre, Hit, RayPre};
 use crate::geometry::FrameGeometry;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -590,7 +590,7 @@ impl Grid<'_> {
 mod tests {
     use super::*;
     use crate::geometry::FrameGeometry;
-    use crate::raycast::cast_brute_force;
+    use crate::backend::raycast::cast_brute_force;
     use crate::sensor::Sensor;
 
     #[test]

@@ -151,7 +151,7 @@ impl Hit {
         }
     }
 
-    pub(super) fn from_best(t: f64, tri: u32) -> Hit {
+    pub(crate) fn from_best(t: f64, tri: u32) -> Hit {
         if tri == u32::MAX {
             Hit::NONE
         } else {
@@ -162,15 +162,15 @@ impl Hit {
 
 /// The deterministic order of hits: smaller range, then smaller triangle index.
 #[inline(always)]
-pub(super) fn better(t: f64, tri: u32, best_t: f64, best_tri: u32) -> bool {
+pub(crate) fn better(t: f64, tri: u32, best_t: f64, best_tri: u32) -> bool {
     t < best_t || (t == best_t && tri < best_tri)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raycast::test_support::{dv, f32v, geom_of, octasphere, rotation, same, tess_cube, Rng};
-    use crate::raycast::{cast, cast_brute_force, cast_frame, cast_with_filter, Bvh};
+    use crate::backend::raycast::test_support::{dv, f32v, geom_of, octasphere, rotation, same, tess_cube, Rng};
+    use crate::backend::raycast::{cast, cast_brute_force, cast_frame, cast_with_filter, Bvh};
     use std::collections::HashMap;
 
     fn flip(idx: &[u32]) -> Vec<u32> {

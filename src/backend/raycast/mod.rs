@@ -1,5 +1,6 @@
-//! The CPU ray-cast reference: an independent path over the same posed triangles as the
-//! Vulkan raster path, used to check it frame by frame. Correctness first, then speed.
+//! The ray-cast backend and the CPU reference: an independent path over the same posed
+//! triangles as the Vulkan raster path, used to check it frame by frame. Correctness first,
+//! then speed.
 //!
 //! * Rays start at the sensor origin (the geometry is already in the sensor frame).
 //! * Ray/triangle test: the watertight algorithm of Woop, Benthin and Wald (JCGT 2(1), 2013),
@@ -27,11 +28,10 @@
 //!   binning the triangles into beams, with no BVH to build or refit (the ray-cast backend's
 //!   caster for generation: ~4x less time per frame for posed people, see `beams.rs`).
 //!
-//! The files, from the arithmetic up (each has its own tests):
-//! * `exact.rs`: error-free transforms and the exact-sign `p * q - r * s` of the edge
-//!   functions.
-//! * `triangle.rs`: the watertight ray/triangle test, [`Hit`] and the tie rule; the one
-//!   triangle test every caster uses.
+//! The ray/triangle test and its exact arithmetic are shared with the raster backend's
+//! refinement and live one level up (`backend/triangle.rs`, `backend/exact.rs`). The files
+//! here, each with its own tests:
+//! * `backend.rs`: [`RaycastBackend`], this caster as a [`crate::backend::Backend`].
 //! * `bvh.rs`: the two-level BVH ([`Bvh`]): node layout, binned SAH and Morton (LBVH)
 //!   builds of the per-mesh trees, the top level over the meshes.
 //! * `refit.rs`: [`BvhCache`], which keeps the per-mesh trees across frames and refits their
@@ -39,24 +39,19 @@
 //! * `traverse.rs`: the traversal and the casts through the BVH ([`cast`],
 //!   [`cast_with_filter`], [`cast_frame`]), and [`cast_brute_force`], their referee.
 //! * `beams.rs`: [`BeamCaster`], the whole-grid caster without a BVH.
-//! * `clusters.rs`: [`MeshClusters`], the exact nearest hit of one beam over the whole
-//!   geometry through boxed triangle clusters, for the beams the raster path cannot settle.
 //! * `test_support.rs` (tests only): the seeded RNG, meshes and soups the tests share.
 
+mod backend;
 mod beams;
 mod bvh;
-mod clusters;
-mod exact;
 mod refit;
 #[cfg(test)]
-mod test_support;
+pub(crate) mod test_support;
 mod traverse;
-mod triangle;
 
+pub use backend::RaycastBackend;
 pub use beams::BeamCaster;
 pub use bvh::Bvh;
-pub use clusters::MeshClusters;
 pub use refit::{BvhCache, BvhCacheStats};
 pub use traverse::{cast, cast_brute_force, cast_frame, cast_with_filter};
-pub use triangle::{intersect_triangle, Hit};
-pub(crate) use triangle::{intersect_pre, RayPre};
+pub use crate::backend::triangle::{intersect_triangle, Hit};

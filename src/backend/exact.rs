@@ -51,7 +51,7 @@ const DOP_ERR: f64 = 2.0 * f64::EPSILON;
 /// `p * q - r * s`: the plain f64 value when its sign is certain, else the exact-sign value.
 /// Antisymmetric: `diff_of_products(r, s, p, q) == -diff_of_products(p, q, r, s)`.
 #[inline(always)]
-pub(super) fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
+pub(crate) fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
     let pq = p * q;
     let rs = r * s;
     let d = pq - rs;
@@ -65,7 +65,7 @@ pub(super) fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raycast::test_support::Rng;
+    use crate::backend::raycast::test_support::Rng;
 
     /// The edge function's sign is exact where plain f64 rounds to 0 or to the wrong sign,
     /// checked against i128 arithmetic on random 40-bit integers times powers of two.

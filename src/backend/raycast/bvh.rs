@@ -649,8 +649,8 @@ impl Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raycast::cast;
-    use crate::raycast::test_support::{octasphere, same, soup};
+    use crate::backend::raycast::cast;
+    use crate::backend::raycast::test_support::{octasphere, same, soup};
     use glam::DVec3;
 
     /// Same results (and the same BVH) with 1 and 2 rayon threads.

@@ -5,7 +5,7 @@
 //! triangle with the same intersection test and tie rule (`triangle.rs`) and no tree at all.
 
 use super::bvh::{Bvh, Node, Tlas, COUNT_MASK, CULL_BIT};
-use super::triangle::{better, intersect_pre, Hit, RayPre};
+use crate::backend::triangle::{better, intersect_pre, Hit, RayPre};
 use crate::geometry::{FrameGeometry, MeshRange};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -201,7 +201,7 @@ pub fn cast_brute_force(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raycast::test_support::{geom_of, same, soup};
+    use crate::backend::raycast::test_support::{geom_of, same, soup};
 
     /// The BVH returns exactly (bit for bit, incl. ties) what the brute force returns, for
     /// all meshes and with mesh filters, for several seeds and max ranges.

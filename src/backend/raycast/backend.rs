@@ -4,10 +4,10 @@
 //! beam through a bottom-level BVH per layer, refit to each pose (the reference; the same
 //! hits, bit for bit). No Vulkan anywhere.
 
-use super::{Backend, BeamHits, Layer};
+use crate::backend::{Backend, BeamHits, Layer};
 use crate::config::BackendChoice;
 use crate::error::Result;
-use crate::raycast::{BeamCaster, BvhCache, Hit};
+use crate::backend::raycast::{BeamCaster, BvhCache, Hit};
 use crate::sensor::Sensor;
 use glam::DVec3;
 
@@ -66,7 +66,7 @@ impl Backend for RaycastBackend {
                 let t0 = std::time::Instant::now();
                 let bvh = caches[slot].build_or_refit(geom);
                 self.build_s += t0.elapsed().as_secs_f64();
-                self.cast = crate::raycast::cast(geom, bvh, &self.dirs, f64::MAX);
+                self.cast = crate::backend::raycast::cast(geom, bvh, &self.dirs, f64::MAX);
             }
         }
         hits.clear_to(0);

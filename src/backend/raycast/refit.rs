@@ -222,8 +222,8 @@ impl BvhCache {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raycast::test_support::{dv, f32v, octasphere, rotation, same, tess_cube, Rng};
-    use crate::raycast::{cast, cast_brute_force, cast_with_filter};
+    use crate::backend::raycast::test_support::{dv, f32v, octasphere, rotation, same, tess_cube, Rng};
+    use crate::backend::raycast::{cast, cast_brute_force, cast_with_filter};
     use glam::DVec3;
 
     /// A smooth non-rigid deformation (twist about z, bend, travelling wave), step `s`.

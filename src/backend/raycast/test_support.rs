@@ -9,9 +9,9 @@ use glam::DVec3;
 use std::collections::HashMap;
 
 /// SplitMix64: small, seeded, reproducible.
-pub(super) struct Rng(pub(super) u64);
+pub(crate) struct Rng(pub(crate) u64);
 impl Rng {
-    pub(super) fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -19,13 +19,13 @@ impl Rng {
         z ^ (z >> 31)
     }
     /// Uniform in [0, 1).
-    pub(super) fn f(&mut self) -> f64 {
+    pub(crate) fn f(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
-    pub(super) fn range(&mut self, lo: f64, hi: f64) -> f64 {
+    pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.f()
     }
-    pub(super) fn unit(&mut self) -> DVec3 {
+    pub(crate) fn unit(&mut self) -> DVec3 {
         loop {
             let v = DVec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
             let l = v.length();
@@ -34,23 +34,23 @@ impl Rng {
             }
         }
     }
-    pub(super) fn below(&mut self, n: usize) -> usize {
+    pub(crate) fn below(&mut self, n: usize) -> usize {
         (self.next_u64() % n as u64) as usize
     }
 }
 
-pub(super) fn f32v(v: DVec3) -> [f32; 3] {
+pub(crate) fn f32v(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
 
-pub(super) fn dv(p: [f32; 3]) -> DVec3 {
+pub(crate) fn dv(p: [f32; 3]) -> DVec3 {
     DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
 }
 
 /// Octahedron subdivided into 8 * n^2 triangles, vertices normalised to the unit sphere
 /// (then scaled and moved), wound outward. Vertices on the coordinate planes stay exactly
 /// on them, so equator edges lie exactly in z = 0 (and likewise x = 0, y = 0).
-pub(super) fn octasphere(n: i32, scale: DVec3, centre: DVec3) -> (Vec<[f32; 3]>, Vec<u32>) {
+pub(crate) fn octasphere(n: i32, scale: DVec3, centre: DVec3) -> (Vec<[f32; 3]>, Vec<u32>) {
     let mut pos = Vec::new();
     let mut map: HashMap<(i32, i32, i32), u32> = HashMap::new();
     let mut idx = Vec::new();
@@ -90,7 +90,7 @@ pub(super) fn octasphere(n: i32, scale: DVec3, centre: DVec3) -> (Vec<[f32; 3]>,
 
 /// Cube [-1, 1]^3 with an n x n grid per face, rotated by `rot` (columns), moved by
 /// `centre`, wound outward; shared vertices are shared exactly.
-pub(super) fn tess_cube(n: i32, rot: [DVec3; 3], centre: DVec3) -> (Vec<[f32; 3]>, Vec<u32>) {
+pub(crate) fn tess_cube(n: i32, rot: [DVec3; 3], centre: DVec3) -> (Vec<[f32; 3]>, Vec<u32>) {
     let mut pos = Vec::new();
     let mut map: HashMap<[i32; 3], u32> = HashMap::new();
     let mut idx = Vec::new();
@@ -125,14 +125,14 @@ pub(super) fn tess_cube(n: i32, rot: [DVec3; 3], centre: DVec3) -> (Vec<[f32; 3]
 }
 
 
-pub(super) fn rotation(rng: &mut Rng) -> [DVec3; 3] {
+pub(crate) fn rotation(rng: &mut Rng) -> [DVec3; 3] {
     let a = rng.unit();
     let b = (rng.unit() - a * a.dot(rng.unit())).normalize();
     let b = (b - a * a.dot(b)).normalize();
     [a, b, a.cross(b)]
 }
 
-pub(super) fn geom_of(meshes: &[(&[[f32; 3]], &[u32], u32, bool)]) -> FrameGeometry {
+pub(crate) fn geom_of(meshes: &[(&[[f32; 3]], &[u32], u32, bool)]) -> FrameGeometry {
     let mut g = FrameGeometry::default();
     for (p, i, inst, ds) in meshes {
         g.push_mesh(p, i, *inst, *ds);
@@ -141,7 +141,7 @@ pub(super) fn geom_of(meshes: &[(&[[f32; 3]], &[u32], u32, bool)]) -> FrameGeome
 }
 
 
-pub(super) fn same(a: &[Hit], b: &[Hit]) -> Result<(), String> {
+pub(crate) fn same(a: &[Hit], b: &[Hit]) -> Result<(), String> {
     assert_eq!(a.len(), b.len());
     for (k, (x, y)) in a.iter().zip(b).enumerate() {
         if x.triangle != y.triangle || x.range_m.to_bits() != y.range_m.to_bits() {
@@ -155,7 +155,7 @@ pub(super) fn same(a: &[Hit], b: &[Hit]) -> Result<(), String> {
 /// fans, exact duplicates (ties) and rotated duplicates; several meshes with mixed
 /// culling and instances. Returns the geometry and rays aimed at vertices/edges plus
 /// random ones.
-pub(super) fn soup(seed: u64, n: usize) -> (FrameGeometry, Vec<DVec3>) {
+pub(crate) fn soup(seed: u64, n: usize) -> (FrameGeometry, Vec<DVec3>) {
     let mut rng = Rng(seed);
     let mut g = FrameGeometry::default();
     let mut aims = Vec::new();
