@@ -215,6 +215,20 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         (r, t)
                     }
                     Refine::Exact => {
+                        // The interior of one drawn triangle: its 3x3 texels all show it, and
+                        // the beam hits it. The general path below would settle the same hit
+                        // (the only candidate, never drawn in front of its own plane).
+                        if centre_id != 0
+                            && texels_3x3((u, v), (fw, fh), wraps).all(|(uu, vv)| img.id[at(uu, vv)] == centre_id)
+                        {
+                            let t = centre_id - 1;
+                            let cull = !geom.mesh_of_triangle(t).double_sided;
+                            if let Some(r) = intersect_triangle(dir, &geom.triangle_f64(t), cull) {
+                                ranges[col] = r as f32;
+                                tris[col] = t;
+                                continue;
+                            }
+                        }
                         let mut cand = [Cand::default(); 9];
                         let mut nc = 0;
                         let mut any_empty = false;
