@@ -29,7 +29,8 @@ enum Command {
         #[arg(long = "strip-png")]
         strip_png: Option<PathBuf>,
     },
-    /// Time against error: sweep resolution, level of detail, refinement, people and columns.
+    /// Time against error: sweep resolution, level of detail, refinement, people and columns;
+    /// then the triangle rate of the raster renderer against the ray caster (in `bench.md`).
     Bench {
         /// A reduced sweep (under a minute).
         #[arg(long)]
@@ -128,7 +129,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 );
             })?;
             std::fs::write(&json, serde_json::to_string_pretty(&points)?).with_context(|| json.display().to_string())?;
-            let table = pedscan::commands::bench::markdown(&points);
+            let mut table = pedscan::commands::bench::markdown(&points);
+            table += &bench_rates(&base, quick);
             std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
             pedscan::commands::bench::plot(&points).save(&plot)?;
             print!("{table}");
@@ -162,5 +164,16 @@ fn main() -> ExitCode {
             let input = e.downcast_ref::<pedscan::Error>().is_some_and(|e| e.is_input());
             ExitCode::from(if input { 2 } else { 1 })
         }
+    }
+}
+
+/// The bench's triangle-rate table, or a line saying why there is none.
+fn bench_rates(base: &Config, quick: bool) -> String {
+    use pedscan::commands::bench::{rates_markdown, triangle_rates};
+    let counts: &[usize] = if quick { &[1_000, 16_000] } else { &[1_000, 4_000, 16_000, 64_000] };
+    let mut gpu = pedscan::backend::Gpu::new(&base.device, false);
+    match gpu.context().and_then(|ctx| Ok((ctx.device_name(), triangle_rates(&ctx, counts, 9)?))) {
+        Ok((device, rows)) => rates_markdown(&device, &rows),
+        Err(e) => format!("\nTriangle rate: not measured ({e})\n"),
     }
 }

@@ -352,3 +352,100 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
         height: 650,
     }
 }
+
+/// One row of [`triangle_rates`]: the same `triangles` drawn by the raster renderer and cast
+/// by the binned ray caster, median milliseconds of each.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RateRow {
+    pub triangles: usize,
+    /// Vulkan: upload, draw into the beam-resolution panorama (the people layer's target),
+    /// read back the range and ID images. No refinement.
+    pub raster_ms: f64,
+    /// The binned ray caster (exact hits of every beam).
+    pub raycast_ms: f64,
+    /// Texels the raster drew / beams the caster hit (both should see the same patches).
+    pub raster_texels: usize,
+    pub raycast_beams: usize,
+}
+
+impl RateRow {
+    /// Triangles per second of each path.
+    pub fn rates(&self) -> (f64, f64) {
+        (self.triangles as f64 / (self.raster_ms * 1e-3), self.triangles as f64 / (self.raycast_ms * 1e-3))
+    }
+}
+
+/// What bounds the raster path on a device: `counts` patches of person-sized detail (5 cm
+/// triangles, 5 to 17 m away, in front of the sensor) drawn by the raster renderer at beam
+/// resolution and cast by the binned ray caster, `repeats` times each, interleaved; medians.
+/// Per triangle, the Vulkan driver's setup and binning is what the raster path pays that the
+/// caster does not: on lavapipe it is the bound of any design that draws every triangle.
+pub fn triangle_rates(ctx: &std::sync::Arc<crate::gpu::Context>, counts: &[usize], repeats: usize) -> Result<Vec<RateRow>> {
+    use crate::backend::raster::{projection::Panorama, renderer::Renderer};
+    let sensor = crate::sensor::Sensor::hdl32e();
+    let pano = Panorama::new(&sensor, 1.0);
+    let mut renderer = Renderer::new_panorama(ctx, &pano)?;
+    let dirs = sensor.beam_dirs();
+    let mut caster = raycast::BeamCaster::new(&dirs, sensor.rows(), sensor.columns);
+    let mut hits = Vec::new();
+    let mut rows = Vec::new();
+    for &n in counts {
+        let geom = rate_patches(n);
+        let (mut raster_ms, mut raycast_ms) = (Vec::new(), Vec::new());
+        let (mut raster_texels, mut raycast_beams) = (0, 0);
+        for _ in 0..repeats.max(1) {
+            let t = Instant::now();
+            let frame = renderer.render(&geom)?;
+            raster_ms.push(t.elapsed().as_secs_f64() * 1e3);
+            raster_texels = frame.faces[0].id.iter().filter(|&&id| id != 0).count();
+            let t = Instant::now();
+            caster.cast(&geom, f64::MAX, &mut hits);
+            raycast_ms.push(t.elapsed().as_secs_f64() * 1e3);
+            raycast_beams = hits.iter().filter(|h| h.is_hit()).count();
+        }
+        rows.push(RateRow { triangles: n, raster_ms: median(&mut raster_ms), raycast_ms: median(&mut raycast_ms), raster_texels, raycast_beams });
+    }
+    Ok(rows)
+}
+
+/// `n` little triangles (5 cm sides) scattered 5 to 17 m in front of the sensor, within
+/// +-40 degrees of azimuth and the HDL-32E's elevations, as one double-sided mesh.
+fn rate_patches(n: usize) -> crate::geometry::FrameGeometry {
+    let mut positions = Vec::with_capacity(3 * n);
+    for i in 0..n {
+        // Low-discrepancy spread, deterministic.
+        let a = -0.7 + 1.4 * ((i * 7919) % 10007) as f32 / 10007.0;
+        let e = -0.5 + 0.6 * ((i * 104_729) % 9973) as f32 / 9973.0;
+        let r = 5.0 + (i % 13) as f32;
+        let c = [r * a.cos() * e.cos(), r * a.sin() * e.cos(), r * e.sin()];
+        positions.extend([c, [c[0], c[1] + 0.05, c[2]], [c[0], c[1], c[2] + 0.05]]);
+    }
+    let indices: Vec<u32> = (0..3 * n as u32).collect();
+    let mut geom = crate::geometry::FrameGeometry::default();
+    geom.push_mesh(&positions, &indices, 1, true);
+    geom
+}
+
+/// The Markdown table of [`triangle_rates`].
+pub fn rates_markdown(device: &str, rows: &[RateRow]) -> String {
+    let mut s = format!(
+        "\nTriangle rate on {device} (the same triangles drawn by the raster renderer at beam resolution and cast by the binned ray caster):\n\n\
+         | triangles | raster ms | ray-cast ms | raster Mtri/s | ray-cast Mtri/s | raster / ray-cast time | texels drawn | beams hit |\n\
+         |---|---|---|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        let (a, b) = r.rates();
+        s += &format!(
+            "| {} | {:.2} | {:.2} | {:.2} | {:.1} | {:.1}x | {} | {} |\n",
+            r.triangles,
+            r.raster_ms,
+            r.raycast_ms,
+            a * 1e-6,
+            b * 1e-6,
+            r.raster_ms / r.raycast_ms.max(1e-9),
+            r.raster_texels,
+            r.raycast_beams
+        );
+    }
+    s
+}

@@ -712,3 +712,22 @@ fn panorama_back_face_culling_keeps_the_near_side() {
     }
     finish(renderer, ctx);
 }
+
+/// `bench`'s triangle-rate probe draws and casts the same patches: both paths see them, on
+/// about as many beams (texel centres are the beams), more for more patches; no validation
+/// error.
+#[test]
+fn triangle_rate_probe_draws_and_casts_the_same_patches() {
+    let ctx = context();
+    let errors = ctx.validation_counter();
+    let rows = pedscan::commands::bench::triangle_rates(&ctx, &[300, 3000], 1).unwrap();
+    for r in &rows {
+        eprintln!("{r:?}");
+        assert!(r.raster_ms > 0.0 && r.raycast_ms > 0.0);
+        let ratio = r.raster_texels as f64 / r.raycast_beams as f64;
+        assert!(r.raycast_beams > 0 && (0.8..1.25).contains(&ratio), "{r:?}");
+    }
+    assert!(rows[1].raycast_beams > 2 * rows[0].raycast_beams, "{rows:?}");
+    drop(ctx);
+    assert_eq!(errors.load(std::sync::atomic::Ordering::SeqCst), 0, "validation errors (see stderr)");
+}
