@@ -221,9 +221,9 @@ pub fn resample(lookup: &BeamLookup, frame: &RasterFrame, geom: &FrameGeometry, 
                         if centre_id != 0
                             && texels_3x3((u, v), (fw, fh), wraps).all(|(uu, vv)| img.id[at(uu, vv)] == centre_id)
                         {
-                            let t = centre_id - 1;
-                            let cull = !geom.mesh_of_triangle(t).double_sided;
-                            if let Some(r) = intersect_triangle(dir, &geom.triangle_f64(t), cull) {
+                            let mut hit = None;
+                            test_triangle(dir, geom, centre_id - 1, &mut hit);
+                            if let Some((r, t)) = hit {
                                 ranges[col] = r as f32;
                                 tris[col] = t;
                                 continue;
