@@ -242,13 +242,36 @@ impl SequenceWriter {
         let tmp = &self.h5_path.0;
         std::fs::File::open(tmp).and_then(|f| f.sync_all()).map_err(|e| Error::io(tmp, e))?;
 
+        // Every final name must be free or a file of an earlier run (never a folder, which
+        // a rename cannot replace) before the first rename, so that the files of a sequence
+        // appear together or not at all.
+        for fin in [&self.xml_path.1, &self.h5_path.1] {
+            if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_file()) {
+                return Err(Error::input(fin.display(), "exists and is not a file; cannot replace it with the sequence's file"));
+            }
+        }
+        if let Some((_, fin)) = &self.png_dir {
+            if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_dir()) {
+                return Err(Error::input(fin.display(), "exists and is not a folder; cannot replace it with the sequence's PNGs"));
+            }
+        }
         let mut out = Vec::with_capacity(3);
-        // PNGs and XML first, the HDF5 file last: its presence marks a complete sequence.
+        // PNGs and XML first, the HDF5 file last: its presence marks a complete sequence. If
+        // a later rename fails, the earlier ones are undone.
         if let Some((tmp, fin)) = &self.png_dir {
             replace_dir(tmp, fin)?;
         }
-        rename(&self.xml_path.0, &self.xml_path.1)?;
-        rename(&self.h5_path.0, &self.h5_path.1)?;
+        let renamed = rename(&self.xml_path.0, &self.xml_path.1).and_then(|_| {
+            rename(&self.h5_path.0, &self.h5_path.1).inspect_err(|_| {
+                let _ = std::fs::remove_file(&self.xml_path.1);
+            })
+        });
+        if let Err(e) = renamed {
+            if let Some((_, fin)) = &self.png_dir {
+                let _ = std::fs::remove_dir_all(fin);
+            }
+            return Err(e);
+        }
         self.done = true;
         out.push(self.h5_path.1.clone());
         out.push(self.xml_path.1.clone());
