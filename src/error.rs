@@ -25,6 +25,10 @@ pub enum Error {
     /// HDF5 writing/reading failed for a named file.
     #[error("{path}: HDF5: {message}")]
     Hdf5 { path: PathBuf, message: String },
+    /// The run was stopped by a signal (SIGINT, SIGTERM) between frames; the sequence in
+    /// flight was discarded. `main` exits with 128 + the signal number.
+    #[error("stopped by signal {signal}; the sequence in flight was discarded, every earlier one is complete")]
+    Interrupted { signal: i32 },
     /// Anything else that is a failure of pedscan itself, not of the input.
     #[error("{0}")]
     Internal(String),

@@ -29,6 +29,15 @@ use std::sync::Arc;
 /// Bounding-sphere radius of a person as a fraction of height (arms and legs mid-swing).
 const BODY_RADIUS_PER_HEIGHT: f64 = 0.75;
 
+/// What [`Generator::write_sequence`] wrote.
+#[derive(Clone, Debug)]
+pub struct WrittenSequence {
+    /// The final paths: the HDF5 file, the XML file and, with PNGs, the PNG folder.
+    pub files: Vec<PathBuf>,
+    /// People in the sequence.
+    pub people: usize,
+}
+
 /// Everything loaded once for a run, and the per-frame buffers.
 pub struct Generator {
     cfg: Config,
@@ -655,12 +664,14 @@ impl Generator {
     }
 
     /// Generates and writes sequence `index` into `out_dir`; returns the files written.
-    /// On failure nothing of this sequence is left behind.
-    pub fn write_sequence(&mut self, index: usize, out_dir: &Path, mut on_frame: impl FnMut()) -> Result<Vec<PathBuf>> {
+    /// `on_frame` runs after each frame; an error from it (a stop request) ends the sequence
+    /// like any failure: nothing of this sequence is left behind.
+    pub fn write_sequence(&mut self, index: usize, out_dir: &Path, mut on_frame: impl FnMut() -> Result<()>) -> Result<WrittenSequence> {
         let t0 = std::time::Instant::now();
         let plan = self.plan(index)?;
         self.timings.plan_s += t0.elapsed().as_secs_f64();
         let meta = self.meta(index, &plan);
+        let people = meta.humans.len();
         let opts = WriterOptions {
             png: self.cfg.png,
             compression: match self.cfg.output.compression {
@@ -678,9 +689,9 @@ impl Generator {
                 let t0 = std::time::Instant::now();
                 writer.write_frame(&out)?;
                 self.timings.write_s += t0.elapsed().as_secs_f64();
-                on_frame();
+                on_frame()?;
             }
-            return writer.finish();
+            return Ok(WrittenSequence { files: writer.finish()?, people });
         }
         // The writer runs on its own thread, one frame behind: frame k+1 is posed, rendered
         // and composited while frame k is compressed and written. Two frame buffers travel
@@ -721,7 +732,7 @@ impl Generator {
                     if to_writer.send(Msg::Frame(out)).is_err() {
                         return Ok(());
                     }
-                    on_frame();
+                    on_frame()?;
                 }
                 let _ = to_writer.send(Msg::Done);
                 Ok(())
@@ -731,7 +742,8 @@ impl Generator {
             computed?;
             let (written, write_s) = written?;
             self.timings.write_s += write_s;
-            written.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))
+            let files = written.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))?;
+            Ok(WrittenSequence { files, people })
         })
     }
 }

@@ -1,11 +1,20 @@
 //! `pedscan`: parses flags into a checked configuration and calls the library.
-//! Exit codes: 0 ok, 1 failure, 2 bad input (usage, config, files).
+//! Exit codes: 0 ok, 1 failure, 2 bad input (usage, config, files), 128 + N stopped by
+//! signal N (130 SIGINT, 143 SIGTERM).
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use pedscan::config::{Config, Flags};
+use pedscan::commands::run::{RunOptions, Shard};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, AtomicUsize};
+use std::sync::Arc;
+
+/// `verify` found problems (already printed): exit 1.
+#[derive(Debug, thiserror::Error)]
+#[error("the folder does not verify")]
+struct VerifyFailed;
 
 #[derive(Parser)]
 #[command(name = "pedscan", version, about = "Automatically labeled LiDAR sequences of walking people")]
@@ -17,7 +26,27 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Generate labeled sequences (HDF5 + XML, optional PNG) on the bundled defaults or a config.
-    Generate(Flags),
+    Generate {
+        #[command(flatten)]
+        args: Flags,
+        /// Skip sequences whose files already verify against the output's manifest.jsonl
+        /// (continue a killed run; extend a job with more --sequences).
+        #[arg(long)]
+        resume: bool,
+        /// Replace sequences that another configuration wrote (refused otherwise).
+        #[arg(long)]
+        overwrite: bool,
+        /// Write only every N-th sequence, starting at I: `I/N`; `auto` (a Slurm array task)
+        /// or `auto/N` (a Slurm or Kubernetes Indexed Job task, of N).
+        #[arg(long)]
+        shard: Option<String>,
+    },
+    /// Check an output folder against its manifest.jsonl: every file there, with its size and
+    /// SHA-256; every sequence file listed. Exit 0 when all verify, 1 otherwise.
+    Verify {
+        /// The output folder of `generate`.
+        dir: PathBuf,
+    },
     /// Hold the raster path against the CPU ray-cast reference on the same posed triangles.
     Crosscheck {
         #[command(flatten)]
@@ -79,11 +108,34 @@ enum Command {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Generate(args) => {
-            let summary = pedscan::commands::run::generate(args.config()?, true, args.export_geometry.clone())?;
+        Command::Generate { args, resume, overwrite, shard } => {
+            let shard = match shard {
+                Some(spec) => Shard::parse(&spec, |k| std::env::var(k).ok())?,
+                None => Shard::default(),
+            };
+            // SIGINT and SIGTERM ask the run to stop between frames; a second one ends the
+            // process at once (temporaries may then remain; `--resume` cleans them up).
+            let stop = Arc::new(AtomicUsize::new(0));
+            let asked = Arc::new(AtomicBool::new(false));
+            for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+                // In this order: the first signal finds `asked` still false.
+                signal_hook::flag::register_conditional_shutdown(signal, 128 + signal, asked.clone())
+                    .and_then(|_| signal_hook::flag::register(signal, asked.clone()))
+                    .and_then(|_| signal_hook::flag::register_usize(signal, stop.clone(), signal as usize))
+                    .context("installing a signal handler")?;
+            }
+            let opts = RunOptions { progress: true, export_geometry: args.export_geometry.clone(), resume, overwrite, shard, stop: Some(stop) };
+            let summary = pedscan::commands::run::generate(args.config()?, &opts)?;
             eprintln!("{summary}");
             if args.timings {
                 eprintln!("{}", summary.timings);
+            }
+        }
+        Command::Verify { dir } => {
+            let report = pedscan::output::manifest::verify_dir(&dir)?;
+            println!("{report}");
+            if !report.ok() {
+                return Err(VerifyFailed.into());
             }
         }
         Command::Crosscheck { mut args, json, strip_png } => {
@@ -161,8 +213,11 @@ fn main() -> ExitCode {
             for cause in e.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
             }
-            let input = e.downcast_ref::<pedscan::Error>().is_some_and(|e| e.is_input());
-            ExitCode::from(if input { 2 } else { 1 })
+            match e.downcast_ref::<pedscan::Error>() {
+                Some(pedscan::Error::Interrupted { signal }) => ExitCode::from((128 + signal) as u8),
+                Some(e) if e.is_input() => ExitCode::from(2),
+                _ => ExitCode::from(1),
+            }
         }
     }
 }

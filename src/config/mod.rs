@@ -346,12 +346,14 @@ impl Config {
     }
 
     /// The configuration recorded in every output: everything that decides the content, not
-    /// where it is written or which device ran it (`out`, `device` are left at their
-    /// defaults), so the same seed and config give the same bytes wherever they run.
+    /// where it is written, which device ran it or how many sequences the job has (`out`,
+    /// `device`, `sequences` and `first_sequence` are left at their defaults: a sequence
+    /// depends on the seed and its own index only), so the same seed and config give the same
+    /// bytes wherever they run, whether one run writes the job or many shards of it.
     pub fn to_recorded_toml(&self) -> String {
         let mut c = self.clone();
-        c.out = Config::default().out;
-        c.device = Config::default().device;
+        let d = Config::default();
+        (c.out, c.device, c.sequences, c.first_sequence) = (d.out, d.device, d.sequences, d.first_sequence);
         c.debug = DebugConfig::default();
         c.to_toml()
     }

@@ -9,6 +9,8 @@ use crate::sensor::Sensor;
 
 mod h5;
 mod info;
+pub mod lock;
+pub mod manifest;
 pub mod ply;
 pub mod png;
 mod writer;

@@ -9,6 +9,7 @@ mod generate;
 mod gpu_raster;
 mod humans;
 mod output;
+mod production;
 mod proxy;
 mod real_inputs;
 mod stability;

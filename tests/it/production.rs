@@ -1,0 +1,201 @@
+//! Production runs of the built binary: a killed run resumes to the same bytes, a stop
+//! request leaves only complete sequences, two runs never touch each other's sequences,
+//! shards add up to one run, and `pedscan verify` finds what is wrong.
+
+use crate::common::{ok, pedscan, pedscan_with_env};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A job long enough to be stopped in the middle: 8 sequences on the ray caster.
+const JOB: [&str; 10] = ["generate", "--backend", "raycast", "--sequences", "8", "--frames", "6", "--humans", "2..4", "--seed"];
+
+fn job(out: &str, extra: &[&'static str]) -> Vec<String> {
+    let mut v: Vec<String> = JOB.iter().map(|s| s.to_string()).collect();
+    v.push("21".into());
+    v.extend(["--out".to_string(), out.to_string()]);
+    v.extend(extra.iter().map(|s| s.to_string()));
+    v
+}
+
+fn spawn(args: &[String], dir: &Path) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_pedscan"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start pedscan")
+}
+
+fn run(args: &[String], dir: &Path) -> std::process::Output {
+    pedscan(&args.iter().map(|s| s.as_str()).collect::<Vec<_>>(), dir)
+}
+
+/// Waits until `path` exists (at most 60 s).
+fn wait_for(path: &Path) {
+    let t0 = Instant::now();
+    while !path.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "{} never appeared", path.display());
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// Every sequence file of `a` is in `b` with the same bytes, and the other way round.
+fn same_sequences(a: &Path, b: &Path) {
+    let seq = |d: &Path| names(d).into_iter().filter(|n| n.starts_with("seq_")).collect::<Vec<_>>();
+    assert_eq!(seq(a), seq(b));
+    for n in seq(a) {
+        assert!(std::fs::read(a.join(&n)).unwrap() == std::fs::read(b.join(&n)).unwrap(), "{n} differs");
+    }
+}
+
+fn verify(dir: &Path, out: &str) -> std::process::Output {
+    pedscan(&["verify", out], dir)
+}
+
+#[test]
+fn a_killed_run_resumes_to_the_bytes_of_an_uninterrupted_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&run(&job("full", &[]), dir));
+    let mut child = spawn(&job("part", &[]), dir);
+    wait_for(&dir.join("part/seq_000001.h5"));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!dir.join("part/seq_000007.h5").exists(), "the run ended before it was killed");
+    ok(&run(&job("part", &["--resume"]), dir));
+    same_sequences(&dir.join("full"), &dir.join("part"));
+    ok(&verify(dir, "part"));
+    // Resuming a complete folder writes nothing.
+    let o = run(&job("part", &["--resume"]), dir);
+    ok(&o);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("wrote 0 sequences"), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn sigint_and_sigterm_stop_between_frames_and_leave_only_complete_sequences() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    for (signal, code, out) in [("-INT", 130, "int"), ("-TERM", 143, "term")] {
+        let child = spawn(&job(out, &[]), dir);
+        wait_for(&dir.join(out).join("seq_000000.h5"));
+        let sent = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
+        assert!(sent.success());
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{signal}: {err}");
+        assert!(err.contains("stopped by signal"), "{err}");
+        let left = names(&dir.join(out));
+        assert!(left.iter().all(|n| !n.ends_with(".tmp") && !n.ends_with(".lock")), "{signal} left {left:?}");
+        assert!(!left.contains(&"seq_000007.h5".to_string()), "the run ended before the signal");
+        ok(&verify(dir, out));
+    }
+}
+
+#[test]
+fn two_runs_never_write_the_same_sequence_or_replace_another_configuration() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let first = spawn(&job("out", &[]), dir);
+    wait_for(&dir.join("out/seq_000000.lock"));
+    // The second run stops at sequence 0: held by the first run (named), or, if the first
+    // run got past it meanwhile, already there.
+    let o = run(&job("out", &[]), dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let held = err.contains("seq_000000.lock") && err.contains("being written by pedscan") && err.contains("pid");
+    assert!(held || err.contains("sequence 0 is already there"), "{err}");
+    // With --resume it cannot overtake the first run either.
+    let o = run(&job("out", &["--resume"]), dir);
+    if !o.status.success() {
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.code() == Some(2) && err.contains("being written by pedscan"), "{err}");
+    }
+    let o = first.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ok(&verify(dir, "out"));
+    // Another seed into the same folder: refused, nothing replaced.
+    let before = std::fs::read(dir.join("out/seq_000000.h5")).unwrap();
+    let mut other = job("out", &[]);
+    let seed = other.iter().position(|a| a == "--seed").unwrap();
+    other[seed + 1] = "22".into();
+    let o = run(&other, dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("seq_000000") && err.contains("another configuration") && err.contains("--overwrite"), "{err}");
+    assert!(std::fs::read(dir.join("out/seq_000000.h5")).unwrap() == before);
+    // With --overwrite it is replaced, and the folder verifies.
+    other.push("--overwrite".into());
+    ok(&run(&other, dir));
+    assert!(std::fs::read(dir.join("out/seq_000000.h5")).unwrap() != before);
+    ok(&verify(dir, "out"));
+}
+
+#[test]
+fn shards_write_together_exactly_what_one_run_writes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let small = |out: &str, extra: &[&str]| {
+        let mut v = vec!["generate", "--backend", "raycast", "--sequences", "5", "--frames", "2", "--humans", "1..3", "--out", out];
+        v.extend_from_slice(extra);
+        v.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    ok(&run(&small("one", &[]), dir));
+    // Three shards into one folder, the last through Slurm's variables.
+    ok(&run(&small("shards", &["--shard", "0/3"]), dir));
+    ok(&run(&small("shards", &["--shard", "1/3"]), dir));
+    let args = small("shards", &["--shard", "auto"]);
+    let slurm = [("SLURM_ARRAY_TASK_ID", "3"), ("SLURM_ARRAY_TASK_MIN", "1"), ("SLURM_ARRAY_TASK_COUNT", "3")];
+    ok(&pedscan_with_env(&args.iter().map(|s| s.as_str()).collect::<Vec<_>>(), dir, &slurm));
+    same_sequences(&dir.join("one"), &dir.join("shards"));
+    ok(&verify(dir, "shards"));
+    let o = run(&small("x", &["--shard", "3/3"]), dir);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!dir.join("x").exists());
+}
+
+#[test]
+fn verify_finds_altered_and_stray_files_and_resume_repairs_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let args: Vec<String> = ["generate", "--backend", "raycast", "--sequences", "2", "--frames", "2", "--out", "out"].map(String::from).to_vec();
+    ok(&run(&args, dir));
+    let h5 = dir.join("out/seq_000001.h5");
+    let good = std::fs::read(&h5).unwrap();
+    let mut bad = good.clone();
+    let mid = bad.len() / 2;
+    bad[mid] ^= 1;
+    std::fs::write(&h5, &bad).unwrap();
+    std::fs::write(dir.join("out/seq_000009.xml"), "<stray/>").unwrap();
+    let o = verify(dir, "out");
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(text.contains("seq_000001.h5: SHA-256") && text.contains("seq_000009.xml"), "{text}");
+    std::fs::remove_file(dir.join("out/seq_000009.xml")).unwrap();
+    let mut resume = args.clone();
+    resume.push("--resume".into());
+    ok(&run(&resume, dir));
+    assert!(std::fs::read(&h5).unwrap() == good);
+    ok(&verify(dir, "out"));
+    // Not an output folder: bad input.
+    assert_eq!(verify(dir, "nowhere").status.code(), Some(2));
+}
+
+#[test]
+fn a_sequence_whose_final_name_is_taken_by_a_folder_leaves_none_of_its_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::create_dir_all(dir.join("out/seq_000000.h5")).unwrap();
+    let o = pedscan(&["generate", "--backend", "raycast", "--frames", "2", "--out", "out", "--overwrite"], dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("seq_000000.h5") && err.contains("not a file"), "{err}");
+    assert_eq!(names(&dir.join("out")), vec!["seq_000000.h5".to_string()]);
+}
