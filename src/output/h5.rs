@@ -69,7 +69,33 @@ pub(crate) struct H5Writer {
 }
 
 fn h5err(name: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
-    move |e| Error::Hdf5 { path: name.to_path_buf(), message: e.to_string() }
+    move |e| write_error(name, e.to_string())
+}
+
+/// An HDF5 failure writing `name`. The library does not say why a write failed; a full disk
+/// (the common cause) is checked for and said.
+fn write_error(name: &Path, message: String) -> Error {
+    let dir = name.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    Error::Hdf5 { path: name.to_path_buf(), message: with_disk_full(message, free_bytes(dir)) }
+}
+
+/// Below this many free bytes a failed write is put down to a full disk.
+const DISK_FULL_BYTES: u64 = 16 << 20;
+
+fn with_disk_full(message: String, free: Option<u64>) -> String {
+    match free {
+        Some(b) if b < DISK_FULL_BYTES => format!("{message} (disk full: {} KiB free on its file system)", b >> 10),
+        _ => message,
+    }
+}
+
+/// Bytes an unprivileged process may still write on the file system of `dir`.
+fn free_bytes(dir: &Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    // SAFETY: `c` is a NUL-terminated path and `st` a valid, writable statvfs.
+    (unsafe { libc::statvfs(c.as_ptr(), &mut st) } == 0).then(|| st.f_bavail as u64 * st.f_frsize as u64)
 }
 
 fn vlu(name: &Path, s: &str) -> Result<VarLenUnicode> {
@@ -281,10 +307,7 @@ impl H5Writer {
                 Compression::None => src,
                 Compression::Deflate(_) => &b.packed,
             };
-            write_chunk(&b.ds, index, data).map_err(|m| Error::Hdf5 {
-                path: self.name.clone(),
-                message: format!("writing frame {index} of {}: {m}", b.ds.name()),
-            })?;
+            write_chunk(&b.ds, index, data).map_err(|m| write_error(&self.name, format!("writing frame {index} of {}: {m}", b.ds.name())))?;
         }
         self.time_s.push(f.time_s);
         self.world_from_sensor.extend(f.world_from_sensor.iter().flatten());
@@ -480,6 +503,17 @@ fn write_chunk(ds: &Dataset, frame: usize, data: &[u8]) -> std::result::Result<(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_failed_write_on_a_full_file_system_says_so() {
+        let m = with_disk_full("H5Dwrite_chunk(): can't write".into(), Some(4096));
+        assert!(m.starts_with("H5Dwrite_chunk(): can't write") && m.contains("disk full: 4 KiB free"), "{m}");
+        assert_eq!(with_disk_full("x".into(), Some(1 << 40)), "x");
+        assert_eq!(with_disk_full("x".into(), None), "x");
+        let free = free_bytes(Path::new(".")).expect("statvfs of the working folder");
+        assert!(free > 0);
+        assert!(free_bytes(Path::new("/no/such/folder")).is_none());
+    }
 
     #[test]
     fn shuffle_matches_hdf5_layout() {
