@@ -36,6 +36,8 @@ pub struct WrittenSequence {
     pub files: Vec<PathBuf>,
     /// People in the sequence.
     pub people: usize,
+    /// Frames written.
+    pub frames: usize,
 }
 
 /// Everything loaded once for a run, and the per-frame buffers.
@@ -671,7 +673,7 @@ impl Generator {
         let plan = self.plan(index)?;
         self.timings.plan_s += t0.elapsed().as_secs_f64();
         let meta = self.meta(index, &plan);
-        let people = meta.humans.len();
+        let (people, frames) = (meta.humans.len(), meta.frames);
         let opts = WriterOptions {
             png: self.cfg.png,
             compression: match self.cfg.output.compression {
@@ -691,7 +693,7 @@ impl Generator {
                 self.timings.write_s += t0.elapsed().as_secs_f64();
                 on_frame()?;
             }
-            return Ok(WrittenSequence { files: writer.finish()?, people });
+            return Ok(WrittenSequence { files: writer.finish()?, people, frames });
         }
         // The writer runs on its own thread, one frame behind: frame k+1 is posed, rendered
         // and composited while frame k is compressed and written. Two frame buffers travel
@@ -743,7 +745,7 @@ impl Generator {
             let (written, write_s) = written?;
             self.timings.write_s += write_s;
             let files = written.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))?;
-            Ok(WrittenSequence { files, people })
+            Ok(WrittenSequence { files, people, frames })
         })
     }
 }

@@ -186,7 +186,7 @@ pub fn generate(cfg: Config, opts: &RunOptions) -> Result<Summary> {
         _ => Ok(()),
     };
     let start = Instant::now();
-    let (mut files, mut written, mut skipped) = (Vec::new(), 0, 0);
+    let (mut files, mut written, mut skipped, mut frames) = (Vec::new(), 0, 0, 0);
     for index in indices {
         stopped()?;
         let _lock = SequenceLock::acquire(&out, index)?;
@@ -213,7 +213,7 @@ pub fn generate(cfg: Config, opts: &RunOptions) -> Result<Summary> {
         let entry = ManifestEntry {
             sequence: index,
             files: file_records(&out, &seq.files)?,
-            frames: cfg.frames,
+            frames: seq.frames,
             people: seq.people,
             seconds: t0.elapsed().as_secs_f64(),
             version: env!("CARGO_PKG_VERSION").to_string(),
@@ -221,6 +221,7 @@ pub fn generate(cfg: Config, opts: &RunOptions) -> Result<Summary> {
             config_hash: hash.clone(),
         };
         Manifest::append(&out, &entry)?;
+        frames += seq.frames;
         files.extend(seq.files);
         written += 1;
     }
@@ -228,7 +229,7 @@ pub fn generate(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     let summary = Summary {
         sequences: written,
         skipped,
-        frames: written * cfg.frames,
+        frames,
         files,
         seconds: start.elapsed().as_secs_f64(),
         timings: gen.timings(),
