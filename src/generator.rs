@@ -578,6 +578,8 @@ impl Generator {
         composite(&params, &self.scratch.human_hits, &self.scratch.humans, &self.scratch.bg_hits.range_m, out);
         out.time_s = state.t_s;
         out.world_from_sensor = state.world_from_sensor.transpose().to_cols_array_2d();
+        out.sensor_velocity_mps = state.sensor_velocity_mps.to_array();
+        out.sensor_yaw_rate_rps = state.sensor_yaw_rate_rps;
         out.humans.clone_from(&state.humans);
     }
 

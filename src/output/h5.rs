@@ -4,6 +4,7 @@
 //! /range f32[T,H,W]  /xyz f32[T,H,W,3]  /label u8[T,H,W]  /instance u16[T,H,W]
 //! /velocity f32[T,H,W,3]  /background/range f32[T,H,W]
 //! /sensor/time_s f64[T]  /sensor/world_from_sensor f64[T,4,4]
+//! /sensor/velocity_mps f64[T,3]  /sensor/yaw_rate_rps f64[T]
 //! /sensor/elevation_deg f32[H]  /sensor/azimuth_deg f32[W]
 //! /humans/height_m f32[N]  /humans/weight_kg f32[N]  /humans/model str[N]
 //! /humans/position_m f64[T,N,3]  /humans/heading_rad f32[T,N]
@@ -62,6 +63,8 @@ pub(crate) struct H5Writer {
     humans: usize,
     time_s: Vec<f64>,
     world_from_sensor: Vec<f64>,
+    sensor_velocity_mps: Vec<f64>,
+    sensor_yaw_rate_rps: Vec<f64>,
     position_m: Vec<f64>,
     heading_rad: Vec<f32>,
     velocity_mps: Vec<f32>,
@@ -268,6 +271,8 @@ impl H5Writer {
             humans: n,
             time_s: Vec::with_capacity(t),
             world_from_sensor: Vec::with_capacity(t * 16),
+            sensor_velocity_mps: Vec::with_capacity(t * 3),
+            sensor_yaw_rate_rps: Vec::with_capacity(t),
             position_m: Vec::with_capacity(t * n * 3),
             heading_rad: Vec::with_capacity(t * n),
             velocity_mps: Vec::with_capacity(t * n * 3),
@@ -311,6 +316,8 @@ impl H5Writer {
         }
         self.time_s.push(f.time_s);
         self.world_from_sensor.extend(f.world_from_sensor.iter().flatten());
+        self.sensor_velocity_mps.extend_from_slice(&f.sensor_velocity_mps);
+        self.sensor_yaw_rate_rps.push(f.sensor_yaw_rate_rps);
         for hs in &f.humans {
             self.position_m.extend_from_slice(&hs.position_m);
             self.heading_rad.push(hs.heading_rad);
@@ -340,6 +347,12 @@ impl H5Writer {
                 .map_err(&e)?;
             attr_str(&ds, "units", "m", &name)?;
             attr_str(&ds, "description", "Row-major 4x4 pose of the sensor in the world", &name)?;
+            let ds = small(&sensor, "velocity_mps", &[t, 3], &self.sensor_velocity_mps).map_err(&e)?;
+            attr_str(&ds, "units", "m/s", &name)?;
+            attr_str(&ds, "description", "Velocity of the sensor, world frame (derivative of its trajectory)", &name)?;
+            let ds = small(&sensor, "yaw_rate_rps", &[t], &self.sensor_yaw_rate_rps).map_err(&e)?;
+            attr_str(&ds, "units", "rad/s", &name)?;
+            attr_str(&ds, "description", "Yaw rate of the sensor about the world z axis", &name)?;
 
             let hg = group(&file, "humans").map_err(&e)?;
             let height: Vec<f32> = meta.humans.iter().map(|h| h.height_m).collect();

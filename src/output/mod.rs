@@ -95,6 +95,10 @@ pub struct FrameOutput {
     pub time_s: f64,
     /// Row-major 4x4 pose of the sensor in the world.
     pub world_from_sensor: [[f64; 4]; 4],
+    /// The sensor's own velocity, world frame, m/s (the exact derivative of its trajectory).
+    pub sensor_velocity_mps: [f64; 3],
+    /// The sensor's yaw rate about the world z axis, rad/s.
+    pub sensor_yaw_rate_rps: f64,
     /// One entry per person of the sequence (same order as `SequenceMeta::humans`).
     pub humans: Vec<HumanState>,
 }

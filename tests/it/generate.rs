@@ -268,3 +268,32 @@ fn the_ray_caster_runs_without_vulkan_and_raster_says_why_it_cannot() {
     assert!(err.contains("raster backend needs a Vulkan device") && err.contains("--backend raycast"), "{err}");
     assert!(!dir.join("raster").exists(), "nothing is created when the backend cannot start");
 }
+
+#[test]
+fn the_sensor_motion_is_stored_and_is_the_derivative_of_its_poses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    // A fast, turning sensor makes a wrong sign or frame obvious.
+    std::fs::write(dir.join("c.toml"), "[scene]\nsensor_speed_mps = [1.5, 1.5]\nsensor_yaw_rate_rps = [0.3, 0.3]\n").unwrap();
+    ok(&pedscan(&["generate", "--config", "c.toml", "--backend", "raycast", "--frames", "12", "--humans", "1..1", "--out", "o"], dir));
+    let f = hdf5::File::open(dir.join("o/seq_000000.h5")).unwrap();
+    let t: Vec<f64> = f.dataset("sensor/time_s").unwrap().read_raw().unwrap();
+    let pose: Vec<f64> = f.dataset("sensor/world_from_sensor").unwrap().read_raw().unwrap();
+    let v = f.dataset("sensor/velocity_mps").unwrap();
+    assert_eq!(v.shape(), vec![t.len(), 3]);
+    let v: Vec<f64> = v.read_raw().unwrap();
+    let w: Vec<f64> = f.dataset("sensor/yaw_rate_rps").unwrap().read_raw().unwrap();
+    let pos = |k: usize| [pose[16 * k + 3], pose[16 * k + 7], pose[16 * k + 11]];
+    let yaw = |k: usize| pose[16 * k + 4].atan2(pose[16 * k]);
+    for k in 1..t.len() - 1 {
+        let dt = t[k + 1] - t[k - 1];
+        let (a, b) = (pos(k - 1), pos(k + 1));
+        for i in 0..3 {
+            let fd = (b[i] - a[i]) / dt;
+            assert!((fd - v[3 * k + i]).abs() < 0.02, "frame {k} axis {i}: stored {} vs poses {fd}", v[3 * k + i]);
+        }
+        let dyaw = (yaw(k + 1) - yaw(k - 1) + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        assert!((dyaw / dt - w[k]).abs() < 0.01, "frame {k}: yaw rate {} vs poses {}", w[k], dyaw / dt);
+    }
+    assert!(v.chunks(3).all(|c| (c[0].hypot(c[1]) - 1.5).abs() < 1e-9), "speed 1.5 m/s: {v:?}");
+}
