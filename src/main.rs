@@ -97,6 +97,18 @@ enum Command {
         #[arg(long)]
         validation: bool,
     },
+    /// What a generated dataset holds: frames, people per frame, human beams per distance
+    /// bin, class balance, walking speeds; with a PNG of the histograms.
+    Stats {
+        /// An output folder of `generate` (every seq_*.h5) or one sequence file.
+        path: PathBuf,
+        /// Write the histograms as a PNG.
+        #[arg(long, default_value = "stats.png")]
+        png: PathBuf,
+        /// Also write the numbers as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -191,6 +203,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let models = if models.is_empty() { Config::default().humans.models } else { models };
             pedscan::commands::sheet::write_contact_sheet(&models, &phases, &out, validation)?;
             eprintln!("wrote {}", out.display());
+        }
+        Command::Stats { path, png, json } => {
+            let stats = pedscan::commands::stats::Stats::of(&path)?;
+            println!("{stats}");
+            pedscan::plot::save_image(&stats.plot(), &png)?;
+            if let Some(json) = json {
+                std::fs::write(&json, serde_json::to_string_pretty(&stats)?).with_context(|| json.display().to_string())?;
+            }
+            eprintln!("wrote {}", png.display());
         }
         Command::Info { file } => {
             print!("{}", pedscan::output::info(&file)?);

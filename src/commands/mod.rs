@@ -6,3 +6,4 @@ pub mod bench;
 pub mod crosscheck;
 pub mod run;
 pub mod sheet;
+pub mod stats;

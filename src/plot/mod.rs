@@ -528,31 +528,32 @@ impl Plot {
         }
     }
 
-    /// Renders and writes the plot as a PNG to `path`, via `path.with_extension("png.tmp")` and a
-    /// rename, so readers never see a partial file.
+    /// Renders and writes the plot as a PNG to `path` (see [`save_image`]).
     pub fn save(&self, path: &Path) -> Result<()> {
-        let img = self.render();
-        let tmp = path.with_extension("png.tmp");
-        let write = || -> Result<()> {
-            let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-            let mut out = std::io::BufWriter::new(file);
-            img.write_to(&mut out, image::ImageFormat::Png)
-                .map_err(|e| match e {
-                    image::ImageError::IoError(io) => Error::io(path, io),
-                    other => Error::io(path, std::io::Error::other(other.to_string())),
-                })?;
-            let file = out
-                .into_inner()
-                .map_err(|e| Error::io(path, e.into_error()))?;
-            file.sync_all().map_err(|e| Error::io(path, e))?;
-            std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
-        };
-        let r = write();
-        if r.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        r
+        save_image(&self.render(), path)
     }
+}
+
+/// Writes `img` as a PNG to `path`, via `path.with_extension("png.tmp")` and a rename, so
+/// readers never see a partial file.
+pub fn save_image(img: &RgbImage, path: &Path) -> Result<()> {
+    let tmp = path.with_extension("png.tmp");
+    let write = || -> Result<()> {
+        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let mut out = std::io::BufWriter::new(file);
+        img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| match e {
+            image::ImageError::IoError(io) => Error::io(path, io),
+            other => Error::io(path, std::io::Error::other(other.to_string())),
+        })?;
+        let file = out.into_inner().map_err(|e| Error::io(path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(path, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    };
+    let r = write();
+    if r.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    r
 }
 
 /// `text` at the largest scale `<= scale` whose width fits `max_w` pixels; if even scale 1 is too

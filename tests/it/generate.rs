@@ -297,3 +297,33 @@ fn the_sensor_motion_is_stored_and_is_the_derivative_of_its_poses() {
     }
     assert!(v.chunks(3).all(|c| (c[0].hypot(c[1]) - 1.5).abs() < 1e-9), "speed 1.5 m/s: {v:?}");
 }
+
+#[test]
+fn stats_count_what_the_files_hold() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&pedscan(&["generate", "--backend", "raycast", "--sequences", "2", "--frames", "3", "--humans", "2..4", "--out", "o"], dir));
+    ok(&pedscan(&["stats", "o", "--png", "s.png", "--json", "s.json"], dir));
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("s.json")).unwrap()).unwrap();
+    let (mut frames, mut humans, mut near, mut people) = (0, 0u64, 0u64, 0u64);
+    for f in ["o/seq_000000.h5", "o/seq_000001.h5"] {
+        let q = read_seq(&dir.join(f));
+        frames += q.frames;
+        people += (q.frames * q.n_humans) as u64;
+        for (r, k) in q.range.iter().zip(&q.instance) {
+            if *k > 0 && *r > 0.0 {
+                humans += 1;
+                near += (*r < 4.0) as u64;
+            }
+        }
+    }
+    assert_eq!(s["frames"], frames);
+    assert_eq!(s["human_beams"], humans);
+    assert_eq!(s["human_beams_by_distance"][0], near);
+    let speeds: u64 = s["speed_histogram"].as_array().unwrap().iter().map(|c| c.as_u64().unwrap()).sum();
+    assert_eq!(speeds, people, "one walking speed per person and frame");
+    assert!(image::open(dir.join("s.png")).unwrap().width() > 600);
+    expect_input_error(&["stats", "nowhere"], dir, "nowhere");
+    std::fs::create_dir(dir.join("empty")).unwrap();
+    expect_input_error(&["stats", "empty"], dir, "no seq_*.h5");
+}
