@@ -148,7 +148,8 @@ pub struct HumansConfig {
     pub tracks_format: TrackFormat,
     /// Seconds per frame number of `eth` / `eth4` track files.
     pub tracks_frame_period_s: f64,
-    /// `world_from_track`: places the tracks in the background's world frame.
+    /// `world_from_track`: places the tracks in the background's world frame (ranges:
+    /// [`Transform2::check`]).
     pub tracks_transform: Transform2,
 }
 
@@ -396,9 +397,10 @@ impl Config {
             return bad("render.proxy_max_error_m", format!("{} must be in [0, 0.5]", self.render.proxy_max_error_m));
         }
         positive("humans.tracks_frame_period_s", self.humans.tracks_frame_period_s)?;
-        let tf = &self.humans.tracks_transform;
-        if !(tf.rotation_deg.is_finite() && tf.translation_m.iter().all(|v| v.is_finite()) && tf.scale.is_finite() && tf.scale > 0.0) {
-            return bad("humans.tracks_transform", format!("{tf:?} must be finite with a positive scale"));
+        // The documented ranges of `Transform2::check`: a huge scale would send every track
+        // position to infinity.
+        if let Err(m) = self.humans.tracks_transform.check() {
+            return bad("humans.tracks_transform", m);
         }
         if let Some(z) = self.scene.floor_z_m {
             if !(z.is_finite() && z.abs() < 1e4) {
@@ -484,5 +486,11 @@ mod tests {
         let mut c = Config::default();
         c.humans.speed_mps = [f64::NAN, 1.0];
         assert!(c.validate().is_err());
+        // The track transform within its documented ranges only (a scale of 1e308 sent every
+        // track position to infinity).
+        let mut c = Config::default();
+        c.humans.tracks_transform.scale = 1e308;
+        let e = c.validate().unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("humans.tracks_transform") && e.to_string().contains("1e308"), "{e}");
     }
 }

@@ -16,8 +16,7 @@ const RECORD_BYTES: usize = 16;
 /// Reads one KITTI `.bin` scan. A file whose size is not a whole number of 16-byte records
 /// is rejected (a truncated copy); an empty file is a scan without points.
 pub fn read_bin(path: &Path) -> Result<Scan> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
+    let bytes = super::read_bytes(path)?;
     parse_bin(&bytes).map_err(|m| Error::input(path.display(), m))
 }
 

@@ -5,6 +5,19 @@
 //!
 //! Every reader returns [`Scan`]s in the *recording* sensor's frame (x forward, y left, z up,
 //! metres). Bad input is an [`crate::Error::input`] naming the file and the line or record.
+//!
+//! # Files and limits shared by every reader
+//!
+//! * A path the user names that does not exist, is a dangling or looping symbolic link, or is
+//!   not a regular file (a folder, a device) is bad input naming the path ([`open_file`]);
+//!   only a failure while reading an opened file is an I/O error.
+//! * Text files (poses, `times.txt`, tracks, PCD headers) may start with a UTF-8 byte-order
+//!   mark; it is skipped.
+//! * Every world coordinate read (pose translations, track positions after their transform)
+//!   must be within [`MAX_COORDINATE_M`] of the origin on each axis, and every time (pose,
+//!   frame and track times) within [`MAX_TIME_S`] of 0; anything beyond is an error naming
+//!   the file and line. pedscan's world is a local frame: shift georeferenced poses or tracks
+//!   (UTM, say) to a local origin first.
 
 pub mod kitti;
 pub mod pcap;
@@ -15,6 +28,77 @@ pub mod recording;
 pub mod tracks;
 
 pub use recording::Recording;
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// The largest absolute value of a world coordinate read from a file (pose translations,
+/// transformed track positions), m: 100 km, far beyond any single recording. Capping it keeps
+/// extents, grids and floating-point steps meaningful (a glitched pose at 1e38 m is refused
+/// here, not met as an allocation later).
+pub const MAX_COORDINATE_M: f64 = 1e5;
+
+/// The largest absolute value of a time read from a file, s: 1e10 s, Unix time in seconds
+/// until the year 2286. Times in nanoseconds (about 1.7e18 today) are refused by it, and at
+/// this magnitude a time still resolves steps of 2 µs.
+pub const MAX_TIME_S: f64 = 1e10;
+
+/// The UTF-8 byte-order mark some editors write at the start of a text file.
+const BOM: &str = "\u{feff}";
+
+/// The size of a file the user named. A path that does not exist, a dangling or looping
+/// symbolic link, a folder or another non-file is an [`Error::input`] naming `path`.
+pub fn file_len(path: &Path) -> Result<u64> {
+    let cannot = |what: String| Error::input(path.display(), what);
+    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound if std::fs::symlink_metadata(path).is_ok() => {
+            cannot("is a symbolic link to nothing (its target does not exist)".into())
+        }
+        std::io::ErrorKind::NotFound => cannot("does not exist".into()),
+        _ => cannot(format!("cannot open: {e}")),
+    })?;
+    if meta.is_dir() {
+        return Err(cannot("is a folder, not a file".into()));
+    }
+    if !meta.is_file() {
+        return Err(cannot("is not a regular file".into()));
+    }
+    Ok(meta.len())
+}
+
+/// Opens a file the user named ([`file_len`]), with its size.
+pub fn open_file(path: &Path) -> Result<(std::fs::File, u64)> {
+    let len = file_len(path)?;
+    let file = std::fs::File::open(path).map_err(|e| Error::input(path.display(), format!("cannot open: {e}")))?;
+    Ok((file, len))
+}
+
+/// The bytes of a file the user named ([`open_file`]); a failure while reading is an I/O error.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    let (mut file, len) = open_file(path)?;
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+    std::io::Read::read_to_end(&mut file, &mut bytes).map_err(|e| Error::io(path, e))?;
+    Ok(bytes)
+}
+
+/// The text of a file the user named ([`open_file`]), without a leading byte-order mark. Text
+/// that is not UTF-8 is an error naming the file and the line.
+pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = read_bytes(path)?;
+    let text = strip_bom(&bytes);
+    match std::str::from_utf8(text) {
+        Ok(s) => Ok(s.to_string()),
+        Err(e) => {
+            let line = 1 + text[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+            Err(Error::input(format!("{}:{line}", path.display()), "is not UTF-8 text"))
+        }
+    }
+}
+
+/// `bytes` without a leading UTF-8 byte-order mark.
+pub fn strip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(BOM.as_bytes()).unwrap_or(bytes)
+}
 
 /// One recorded frame (one rotation) in the recording sensor's frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -28,4 +112,41 @@ pub struct Scan {
     pub ring_elevation_deg: Option<Vec<f64>>,
     /// Capture time of the frame, seconds (pcap: first packet of the rotation), when known.
     pub time_s: Option<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paths_that_cannot_be_opened_are_input_errors_naming_them() {
+        let d = tempfile::tempdir().unwrap();
+        let p = |name: &str| d.path().join(name);
+        std::os::unix::fs::symlink("gone", p("dangling")).unwrap();
+        std::os::unix::fs::symlink("looping", p("looping")).unwrap();
+        std::fs::create_dir(p("folder")).unwrap();
+        for (name, what) in [
+            ("missing", "does not exist"),
+            ("dangling", "is a symbolic link to nothing"),
+            ("looping", "cannot open"),
+            ("folder", "is a folder, not a file"),
+        ] {
+            let e = read_text(&p(name)).unwrap_err();
+            assert!(e.is_input(), "{e}");
+            assert!(e.to_string().starts_with(&format!("{}: {what}", p(name).display())), "{e}");
+        }
+        let e = read_bytes(Path::new("/dev/null")).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("not a regular file"), "{e}");
+    }
+
+    #[test]
+    fn text_loses_its_byte_order_mark_and_must_be_utf8() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("t.txt");
+        std::fs::write(&p, "\u{feff}1 2\n").unwrap();
+        assert_eq!(read_text(&p).unwrap(), "1 2\n");
+        std::fs::write(&p, b"1\n2\n\xff\n").unwrap();
+        let e = read_text(&p).unwrap_err();
+        assert!(e.is_input() && e.to_string() == format!("{}:3: is not UTF-8 text", p.display()), "{e}");
+    }
 }

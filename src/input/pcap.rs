@@ -58,7 +58,8 @@
 //! Bad input is an [`Error::input`] naming the file, and the packet (numbered from 1, as
 //! Wireshark does) with the byte offset of its record header where one is at fault: a file
 //! that is not classic pcap, an unsupported link type, a record header or packet cut short
-//! (a truncated file: nothing partial is returned), an implausible record length, data
+//! (a truncated file: nothing partial is returned; a record longer than the rest of the file is
+//! refused before its buffer is allocated), an implausible record length, data
 //! packets of two different product ids (the first packet of the second kind is named), and
 //! a capture without one complete rotation (`no complete rotation: N data packets, M foreign`).
 
@@ -162,7 +163,7 @@ const MAX_RECORD_LEN: usize = 1 << 24;
 
 /// Reads a raw Velodyne capture into one scan per complete turn; see the module docs.
 pub fn read_pcap(path: &Path) -> Result<PcapRecording> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let (file, file_len) = super::open_file(path)?;
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let name = path.display();
 
@@ -245,6 +246,14 @@ pub fn read_pcap(path: &Path) -> Result<PcapRecording> {
         let len = u32_at(&rec, 8) as usize;
         if len > MAX_RECORD_LEN {
             return Err(Error::input(at(), format!("implausible record length {len} bytes")));
+        }
+        // Checked against the file before the packet buffer grows to it.
+        let left = file_len.saturating_sub(offset + 16);
+        if len as u64 > left {
+            return Err(Error::input(
+                at(),
+                format!("packet cut short: the record says {len} bytes but only {left} are left in the file"),
+            ));
         }
         if buf.len() < len {
             buf.resize(len, 0);

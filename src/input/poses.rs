@@ -26,9 +26,12 @@
 //!   of 1; it is normalised. Times must be strictly increasing.
 //!
 //! Any other count, a line whose count differs from the first pose line's, a value that is not
-//! a finite number, a bad rotation or quaternion, or times out of order is an
-//! [`Error::input`] naming `FILE:LINE`. A file without a pose is an error.
+//! a finite number, a bad rotation or quaternion, a translation farther than
+//! [`MAX_COORDINATE_M`] from the origin on an axis, a time beyond [`MAX_TIME_S`] or times out of
+//! order is an [`Error::input`] naming `FILE:LINE`. A file without a pose is an error. A UTF-8
+//! byte-order mark at the start of the file is skipped.
 
+use super::{read_text, MAX_COORDINATE_M, MAX_TIME_S};
 use crate::error::{Error, Result};
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
 use std::path::Path;
@@ -92,8 +95,7 @@ pub fn read_poses(path: &Path) -> Result<Poses> {
 /// or a `#` comment, its values parsed as finite numbers. Returns the file's name for
 /// messages about the whole file.
 fn for_each_number_line(path: &Path, mut each: impl FnMut(usize, &str, &[f64]) -> Result<()>) -> Result<String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
+    let text = read_text(path)?;
     let name = path.display().to_string();
     let mut vals = Vec::with_capacity(12);
     for (i, raw) in text.lines().enumerate() {
@@ -108,9 +110,15 @@ fn for_each_number_line(path: &Path, mut each: impl FnMut(usize, &str, &[f64]) -
     Ok(name)
 }
 
-/// Appends time `t` read on `line` (named `here`), which must come after the last one (read on
-/// `prev_line`).
+/// Appends time `t` read on `line` (named `here`), which must be within [`MAX_TIME_S`] and
+/// come after the last one (read on `prev_line`).
 fn push_later_time(times: &mut Vec<f64>, prev_line: &mut usize, t: f64, line: usize, here: &str) -> Result<()> {
+    if t.abs() > MAX_TIME_S {
+        return Err(Error::input(
+            here,
+            format!("time {t:?} s is beyond the supported {MAX_TIME_S:e} s (times are seconds, not nanoseconds)"),
+        ));
+    }
     if let Some(&prev) = times.last() {
         if t <= prev {
             return Err(Error::input(here, format!("time {t} is not after time {prev} on line {prev_line}")));
@@ -161,7 +169,7 @@ fn kitti_pose(v: &[f64]) -> std::result::Result<DMat4, String> {
         DVec3::new(v[1], v[5], v[9]),
         DVec3::new(v[2], v[6], v[10]),
     );
-    let t = DVec3::new(v[3], v[7], v[11]);
+    let t = translation(DVec3::new(v[3], v[7], v[11]))?;
     let r = orthonormalise(r)?;
     Ok(DMat4::from_cols(
         r.x_axis.extend(0.0),
@@ -205,7 +213,19 @@ fn tum_pose(v: &[f64]) -> std::result::Result<DMat4, String> {
             "quaternion (qx qy qz qw) has norm {norm}; it must be within {QUATERNION_NORM_TOLERANCE} of 1"
         ));
     }
-    Ok(DMat4::from_rotation_translation(q / norm, DVec3::new(v[1], v[2], v[3])))
+    Ok(DMat4::from_rotation_translation(q / norm, translation(DVec3::new(v[1], v[2], v[3]))?))
+}
+
+/// A pose's translation, checked to lie within [`MAX_COORDINATE_M`] of the origin on each axis.
+fn translation(t: DVec3) -> std::result::Result<DVec3, String> {
+    if t.abs().max_element() > MAX_COORDINATE_M {
+        return Err(format!(
+            "translation ({:?}, {:?}, {:?}) m is farther than the supported {MAX_COORDINATE_M:e} m from the origin \
+             (shift the poses to a local origin)",
+            t.x, t.y, t.z
+        ));
+    }
+    Ok(t)
 }
 
 #[cfg(test)]
@@ -357,6 +377,35 @@ mod tests {
         // A missing file.
         let e = read_poses(&d.path().join("none.txt")).unwrap_err();
         assert!(e.is_input() && e.to_string().contains("none.txt"));
+    }
+
+    #[test]
+    fn far_translations_and_times_are_refused_naming_the_line() {
+        let d = tempfile::tempdir().unwrap();
+        let k = "1 0 0 0 0 1 0 0 0 0 1 0\n";
+        // KITTI ty = 1e38, tz = 2^32; TUM y = 1e6 (one past the bound: 1e5 is accepted).
+        let m = err(&d, "ty.txt", &format!("{k}{k}1 0 0 0 0 1 0 1e38 0 0 1 0\n"));
+        assert!(m.contains("ty.txt:3") && m.contains("1e38") && m.contains("1e5 m"), "{m}");
+        let m = err(&d, "tz.txt", &format!("{k}1 0 0 0 0 1 0 0 0 0 1 4294967296\n"));
+        assert!(m.contains("tz.txt:2") && m.contains("4294967296"), "{m}");
+        let m = err(&d, "tum.txt", "0 0 0 0 0 0 0 1\n0.1 0 1e6 0 0 0 0 1\n");
+        assert!(m.contains("tum.txt:2") && m.contains("1000000"), "{m}");
+        assert!(read_poses(&write(&d, "edge.txt", "0 -1e5 1e5 0 0 0 0 1\n")).is_ok());
+        // A time in nanoseconds, or absurd, in a TUM file or times.txt.
+        let m = err(&d, "ns.txt", "1.7e18 0 0 0 0 0 0 1\n");
+        assert!(m.contains("ns.txt:1") && m.contains("1.7e18") && m.contains("nanoseconds"), "{m}");
+        let e = read_times(&write(&d, "times.txt", "0\n0.1\n-1.8e19\n")).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("times.txt:3"), "{e}");
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(&d, "bom.txt", "\u{feff}1 0 0 1 0 1 0 2 0 0 1 3\n");
+        assert_eq!(read_poses(&p).unwrap().world_from_sensor[0], DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0)));
+        let p = write(&d, "tum.txt", "\u{feff}# t x y z qx qy qz qw\n5 1 2 3 0 0 0 1\n");
+        assert_eq!(read_poses(&p).unwrap().times_s, Some(vec![5.0]));
+        assert_eq!(read_times(&write(&d, "times.txt", "\u{feff}0.5\n")).unwrap(), vec![0.5]);
     }
 
     #[test]

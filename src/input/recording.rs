@@ -12,7 +12,9 @@
 //!
 //! # Times
 //! In order of preference: the poses file's (TUM), the capture's (pcap), a KITTI `times.txt`
-//! in the frame folder or its parent, else `k / rate_hz` of the target sensor. The output
+//! in the frame folder or its parent, else `k / rate_hz` of the target sensor. A `times.txt`
+//! that is there in any form but cannot be read as a file (a folder, a dangling or looping
+//! link) is an error naming it, never a silent fall back to the sensor's rate. The output
 //! frames of a sequence are consecutive recorded frames, so the sequence runs at the
 //! recording's own frame rate with its own (possibly uneven) steps: people and sensor are
 //! posed at the recorded times. The target sensor's `rate_hz` is not used.
@@ -31,7 +33,7 @@
 use super::pcap::read_pcap;
 use super::poses::{read_poses, read_times};
 use super::project::Projector;
-use super::{kitti, pcd, Scan};
+use super::{file_len, kitti, pcd, Scan};
 use crate::error::{Error, Result};
 use crate::sensor::Sensor;
 use glam::{DMat4, DVec3};
@@ -95,7 +97,7 @@ impl Recording {
         let projector = Projector::new(target);
         let (frames, capture_times, description) = if path.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-                .map_err(|e| Error::io(path, e))?
+                .map_err(|e| Error::input(path.display(), format!("cannot list the folder: {e}")))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|f| kind_of(f).is_some())
                 .collect();
@@ -110,15 +112,15 @@ impl Recording {
                     format!("mixes .bin and .pcd frames ({} and {}); use one kind per folder", first.display(), other.display()),
                 ));
             }
-            if kind == Some(FileKind::Bin) {
-                for f in &files {
-                    let len = std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len();
-                    if len % 16 != 0 {
-                        return Err(Error::input(
-                            f.display(),
-                            format!("truncated: {len} bytes is not a whole number of 16-byte points"),
-                        ));
-                    }
+            for f in &files {
+                // Every frame must be a readable file (a dangling link is named now, not when
+                // a window reaches it); .bin sizes must be whole points.
+                let len = file_len(f)?;
+                if kind == Some(FileKind::Bin) && len % 16 != 0 {
+                    return Err(Error::input(
+                        f.display(),
+                        format!("truncated: {len} bytes is not a whole number of 16-byte points"),
+                    ));
                 }
             }
             let d = format!("{} {} frames", files.len(), if kind == Some(FileKind::Bin) { "KITTI .bin" } else { "PCD" });
@@ -162,9 +164,11 @@ impl Recording {
                 ));
             }
         }
+        // A times.txt that exists in any form (a folder, a dangling or looping link) is read,
+        // so what is wrong with it is reported instead of falling back to the sensor's rate.
         let times_file = [path.join("times.txt"), path.parent().map(|p| p.join("times.txt")).unwrap_or_default()]
             .into_iter()
-            .find(|f| path.is_dir() && f.is_file());
+            .find(|f| path.is_dir() && std::fs::symlink_metadata(f).is_ok());
         let times = if let Some(t) = poses.as_ref().and_then(|p| p.times_s.clone()) {
             t
         } else if let Some(t) = capture_times {

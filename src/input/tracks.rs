@@ -34,7 +34,14 @@
 //! than [`MIN_DT_S`]) are rejected, naming both lines, since they would give infinite
 //! velocities. Ids must be integers (the ETH files write them as floats such as `1.0e+00`).
 //! An empty file, or one with no record, is an error. Positions and headings are mapped to the
-//! world frame by [`TrackOptions::transform`].
+//! world frame by [`TrackOptions::transform`] (whose values must be within the ranges of
+//! [`Transform2::check`]).
+//!
+//! Every record is checked before any is grouped or sorted: its time must be within
+//! [`MAX_TIME_S`](super::MAX_TIME_S) of 0 (after the frame period) and its position, mapped to
+//! the world frame, within [`MAX_COORDINATE_M`](super::MAX_COORDINATE_M) of the origin on each
+//! axis; else the error names `FILE:LINE`. A UTF-8 byte-order mark at the start of the file is
+//! skipped.
 
 use std::collections::BTreeMap;
 use std::f64::consts::{PI, TAU};
@@ -43,6 +50,7 @@ use std::path::Path;
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
+use super::{read_text, MAX_COORDINATE_M, MAX_TIME_S};
 use crate::error::{Error, Result};
 
 /// Two timestamps of one id closer than this (s) are duplicates.
@@ -91,7 +99,28 @@ impl Default for Transform2 {
     }
 }
 
+/// Bounds of [`Transform2::scale`]: from micrometres to kilometres per unit either way.
+pub const TRANSFORM_SCALE_RANGE: [f64; 2] = [1e-6, 1e6];
+
 impl Transform2 {
+    /// Checks the documented ranges: a finite rotation of at most one turn either way
+    /// (|`rotation_deg`| <= 360), a translation within [`MAX_COORDINATE_M`] on each axis and a
+    /// scale within [`TRANSFORM_SCALE_RANGE`]; the error is the message only.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let [lo, hi] = TRANSFORM_SCALE_RANGE;
+        if !(self.rotation_deg.is_finite() && self.rotation_deg.abs() <= 360.0) {
+            return Err(format!("rotation {:?} deg must be a finite number in [-360, 360]", self.rotation_deg));
+        }
+        if !self.translation_m.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M) {
+            let [x, y] = self.translation_m;
+            return Err(format!("translation ({x:?}, {y:?}) m must be finite and within {MAX_COORDINATE_M:e} m of the origin"));
+        }
+        if !(self.scale >= lo && self.scale <= hi) {
+            return Err(format!("scale {:?} must be in [{lo:e}, {hi:e}]", self.scale));
+        }
+        Ok(())
+    }
+
     /// Maps a point of the track file to the world frame.
     pub fn point(&self, p: DVec2) -> DVec2 {
         let r = DVec2::from_angle(self.rotation_deg.to_radians());
@@ -160,15 +189,8 @@ pub fn read_tracks(path: &Path, format: TrackFormat, opts: &TrackOptions) -> Res
         ));
     }
     let tf = &opts.transform;
-    let finite = tf.rotation_deg.is_finite() && tf.translation_m.iter().all(|v| v.is_finite());
-    if !(finite && tf.scale.is_finite() && tf.scale > 0.0) {
-        return Err(Error::input(
-            "track transform",
-            format!("{tf:?}: scale must be > 0 and all values finite"),
-        ));
-    }
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
+    tf.check().map_err(|m| Error::input("track transform", m))?;
+    let text = read_text(path)?;
     let at = |line: usize| format!("{}:{}", path.display(), line);
 
     let mut recs = Vec::new();
@@ -265,10 +287,22 @@ pub fn read_tracks(path: &Path, format: TrackFormat, opts: &TrackOptions) -> Res
                 }
             }
         };
-        if !rec.t.is_finite() {
-            return Err(Error::input(at(line), "time is out of range"));
+        if !rec.t.is_finite() || rec.t.abs() > MAX_TIME_S {
+            return Err(Error::input(at(line), format!("time {:?} s is beyond the supported {MAX_TIME_S:e} s", rec.t)));
         }
-        recs.push(rec);
+        // In the world frame from here on; checked before anything is grouped or sorted.
+        let xy = tf.point(rec.xy);
+        if !xy.is_finite() || xy.abs().max_element() > MAX_COORDINATE_M {
+            return Err(Error::input(
+                at(line),
+                format!(
+                    "position ({:?}, {:?}) m in the world (after the track transform) is farther than the supported \
+                     {MAX_COORDINATE_M:e} m from the origin",
+                    xy.x, xy.y
+                ),
+            ));
+        }
+        recs.push(Rec { xy, ..rec });
     }
     if recs.is_empty() {
         return Err(Error::input(path.display(), "holds no track record"));
@@ -304,7 +338,7 @@ pub fn read_tracks(path: &Path, format: TrackFormat, opts: &TrackOptions) -> Res
         tracks.push(Track {
             id,
             times_s: rs.iter().map(|r| r.t).collect(),
-            xy_m: rs.iter().map(|r| tf.point(r.xy)).collect(),
+            xy_m: rs.iter().map(|r| r.xy).collect(),
             heading_rad: heading,
         });
     }
@@ -990,6 +1024,46 @@ mod tests {
         assert!(read_tracks(&p, TrackFormat::Csv, &bad)
             .unwrap_err()
             .is_input());
+    }
+
+    #[test]
+    fn transforms_positions_and_times_out_of_range_are_refused() {
+        let tf = |rotation_deg: f64, t: f64, scale: f64| Transform2 { rotation_deg, translation_m: [t, 0.0], scale };
+        assert!(tf(90.0, -1e5, 1e-6).check().is_ok() && tf(-360.0, 0.0, 1e6).check().is_ok());
+        for (bad, needle) in [
+            (tf(0.0, 0.0, 1e308), "scale 1e308"),
+            (tf(0.0, 0.0, 0.0), "scale 0.0"),
+            (tf(0.0, 2e5, 1.0), "translation (200000.0, 0.0)"),
+            (tf(f64::NAN, 0.0, 1.0), "rotation NaN"),
+            (tf(400.0, 0.0, 1.0), "rotation 400.0"),
+        ] {
+            let m = bad.check().unwrap_err();
+            assert!(m.contains(needle), "{m}");
+        }
+        // Positions that the transform sends beyond the bound, named by their line before
+        // anything is sorted.
+        let d = tempfile::tempdir().unwrap();
+        let p = write(&d, "far.csv", "t_s,id,x_m,y_m\n1,1,0,0\n0,1,150,0\n");
+        let o = TrackOptions { transform: tf(0.0, 0.0, 1000.0), ..Default::default() };
+        let e = read_tracks(&p, TrackFormat::Csv, &o).unwrap_err();
+        assert!(e.is_input() && e.to_string().starts_with(&format!("{}:3:", p.display())), "{e}");
+        assert!(e.to_string().contains("150000.0"), "{e}");
+        let p = write(&d, "raw.csv", "t_s,id,x_m,y_m\n0,1,0,1e300\n");
+        expect_err(&p, TrackFormat::Csv, 2, "1e300");
+        // Times: an ETH frame number that the frame period puts at 4e10 s, an ATC time of 1e11 s.
+        let p = write(&d, "eth4.txt", "0 1 0 0\n1e12 1 1 0\n");
+        expect_err(&p, TrackFormat::Eth4, 2, "time 40000000000.0 s is beyond the supported 1e10 s");
+        let p = write(&d, "atc.csv", "1e11,1,0,0,0,0,0,\n");
+        expect_err(&p, TrackFormat::Atc, 1, "1e10 s");
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(&d, "bom.csv", "\u{feff}t_s,id,x_m,y_m\n0,1,0,0\n0.4,1,0.5,0\n");
+        assert_eq!(read(&p, TrackFormat::Csv).unwrap()[0].xy_m, vec![DVec2::ZERO, DVec2::new(0.5, 0.0)]);
+        let p = write(&d, "bom.txt", "\u{feff}10 1 0.5 2.0\n");
+        assert_eq!(read(&p, TrackFormat::Eth4).unwrap()[0].times_s, vec![0.4]);
     }
 
     #[test]

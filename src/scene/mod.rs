@@ -19,6 +19,10 @@ use std::path::Path;
 /// Cell size of the walkable-area grid, metres.
 pub const WALKABLE_CELL_M: f64 = 0.1;
 
+/// The most cells a [`WalkableGrid`] may have (about 2 GB of working memory while it is built;
+/// 0.5 km² at [`WALKABLE_CELL_M`]). A larger area is an input error, never an allocation.
+pub const MAX_GRID_CELLS: usize = 50_000_000;
+
 /// A static environment in the world frame (f64).
 #[derive(Clone, Debug, Default)]
 pub struct Environment {
@@ -151,12 +155,7 @@ impl WalkableGrid {
         // One ring of cells beyond the environment: never floor, so the edge of the floor is
         // an obstacle for the clearance.
         let lo = lo - DVec2::splat(cell_m);
-        let hi = hi + DVec2::splat(cell_m);
-        let nx = (((hi.x - lo.x) / cell_m).ceil() as usize).max(1);
-        let ny = (((hi.y - lo.y) / cell_m).ceil() as usize).max(1);
-        if nx * ny > 50_000_000 {
-            return Err(Error::input("environment", format!("floor area too large for a {cell_m} m grid ({nx} x {ny})")));
-        }
+        let (nx, ny) = WalkableGrid::dims(lo, hi + DVec2::splat(cell_m), cell_m).map_err(|m| Error::input("environment", m))?;
         let mut floor = vec![false; nx * ny];
         let mut blocked = vec![false; nx * ny];
         let centre = |i: usize, j: usize| lo + DVec2::new((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
@@ -190,6 +189,25 @@ impl WalkableGrid {
             }
         }
         Ok(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked))
+    }
+
+    /// The cells (nx, ny) of a grid from corner `lo` to `hi`, at least one each way; the error
+    /// (the message only) when the area needs more than [`MAX_GRID_CELLS`] or is not finite.
+    /// Counted in f64 before anything is allocated, so no extent overflows.
+    pub fn dims(lo: DVec2, hi: DVec2, cell_m: f64) -> std::result::Result<(usize, usize), String> {
+        // Not `max` first: it would turn a NaN into 1.
+        let n = ((hi - lo) / cell_m).ceil();
+        if !n.is_finite() || n.x * n.y > MAX_GRID_CELLS as f64 {
+            let size = hi - lo;
+            return Err(format!(
+                "the area spans {:.0} x {:.0} m: a {cell_m} m grid of it would have {:.3e} cells, more than the supported {MAX_GRID_CELLS}",
+                size.x,
+                size.y,
+                n.x * n.y
+            ));
+        }
+        let n = n.max(DVec2::ONE);
+        Ok((n.x as usize, n.y as usize))
     }
 
     /// The walkable area from per-cell observations: `floor` cells one can stand on, minus
@@ -299,6 +317,26 @@ impl WalkableGrid {
     /// Fraction of cells with at least `r` clearance.
     pub fn free_fraction(&self, r: f64) -> f64 {
         self.clearance_m.iter().filter(|c| **c as f64 >= r).count() as f64 / self.clearance_m.len() as f64
+    }
+
+    /// The longest straight distance between two points with at least `r` clearance: at
+    /// most the diagonal of the bounding box of those cells (0 when there is none), so no walk
+    /// that must end this far from its start fits in the area.
+    pub fn free_span_m(&self, r: f64) -> f64 {
+        let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
+        for (k, c) in self.clearance_m.iter().enumerate() {
+            if *c as f64 >= r {
+                let ij = [k % self.nx, k / self.nx];
+                for a in 0..2 {
+                    lo[a] = lo[a].min(ij[a]);
+                    hi[a] = hi[a].max(ij[a] + 1);
+                }
+            }
+        }
+        if lo[0] == usize::MAX {
+            return 0.0;
+        }
+        DVec2::new((hi[0] - lo[0]) as f64, (hi[1] - lo[1]) as f64).length() * self.cell_m
     }
 
     /// A uniformly random point with at least `r` clearance (rejection sampling).
@@ -434,5 +472,20 @@ mod tests {
         assert!((c - 1.5).abs() < 0.15, "{c}");
         assert!(g.clearance(DVec2::new(4.8, 0.0)) < 0.3, "near the floor's edge");
         assert_eq!(g.clearance(DVec2::new(7.0, 0.0)), 0.0, "off the floor");
+        // Cells with 0.5 m clearance span 9 x 9 m: no straight walk is longer than their
+        // diagonal.
+        let span = g.free_span_m(0.5);
+        assert!((span - 9.0 * std::f64::consts::SQRT_2).abs() < 0.3, "{span}");
+        assert_eq!(g.free_span_m(100.0), 0.0);
+    }
+
+    #[test]
+    fn grid_dimensions_are_capped_before_anything_is_allocated() {
+        assert_eq!(WalkableGrid::dims(DVec2::ZERO, DVec2::new(1.05, 0.0), 0.1), Ok((11, 1)));
+        let m = WalkableGrid::dims(DVec2::ZERO, DVec2::new(1e5, 1e3), 0.1).unwrap_err();
+        assert!(m.contains("1.000e10 cells") && m.contains(&MAX_GRID_CELLS.to_string()), "{m}");
+        for hi in [DVec2::new(1e38, 1e38), DVec2::new(f64::INFINITY, 1.0), DVec2::new(f64::NAN, 1.0)] {
+            assert!(WalkableGrid::dims(DVec2::ZERO, hi, 0.1).is_err(), "{hi}");
+        }
     }
 }

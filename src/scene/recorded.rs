@@ -22,8 +22,7 @@ pub fn walkable(rec: &Recording, frames: std::ops::Range<usize>, floor_z: Option
         None => estimate_floor(&pts)
             .ok_or_else(|| Error::input(name(), "cannot find the floor: no returns below the sensor; set scene.floor_z_m"))?,
     };
-    let grid = walkable_from_points(&pts, floor, WALKABLE_CELL_M)
-        .ok_or_else(|| Error::input(name(), format!("no walkable floor near z = {floor:.2} m in the recorded returns")))?;
+    let grid = walkable_from_points(&pts, floor, WALKABLE_CELL_M).map_err(|m| Error::input(name(), m))?;
     Ok((floor, grid))
 }
 
@@ -37,9 +36,10 @@ const FLOOR_TOLERANCE_M: f64 = 0.1;
 const FLOOR_GROW_M: f64 = 1.0;
 
 /// The floor: the most populated 5 cm bin of the returns at least 30 cm below their sensor,
-/// refined to the median of the returns within 5 cm of it.
+/// refined to the median of the returns within 5 cm of it. The bins are counted along the
+/// sorted heights, so memory follows the number of returns, never their height range.
 pub fn estimate_floor(pts: &[(DVec3, DVec3)]) -> Option<f64> {
-    let below: Vec<f64> = pts
+    let mut below: Vec<f64> = pts
         .iter()
         .filter(|(p, o)| {
             let d = (p.truncate() - o.truncate()).length();
@@ -50,26 +50,34 @@ pub fn estimate_floor(pts: &[(DVec3, DVec3)]) -> Option<f64> {
     if below.len() < 50 {
         return None;
     }
-    let lo = below.iter().copied().fold(f64::INFINITY, f64::min);
+    below.sort_by(f64::total_cmp);
+    let lo = below[0];
     let bin = 0.05;
-    let mut counts: Vec<usize> = Vec::new();
-    for z in &below {
-        let b = ((z - lo) / bin) as usize;
-        if b >= counts.len() {
-            counts.resize(b + 1, 0);
+    // (bin, count) of the fullest bin so far; ties go to the lower bin (deterministic).
+    let index = |z: f64| ((z - lo) / bin) as u64;
+    let mut best = (0u64, 0usize);
+    let mut run = (index(lo), 0usize);
+    for &z in &below {
+        let b = index(z);
+        if b != run.0 {
+            run = (b, 0);
         }
-        counts[b] += 1;
+        run.1 += 1;
+        if run.1 > best.1 {
+            best = run;
+        }
     }
-    // Ties go to the lower bin (deterministic).
-    let best = (0..counts.len()).max_by_key(|&b| (counts[b], std::cmp::Reverse(b)))?;
-    let centre = lo + (best as f64 + 0.5) * bin;
+    let centre = lo + (best.0 as f64 + 0.5) * bin;
     let mut near: Vec<f64> = below.into_iter().filter(|z| (z - centre).abs() <= bin).collect();
     near.sort_by(f64::total_cmp);
     Some(near[near.len() / 2])
 }
 
-/// Walkable area from world points (see the module docs); None when no cell is walkable.
-pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> Option<WalkableGrid> {
+/// Walkable area from world points (see the module docs). The error (the message only): no
+/// cell is walkable, or the returns near their sensors span more than a grid may
+/// ([`WalkableGrid::dims`]).
+pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> Result<WalkableGrid, String> {
+    let none = || format!("no walkable floor near z = {floor:.2} m in the recorded returns");
     let mut lo = DVec2::splat(f64::INFINITY);
     let mut hi = DVec2::splat(f64::NEG_INFINITY);
     for (p, o) in pts {
@@ -79,12 +87,11 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
         }
     }
     if !lo.is_finite() {
-        return None;
+        return Err(none());
     }
     let lo = lo - DVec2::splat(cell_m);
-    let hi = hi + DVec2::splat(cell_m);
-    let nx = ((hi.x - lo.x) / cell_m).ceil() as usize;
-    let ny = ((hi.y - lo.y) / cell_m).ceil() as usize;
+    let (nx, ny) = WalkableGrid::dims(lo, hi + DVec2::splat(cell_m), cell_m)
+        .map_err(|m| format!("the returns within {} m of their sensor: {m}", FLOOR_RING_M[1]))?;
     let mut seen = vec![false; nx * ny];
     let mut blocked = vec![false; nx * ny];
     for (p, o) in pts {
@@ -114,9 +121,9 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
         dilate_line(&rows, &mut floor_cells, i, nx, ny, g);
     }
     if !floor_cells.iter().zip(&blocked).any(|(f, b)| *f && !*b) {
-        return None;
+        return Err(none());
     }
-    Some(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor_cells, blocked))
+    Ok(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor_cells, blocked))
 }
 
 /// Sets `dst` at every cell of the line `first + k * stride` (k < n) within `g` cells of a
@@ -189,6 +196,31 @@ mod tests {
         assert!(g.clearance(DVec2::new(3.5, 0.0)) > 0.7 && g.clearance(DVec2::new(3.5, 0.0)) < 1.1);
         assert!(g.clearance(DVec2::new(-5.0, 0.0)) > 3.0, "open floor");
         assert_eq!(g.clearance(DVec2::new(40.0, 0.0)), 0.0, "never seen");
+    }
+
+    #[test]
+    fn a_glitched_sensor_height_costs_no_memory_for_the_floor() {
+        // Floor returns under a sensor 2^32 m up and under one at 1e38 m: the bins follow the
+        // sorted heights (the 687 GB histogram is gone); the fuller floor wins.
+        let mut pts = floor_scene();
+        for (z, n) in [(4294967296.0, 60), (1e38, 60)] {
+            let o = DVec3::new(0.0, 0.0, z + 1.7);
+            pts.extend((0..n).map(|k| (DVec3::new(2.0 + k as f64 * 0.1, 0.0, z), o)));
+        }
+        assert!((estimate_floor(&pts).unwrap() + 1.7).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_window_wider_than_the_grid_cap_is_an_error_not_an_allocation() {
+        let mut pts = floor_scene();
+        let far = DVec3::new(5e4, 0.0, 0.0);
+        pts.extend((0..100).map(|k| (far + DVec3::new(k as f64 * 0.1, 1.0, -1.7), far)));
+        let m = walkable_from_points(&pts, -1.7, 0.1).unwrap_err();
+        assert!(m.contains("spans 50025 x 30 m") && m.contains("more than the supported 50000000"), "{m}");
+        // Infinite extents too (no pose is allowed there, but the grid does not rely on it).
+        let inf = DVec3::new(f64::MAX, 0.0, 0.0);
+        pts.push((inf, inf));
+        assert!(walkable_from_points(&pts, -1.7, 0.1).unwrap_err().contains("cells"));
     }
 
     #[test]

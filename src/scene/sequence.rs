@@ -507,6 +507,29 @@ fn sample_synthetic_people(
     let duration = *times_s.last().unwrap_or(&0.0);
     let uniform = |rng: &mut dyn FnMut() -> f64, r: [f64; 2]| r[0] + (r[1] - r[0]) * rng();
     let mut humans: Vec<HumanPlan> = Vec::with_capacity(count);
+    // A planned walk ends at least `speed * duration` from its start, so the free area's span
+    // bounds how long people can walk in it: too long a sequence is the setting to name.
+    let free_span = match (hc.walk, inp.grid) {
+        (WalkMode::Goals, Some(g)) if count > 0 => Some(g.free_span_m(hc.clearance_m)),
+        _ => None,
+    };
+    let recorded = if inp.sensor.is_some() { " of the recording" } else { "" };
+    let walk_length = |speed: f64| {
+        free_span.filter(|&span| speed * duration > span).map(|span| {
+            format!(
+                "{} frames{recorded} last {duration:.1} s: a person walking at {speed} m/s (humans.speed_mps) goes {:.1} m, \
+                 but the free walkable area is at most {span:.1} m across",
+                times_s.len(),
+                speed * duration
+            )
+        })
+    };
+    if let Some(m) = walk_length(hc.speed_mps[0]).filter(|_| hc.speed_mps[0] > 0.0) {
+        return Err(Error::input(
+            "config key `frames`",
+            format!("{m}, so nobody can walk for the whole sequence; lower --frames or humans.speed_mps"),
+        ));
+    }
     let s0 = sensor.start_xy();
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     for k in 0..count {
@@ -563,13 +586,17 @@ fn sample_synthetic_people(
         match placed {
             Some(p) => humans.push(p),
             None => {
+                // Only the faster walkers may be too long for the area: say so too.
+                let long = walk_length(hc.speed_mps[1])
+                    .map(|m| format!("; also, {m}: lower --frames (config key `frames`) or humans.speed_mps"))
+                    .unwrap_or_default();
                 return Err(Error::input(
                     "humans",
                     format!(
                         "could place only {k} of {count} people without collisions ({TRIES} tries each); \
-                         lower humans.count, humans.min_separation_m or raise humans.spawn_radius_m"
+                         lower humans.count, humans.min_separation_m or raise humans.spawn_radius_m{long}"
                     ),
-                ))
+                ));
             }
         }
     }

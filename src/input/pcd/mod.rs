@@ -3,7 +3,8 @@
 //! # What is read
 //!
 //! * Header keys `VERSION FIELDS SIZE TYPE COUNT WIDTH HEIGHT VIEWPOINT POINTS DATA`, one per
-//!   line, `DATA` last; lines starting with `#` are comments. `FIELDS SIZE TYPE WIDTH HEIGHT
+//!   line, `DATA` last; lines starting with `#` are comments; a UTF-8 byte-order mark before
+//!   the first line is skipped. `FIELDS SIZE TYPE WIDTH HEIGHT
 //!   POINTS DATA` are required; `VERSION` (when present it must be 0.6 or 0.7), `COUNT`
 //!   (default 1 per field) and `VIEWPOINT` (default identity) are optional. Any other key, a
 //!   key given twice or a missing required key is an error.
@@ -34,8 +35,9 @@
 //! Bad input is an [`Error::input`] naming the file, and `FILE:LINE` for header lines and ascii
 //! data lines: unknown, repeated or missing header keys, unsupported `VERSION` or `DATA`,
 //! `SIZE`/`TYPE`/`COUNT` lists whose length differs from `FIELDS`, an unsupported `TYPE` or
-//! `SIZE` for `x y z ring`, `POINTS` != `WIDTH` × `HEIGHT`, data shorter than the header says, an
-//! ascii line with the wrong number of values or an unparsable value, LZF data that does not
+//! `SIZE` for `x y z ring`, `POINTS` != `WIDTH` × `HEIGHT`, data of another size than the header
+//! says (a binary body must be exactly `POINTS` records, a compressed body exactly its declared
+//! compressed size, an ascii body exactly `POINTS` data lines), an ascii line with the wrong number of values or an unparsable value, LZF data that does not
 //! decompress to the declared size, and a ring value outside 0..=65535.
 
 use super::Scan;
@@ -45,8 +47,7 @@ use std::path::Path;
 
 /// Reads one PCD file into a [`Scan`] in the sensor frame (see the module docs).
 pub fn read_pcd(path: &Path) -> Result<Scan> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
+    let bytes = super::read_bytes(path)?;
     parse_pcd(&bytes, &path.display().to_string())
 }
 
@@ -108,7 +109,8 @@ struct RawHeader {
 fn parse_header(bytes: &[u8], name: &str) -> Result<Header> {
     let at = |line: usize| format!("{name}:{line}");
     let mut raw = RawHeader::default();
-    let mut pos = 0usize;
+    // A byte-order mark before the first line is skipped.
+    let mut pos = bytes.len() - super::strip_bom(bytes).len();
     let mut line_no = 0usize;
     loop {
         if pos >= bytes.len() {
@@ -399,8 +401,8 @@ fn parse_pcd(bytes: &[u8], name: &str) -> Result<Scan> {
         DataKind::Binary => {
             let step = record_bytes(&h.fields, name)?;
             let need = need_bytes(h.points, step, name)?;
-            if data.len() < need {
-                return Err(lying(name, &h, step, need, data.len()));
+            if data.len() != need {
+                return Err(lying(name, &h, step, need, data));
             }
             let get = |s: &Slot, i: usize| &data[i * step + s.byte_offset..][..s.size];
             for i in 0..h.points {
@@ -421,13 +423,10 @@ fn parse_pcd(bytes: &[u8], name: &str) -> Result<Scan> {
             let comp = u32::from_le_bytes(data[0..4].try_into().expect("4 bytes")) as usize;
             let uncomp = u32::from_le_bytes(data[4..8].try_into().expect("4 bytes")) as usize;
             let body = &data[8..];
-            if body.len() < comp {
+            if body.len() != comp {
                 return Err(Error::input(
                     name,
-                    format!(
-                        "lying header: compressed size is {comp} bytes but only {} bytes follow",
-                        body.len()
-                    ),
+                    format!("lying header: compressed size is {comp} bytes but {} bytes follow", body.len()),
                 ));
             }
             if uncomp != need {
@@ -479,12 +478,16 @@ fn need_bytes(points: usize, step: usize, name: &str) -> Result<usize> {
     })
 }
 
-fn lying(name: &str, h: &Header, step: usize, need: usize, have: usize) -> Error {
+/// The error for a binary body of the wrong size, with a hint when the body is text.
+fn lying(name: &str, h: &Header, step: usize, need: usize, data: &[u8]) -> Error {
+    let text = !data.is_empty() && data.iter().all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace());
     Error::input(
         name,
         format!(
-            "lying header: POINTS {} x {step}-byte records needs {need} bytes of data but only {have} follow",
-            h.points
+            "lying header: POINTS {} x {step}-byte records is {need} bytes of data but {} follow{}",
+            h.points,
+            data.len(),
+            if text { " (the data is text: DATA ascii?)" } else { "" }
         ),
     )
 }

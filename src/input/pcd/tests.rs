@@ -411,6 +411,38 @@ fn lying_headers_are_errors() {
 }
 
 #[test]
+fn a_body_longer_than_the_header_says_is_an_error() {
+    let d = tempfile::tempdir().unwrap();
+    let pts = sample();
+    let body: Vec<u8> = pts.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    // binary: POINTS half the records that follow.
+    let mut b = header("x y z", "4 4 4", "F F F", "1 1 1", pts.len() / 2, 1, ID, "binary").into_bytes();
+    b.extend_from_slice(&body);
+    let m = err(&d, "half.pcd", &b);
+    assert!(m.contains("half.pcd") && m.contains("POINTS 25 x 12-byte records is 300 bytes of data but 600 follow"), "{m}");
+    // binary header over an ascii body: named as such.
+    let mut b = header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, ID, "binary").into_bytes();
+    b.extend_from_slice(b"1 2 3\n4 5 6\n");
+    let m = err(&d, "text.pcd", &b);
+    assert!(m.contains("text.pcd") && m.contains("(the data is text: DATA ascii?)"), "{m}");
+    // compressed: bytes after the compressed data.
+    let head = header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, ID, "binary_compressed");
+    let mut b = compressed_file(&head, &lzf_literals(&[0u8; 24]), 24);
+    b.extend_from_slice(&[0u8; 7]);
+    let m = err(&d, "tail.pcd", &b);
+    assert!(m.contains("compressed size is 25 bytes but 32 bytes follow"), "{m}");
+}
+
+#[test]
+fn a_byte_order_mark_before_the_header_is_skipped() {
+    let d = tempfile::tempdir().unwrap();
+    let mut s = String::from("\u{feff}");
+    s.push_str(&header("x y z", "4 4 4", "F F F", "1 1 1", 1, 1, ID, "ascii"));
+    s.push_str("1 2 3\n");
+    assert_eq!(read_pcd(&write(&d, "bom.pcd", s.as_bytes())).unwrap().points, vec![[1.0, 2.0, 3.0]]);
+}
+
+#[test]
 fn ascii_line_errors() {
     let d = tempfile::tempdir().unwrap();
     let mut s = header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 1", 2, 1, ID, "ascii");
