@@ -210,7 +210,10 @@ impl Generator {
             (None, None, Some(Recording::open(bg, poses, &sensor)?))
         } else {
             let env = Environment::load(bg)?;
-            let grid = WalkableGrid::from_environment(&env, WALKABLE_CELL_M)?;
+            let grid = WalkableGrid::from_environment(&env, WALKABLE_CELL_M).map_err(|e| match e {
+                Error::Input { message, .. } => Error::input(bg.display(), message),
+                other => other,
+            })?;
             if grid.free_fraction(cfg.humans.clearance_m) <= 0.0 {
                 return Err(Error::input(bg.display(), "environment has no walkable floor at z = 0"));
             }

@@ -160,12 +160,24 @@ fn existing(out: &Path, manifest: &Manifest, index: usize, hash: &str, verify: b
     }
 }
 
-/// Runs a whole `generate` job (or its shard).
+/// Runs a whole `generate` job (or its shard). An output folder this run created is removed
+/// again if the run fails before writing anything into it.
 pub fn generate(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     let out = cfg.out.clone();
     if out.exists() && !out.is_dir() {
         return Err(Error::input(out.display(), "output path exists and is not a folder"));
     }
+    let created = !out.exists();
+    let result = run(cfg, opts);
+    if result.is_err() && created {
+        // Only if empty: remove_dir refuses a folder with anything in it.
+        let _ = std::fs::remove_dir(&out);
+    }
+    result
+}
+
+fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
+    let out = cfg.out.clone();
     // Inputs are checked (and the GPU started) before anything is created on disk.
     let mut gen = Generator::new(cfg)?;
     std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
