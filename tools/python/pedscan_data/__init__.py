@@ -1,7 +1,8 @@
 """Python tools for pedscan's labeled LiDAR sequences: a lazy reader of sequence files and
-folders."""
+folders, and N-frame training windows (numpy, or PyTorch when installed)."""
 
 from .reader import BEAM_FIELDS, Frame, Humans, PedscanError, Sequence, open_sequences, sequence_paths
+from .windows import TorchWindowDataset, WindowDataset, class_weight
 
 __all__ = [
     "BEAM_FIELDS",
@@ -9,6 +10,9 @@ __all__ = [
     "Humans",
     "PedscanError",
     "Sequence",
+    "TorchWindowDataset",
+    "WindowDataset",
+    "class_weight",
     "open_sequences",
     "sequence_paths",
 ]
