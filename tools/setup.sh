@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 sudo=""
 if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
 packages="build-essential ca-certificates curl pkg-config mesa-vulkan-drivers libvulkan1 libvulkan-dev
-  vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools libhdf5-dev hdf5-tools"
+  vulkan-validationlayers libshaderc-dev glslang-dev spirv-tools libhdf5-dev hdf5-tools python3-venv"
 # shellcheck disable=SC2086
 if ! dpkg -s $packages >/dev/null 2>&1; then
   $sudo apt-get update
@@ -29,7 +29,13 @@ case "$1" in
   test)
     shift
     # Lavapipe runs every GPU test; the validation layer is on in each of them.
-    exec cargo test --locked "$@"
+    cargo test --locked "$@"
+    # The Python tools, in their own venv, on sequences made by the pedscan just built
+    # (without PyTorch, a ~200 MB download: its thin wrapper's test skips, the numpy core runs).
+    venv=tools/python/.venv
+    [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+    "$venv/bin/pip" install --quiet --disable-pip-version-check -e "tools/python[test]"
+    PEDSCAN="$PWD/target/debug/pedscan" "$venv/bin/python" -m pytest tools/python/tests
     ;;
   *)
     exec cargo run --locked --release --quiet -- "$@"

@@ -1,0 +1,353 @@
+"""Scores human segmentation (and velocity) predictions against pedscan ground truth.
+
+    python -m pedscan_data.evaluate GROUND_TRUTH PREDICTIONS [--json FILE]
+
+GROUND_TRUTH is a pedscan output folder or one sequence file. PREDICTIONS is either
+
+- SemanticKITTI labels: ``PREDICTIONS/sequences/SS/labels/NNNNNN.label`` (SS the sequence
+  index, at least two digits; NNNNNN the frame), uint32 per returned beam in row-major grid
+  order, no-return beams skipped, ``instance << 16 | class``; class 30 or 254 = person; or
+- HDF5 files named like the ground truth's (a folder, or one file against one sequence) with
+  ``/label`` [T,H,W] (nonzero = human) and optionally ``/velocity`` [T,H,W,3] (m/s).
+
+Prints the human IoU, precision and recall over all returned beams and in the paper's
+distance bins (0-4, 4-8, 8+ m; no-return beams excluded), and the velocity end-point error
+on the ground truth's human beams when the predictions carry velocities. Exit 0 when scored,
+2 when the predictions do not match the ground truth's frames or their format is unknown.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from .reader import PedscanError, Sequence, open_sequences
+
+#: Distance bins of the paper, metres: [min, max).
+BINS: tuple[tuple[float, float], ...] = ((0.0, 4.0), (4.0, 8.0), (8.0, math.inf))
+
+#: SemanticKITTI classes that count as a person: person and moving-person.
+PERSON_CLASSES: tuple[int, ...] = (30, 254)
+
+
+class MismatchError(PedscanError):
+    """The predictions do not cover the ground truth's frames (each problem named)."""
+
+    def __init__(self, problems: list[str]) -> None:
+        self.problems = problems
+        shown = problems[:20]
+        more = f"\n  ... and {len(problems) - 20} more" if len(problems) > 20 else ""
+        super().__init__(
+            "predictions do not match the ground truth:\n  " + "\n  ".join(shown) + more
+        )
+
+
+class KittiPredictions:
+    """``ROOT/sequences/SS/labels/NNNNNN.label`` files."""
+
+    format = "semantickitti"
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+
+    def path(self, seq: Sequence, t: int) -> Path:
+        return self.root / "sequences" / f"{seq.index:02d}" / "labels" / f"{t:06d}.label"
+
+    def check(self, sequences: list[Sequence]) -> list[str]:
+        problems = []
+        for seq in sequences:
+            folder = self.path(seq, 0).parent
+            if not folder.is_dir():
+                problems.append(f"{folder}: missing (sequence {seq.index}, {seq.frames} frames)")
+                continue
+            expected = {self.path(seq, t).name for t in range(seq.frames)}
+            present = {p.name for p in folder.glob("*.label")}
+            problems += [f"{folder / n}: missing" for n in sorted(expected - present)]
+            problems += [
+                f"{folder / n}: no such frame (sequence {seq.index} has {seq.frames} frames)"
+                for n in sorted(present - expected)
+            ]
+        return problems
+
+    def available(self, seq: Sequence, t: int) -> bool:
+        return self.path(seq, t).is_file()
+
+    def human(self, seq: Sequence, t: int, range_m: np.ndarray) -> np.ndarray:
+        path = self.path(seq, t)
+        values = np.fromfile(path, dtype="<u4")
+        returned = range_m.ravel() > 0
+        n = int(np.count_nonzero(returned))
+        if values.size != n:
+            raise MismatchError(
+                [f"{path}: {values.size} labels, frame {t} of {seq.path.name} has {n} returned beams"]
+            )
+        grid = np.zeros(returned.size, dtype=bool)
+        grid[returned] = np.isin(values & 0xFFFF, PERSON_CLASSES)
+        return grid.reshape(range_m.shape)
+
+    def velocity(self, seq: Sequence, t: int) -> np.ndarray | None:
+        return None
+
+
+class H5Predictions:
+    """HDF5 files with ``/label`` (and optionally ``/velocity``), named like the ground truth."""
+
+    format = "hdf5"
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self._open: dict[Path, h5py.File] = {}
+        self._usable: set[Path] = set()
+
+    def path(self, seq: Sequence) -> Path:
+        return self.root / seq.path.name if self.root.is_dir() else self.root
+
+    def _file(self, seq: Sequence) -> h5py.File:
+        p = self.path(seq)
+        if p not in self._open:
+            self._open[p] = h5py.File(p, "r")
+        return self._open[p]
+
+    def check(self, sequences: list[Sequence]) -> list[str]:
+        if not self.root.is_dir() and len(sequences) != 1:
+            return [
+                (
+                    f"{self.root}: one prediction file for {len(sequences)} sequences; give a "
+                    "folder of files named like the ground truth's"
+                )
+            ]
+        problems = []
+        for seq in sequences:
+            p = self.path(seq)
+            grid = (seq.frames, seq.rows, seq.columns)
+            if not p.is_file():
+                problems.append(f"{p}: missing (sequence {seq.index}, {seq.frames} frames)")
+                continue
+            try:
+                f = self._file(seq)
+            except OSError as e:
+                problems.append(f"{p}: not an HDF5 file ({e})")
+                continue
+            if "label" not in f:
+                problems.append(f"{p}: no /label dataset")
+            elif f["label"].shape != grid:
+                problems.append(f"{p}: /label has shape {f['label'].shape}, {seq.path.name} is {list(grid)}")
+            if "velocity" in f and f["velocity"].shape != grid + (3,):
+                problems.append(
+                    f"{p}: /velocity has shape {f['velocity'].shape}, {seq.path.name} is {list(grid + (3,))}"
+                )
+            elif "label" in f and f["label"].shape == grid:
+                self._usable.add(p)
+        return problems
+
+    def available(self, seq: Sequence, t: int) -> bool:
+        return self.path(seq) in self._usable
+
+    def human(self, seq: Sequence, t: int, range_m: np.ndarray) -> np.ndarray:
+        return self._file(seq)["label"][t] != 0
+
+    def velocity(self, seq: Sequence, t: int) -> np.ndarray | None:
+        f = self._file(seq)
+        return f["velocity"][t] if "velocity" in f else None
+
+
+def open_predictions(path: Path) -> KittiPredictions | H5Predictions:
+    """The predictions' format, from their layout; PedscanError when neither."""
+    if (path / "sequences").is_dir():
+        return KittiPredictions(path)
+    if (path.is_file() and path.suffix == ".h5") or (path.is_dir() and any(path.glob("*.h5"))):
+        return H5Predictions(path)
+    raise PedscanError(
+        f"{path}: unknown predictions format (neither a sequences/SS/labels/ folder of "
+        "SemanticKITTI .label files nor HDF5 files named like the ground truth)"
+    )
+
+
+@dataclass
+class Counts:
+    """Beam counts of one distance bin."""
+
+    beams: int = 0
+    human_beams: int = 0
+    tp: int = 0
+    fp: int = 0
+    fn: int = 0
+    epe_sum: float = 0.0
+    epe_beams: int = 0
+
+    def add(self, other: Counts) -> None:
+        for k in self.__dataclass_fields__:
+            setattr(self, k, getattr(self, k) + getattr(other, k))
+
+    def scores(self, velocity: bool) -> dict[str, Any]:
+        def ratio(a: float, b: float) -> float | None:
+            return a / b if b else None
+
+        out: dict[str, Any] = {
+            "iou": ratio(self.tp, self.tp + self.fp + self.fn),
+            "precision": ratio(self.tp, self.tp + self.fp),
+            "recall": ratio(self.tp, self.tp + self.fn),
+            "beams": self.beams,
+            "human_beams": self.human_beams,
+            "tp": self.tp,
+            "fp": self.fp,
+            "fn": self.fn,
+        }
+        if velocity:
+            out["epe_mps"] = ratio(self.epe_sum, self.epe_beams)
+        return out
+
+
+@dataclass
+class Report:
+    """What :func:`evaluate` found; :meth:`as_dict` is the ``--json`` content."""
+
+    ground_truth: str
+    predictions: str
+    format: str
+    sequences: int = 0
+    frames: int = 0
+    velocity: bool = False
+    notes: list[str] = field(default_factory=list)
+    bins: list[Counts] = field(default_factory=lambda: [Counts() for _ in BINS])
+
+    def as_dict(self) -> dict[str, Any]:
+        total = Counts()
+        for c in self.bins:
+            total.add(c)
+        return {
+            "ground_truth": self.ground_truth,
+            "predictions": self.predictions,
+            "format": self.format,
+            "sequences": self.sequences,
+            "frames": self.frames,
+            "notes": self.notes,
+            "overall": total.scores(self.velocity),
+            "bins": [
+                {"min_m": lo, "max_m": None if math.isinf(hi) else hi, **c.scores(self.velocity)}
+                for (lo, hi), c in zip(BINS, self.bins)
+            ],
+        }
+
+
+def _score_frame(
+    report: Report, range_m: np.ndarray, truth: np.ndarray, human: np.ndarray,
+    v_true: np.ndarray | None, v_pred: np.ndarray | None,
+) -> None:
+    """Adds one frame's beams to the report's bins."""
+    returned = range_m > 0
+    error = None
+    if v_true is not None and v_pred is not None:
+        error = np.linalg.norm(v_pred.astype(np.float64) - v_true, axis=-1)
+    for (lo, hi), c in zip(BINS, report.bins):
+        inside = returned & (range_m >= lo) & (range_m < hi)
+        t, p = truth & inside, human & inside
+        c.beams += int(np.count_nonzero(inside))
+        c.human_beams += int(np.count_nonzero(t))
+        c.tp += int(np.count_nonzero(t & p))
+        c.fp += int(np.count_nonzero(p & ~t))
+        c.fn += int(np.count_nonzero(t & ~p))
+        if error is not None:
+            c.epe_sum += float(error[t].sum())
+            c.epe_beams += int(np.count_nonzero(t))
+
+
+def evaluate(ground_truth: str | Path, predictions: str | Path) -> Report:
+    """Scores ``predictions`` against ``ground_truth``.
+
+    Raises PedscanError for ground truth that is not pedscan's or predictions of an unknown
+    format, MismatchError (naming every missing or mismatched file and frame, all of them at
+    once) when the predictions do not match the ground truth's frames.
+    """
+    sequences = open_sequences(ground_truth)
+    preds = open_predictions(Path(predictions))
+    problems = preds.check(sequences)
+    report = Report(str(ground_truth), str(predictions), preds.format, sequences=len(sequences))
+    for seq in sequences:
+        for t in range(seq.frames):
+            if not preds.available(seq, t):
+                continue
+            range_m = seq.read("range", t)
+            try:
+                human = preds.human(seq, t, range_m)
+            except MismatchError as e:
+                problems += e.problems
+                continue
+            v_pred = preds.velocity(seq, t)
+            v_true = seq.read("velocity", t) if v_pred is not None and seq.has("velocity") else None
+            if v_pred is not None and v_true is None and t == 0:
+                report.notes.append(f"{seq.path}: no /velocity to score the predicted velocities on")
+            report.velocity |= v_true is not None
+            _score_frame(report, range_m, seq.read("label", t) == 1, human, v_true, v_pred)
+            report.frames += 1
+    if problems:
+        raise MismatchError(problems)
+    return report
+
+
+def _fmt(x: float | None, digits: int = 4) -> str:
+    return "n/a" if x is None else f"{x:.{digits}f}"
+
+
+def format_report(d: dict[str, Any]) -> str:
+    """The printed summary of :meth:`Report.as_dict`."""
+    o = d["overall"]
+    velocity = "epe_mps" in o
+    lines = [
+        (
+            f"ground truth: {d['sequences']} sequences, {d['frames']} frames, "
+            f"{o['beams']} returned beams, {o['human_beams']} human beams"
+        ),
+        f"predictions: {d['format']}",
+        (
+            f"human IoU {_fmt(o['iou'])}  precision {_fmt(o['precision'])}  "
+            f"recall {_fmt(o['recall'])}  (TP {o['tp']}, FP {o['fp']}, FN {o['fn']})"
+        ),
+    ]
+    lines += [f"note: {n}" for n in d["notes"]]
+    if velocity:
+        lines.append(f"velocity end-point error on human beams: {_fmt(o['epe_mps'], 3)} m/s")
+    header = f"{'distance':<10}{'IoU':>8}{'precision':>11}{'recall':>8}{'human beams':>13}"
+    lines += ["", header + (f"{'EPE m/s':>9}" if velocity else "")]
+    for b in d["bins"]:
+        name = f"{b['min_m']:g}-{b['max_m']:g} m" if b["max_m"] is not None else f"{b['min_m']:g}+ m"
+        row = (
+            f"{name:<10}{_fmt(b['iou']):>8}{_fmt(b['precision']):>11}{_fmt(b['recall']):>8}"
+            f"{b['human_beams']:>13}"
+        )
+        lines.append(row + (f"{_fmt(b['epe_mps'], 3):>9}" if velocity else ""))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit code (0 scored, 2 bad or mismatched input)."""
+    parser = argparse.ArgumentParser(
+        prog="python -m pedscan_data.evaluate",
+        description="Human IoU, precision, recall (and velocity EPE) of predictions "
+        "against pedscan ground truth.",
+    )
+    parser.add_argument("ground_truth", type=Path, help="pedscan output folder or sequence file")
+    parser.add_argument("predictions", type=Path, help="SemanticKITTI folder or HDF5 file(s)")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the scores as JSON")
+    args = parser.parse_args(argv)
+    try:
+        report = evaluate(args.ground_truth, args.predictions).as_dict()
+    except (PedscanError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(format_report(report))
+    if args.json is not None:
+        args.json.write_text(json.dumps(report, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

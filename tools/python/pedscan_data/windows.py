@@ -1,0 +1,118 @@
+"""N-frame windows for training, after Kim et al. (IEEE Access 2020).
+
+A window is the range images of N consecutive frames of one sequence, with the last frame's
+labels and velocities as the targets; windows never cross sequence boundaries.
+:class:`WindowDataset` returns numpy arrays and needs nothing beyond numpy and h5py;
+:class:`TorchWindowDataset` wraps it for a PyTorch ``DataLoader`` and imports torch only
+when built.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from .reader import PedscanError, Sequence, open_sequences
+
+
+def class_weight(label: np.ndarray, range_m: np.ndarray) -> float:
+    """The paper's human class weight for one frame: background beams / human beams.
+
+    Only beams with a return count (``range_m > 0``). A frame without a human beam gets 1.0,
+    so a weighted loss stays unweighted there.
+    """
+    returned = range_m > 0
+    humans = int(np.count_nonzero(returned & (label == 1)))
+    if humans == 0:
+        return 1.0
+    return (int(np.count_nonzero(returned)) - humans) / humans
+
+
+class WindowDataset:
+    """Windows of ``length`` consecutive frames over one sequence file or a pedscan folder.
+
+    Item ``i`` is a dict of numpy arrays (H rows, W columns):
+
+    - ``range``: f32 [length,H,W], frames t-length+1 .. t (0 = no return)
+    - ``label``: u8 [H,W], frame t (1 human); ``instance``: u16 [H,W] if asked for
+    - ``velocity``: f32 [H,W,3], frame t, m/s in the sensor frame (if in ``targets``)
+    - ``class_weight``: f32 scalar, background beams / human beams of frame t
+    - ``sequence``, ``frame``: the sequence index and t
+
+    Consecutive windows start ``stride`` frames apart; a sequence shorter than ``length``
+    contributes none.
+    """
+
+    def __init__(
+        self,
+        source: str | os.PathLike[str] | list[Sequence],
+        length: int,
+        stride: int = 1,
+        targets: tuple[str, ...] = ("label", "velocity"),
+    ) -> None:
+        if length < 1 or stride < 1:
+            raise ValueError(f"length and stride must be at least 1 (got {length} and {stride})")
+        self.sequences = source if isinstance(source, list) else open_sequences(source)
+        self.length = length
+        self.targets = tuple(dict.fromkeys(("label",) + tuple(targets)))
+        for seq in self.sequences:
+            for key in ("range",) + self.targets:
+                if not seq.has(key):
+                    raise PedscanError(f"{seq.path}: no dataset /{key}, which the windows need")
+        self._index: list[tuple[int, int]] = [
+            (s, t)
+            for s, seq in enumerate(self.sequences)
+            for t in range(length - 1, seq.frames, stride)
+        ]
+
+    def __len__(self) -> int:
+        return len(self._index)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        s, t = self._index[i]
+        seq = self.sequences[s]
+        item: dict[str, Any] = {"range": seq.read("range", slice(t - self.length + 1, t + 1))}
+        for key in self.targets:
+            item[key] = seq.read(key, t)
+        item["class_weight"] = np.float32(class_weight(item["label"], item["range"][-1]))
+        item["sequence"] = seq.index
+        item["frame"] = t
+        return item
+
+
+class TorchWindowDataset(WindowDataset):
+    """:class:`WindowDataset` returning torch tensors, for ``torch.utils.data.DataLoader``.
+
+    ``label`` and ``instance`` become int64 (what the losses take), the rest keep their
+    types; ``sequence`` and ``frame`` stay ints. Needs PyTorch, imported here.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        try:
+            import torch
+        except ImportError as e:
+            raise ImportError(
+                "TorchWindowDataset needs PyTorch (pip install torch; a CPU-only build: "
+                "pip install torch --index-url https://download.pytorch.org/whl/cpu); "
+                "WindowDataset gives the same windows as numpy arrays"
+            ) from e
+        del torch
+        super().__init__(*args, **kwargs)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        import torch
+
+        item = super().__getitem__(i)
+        out: dict[str, Any] = {}
+        for key, value in item.items():
+            if key in ("label", "instance"):
+                out[key] = torch.from_numpy(value.astype(np.int64))
+            elif isinstance(value, np.ndarray):
+                out[key] = torch.from_numpy(value)
+            elif isinstance(value, np.floating):
+                out[key] = torch.tensor(float(value), dtype=torch.float32)
+            else:
+                out[key] = value
+        return out

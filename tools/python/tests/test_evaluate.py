@@ -1,0 +1,197 @@
+"""The evaluator: perfect and known-corrupt predictions, SemanticKITTI and HDF5 inputs,
+and exit 2 with the missing or mismatched files named."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from pedscan_data.evaluate import main
+
+BINS = ((0.0, 4.0), (4.0, 8.0), (8.0, np.inf))
+
+
+def ground_truth(sample: Path) -> dict[str, dict[str, np.ndarray]]:
+    """Every sequence's range, label, instance and velocity, read with h5py."""
+    out = {}
+    for p in sorted(sample.glob("seq_*.h5")):
+        with h5py.File(p, "r") as f:
+            out[p.name] = {k: f[k][()] for k in ("range", "label", "instance", "velocity")}
+    return out
+
+
+def write_h5(folder: Path, name: str, label: np.ndarray, velocity: np.ndarray | None = None) -> None:
+    folder.mkdir(exist_ok=True)
+    with h5py.File(folder / name, "w") as f:
+        f["label"] = label
+        if velocity is not None:
+            f["velocity"] = velocity
+
+
+def write_kitti(root: Path, sequence: int, t: int, labels: np.ndarray) -> Path:
+    """One frame's labels as SemanticKITTI stores them: little-endian uint32 per point."""
+    folder = root / "sequences" / f"{sequence:02d}" / "labels"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{t:06d}.label"
+    labels.astype("<u4").tofile(path)
+    return path
+
+
+def kitti_from_truth(root: Path, gt: dict[str, dict[str, np.ndarray]], person: int = 30) -> None:
+    """Labels equal to the ground truth; returned beams only, row-major; background = 50."""
+    for s, name in enumerate(sorted(gt)):
+        g = gt[name]
+        for t in range(g["range"].shape[0]):
+            returned = g["range"][t].ravel() > 0
+            cls = np.where(g["label"][t].ravel() == 1, person, 50).astype(np.uint32)
+            inst = g["instance"][t].ravel().astype(np.uint32)
+            write_kitti(root, s, t, ((inst << 16) | cls)[returned])
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_ground_truth_as_prediction_scores_one(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, sample, sample, "--json", tmp_path / "scores.json")
+    assert (code, err) == (0, "")
+    report = json.loads((tmp_path / "scores.json").read_text())
+    gt = ground_truth(sample)
+    humans = sum(np.count_nonzero((g["label"] == 1) & (g["range"] > 0)) for g in gt.values())
+    o = report["overall"]
+    assert (o["iou"], o["precision"], o["recall"], o["epe_mps"]) == (1.0, 1.0, 1.0, 0.0)
+    assert o["human_beams"] == humans and o["fp"] == o["fn"] == 0
+    assert o["beams"] == sum(np.count_nonzero(g["range"] > 0) for g in gt.values())
+    assert (report["sequences"], report["frames"], report["format"]) == (2, 8, "hdf5")
+    assert [(b["min_m"], b["max_m"]) for b in report["bins"]] == [(0, 4), (4, 8), (8, None)]
+    assert "human IoU 1.0000  precision 1.0000  recall 1.0000" in out
+    assert "velocity end-point error on human beams: 0.000 m/s" in out
+    for name in ("0-4 m", "4-8 m", "8+ m"):
+        assert name in out
+
+
+def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Every human beam at 8 m or more missed, 50 background beams under 4 m per frame taken
+    for human, velocities off by (0.3, 0.4, 0) m/s: IoU, precision, recall and EPE follow."""
+    gt = ground_truth(sample)
+    preds = tmp_path / "preds"
+    human = {b: 0 for b in BINS}
+    false_pos = 0
+    for name, g in gt.items():
+        r, truth = g["range"], (g["label"] == 1) & (g["range"] > 0)
+        for b in BINS:
+            human[b] += int(np.count_nonzero(truth & (r >= b[0]) & (r < b[1])))
+        label = g["label"].copy()
+        label[truth & (r >= 8)] = 0
+        for t in range(r.shape[0]):
+            near_background = np.flatnonzero((r[t] > 0) & (r[t] < 4) & ~truth[t])[:50]
+            label[t].flat[near_background] = 1
+            false_pos += near_background.size
+        write_h5(preds, name, label, g["velocity"] + np.array([0.3, 0.4, 0.0], np.float32))
+    code, out, err = run(capsys, sample, preds, "--json", tmp_path / "scores.json")
+    assert (code, err) == (0, "")
+    report = json.loads((tmp_path / "scores.json").read_text())
+    total, missed = sum(human.values()), human[BINS[2]]
+    o = report["overall"]
+    assert (o["tp"], o["fp"], o["fn"]) == (total - missed, false_pos, missed)
+    assert o["iou"] == pytest.approx((total - missed) / (total + false_pos))
+    assert o["precision"] == pytest.approx((total - missed) / (total - missed + false_pos))
+    assert o["recall"] == pytest.approx((total - missed) / total)
+    assert o["epe_mps"] == pytest.approx(0.5, abs=1e-6)
+    near, mid, far = report["bins"]
+    assert near["iou"] == pytest.approx(human[BINS[0]] / (human[BINS[0]] + false_pos))
+    assert mid["iou"] == 1.0
+    assert far["iou"] == 0.0 and far["recall"] == 0.0 and far["precision"] is None
+    assert "n/a" in out.splitlines()[-1]  # the 8+ m precision: nothing predicted there
+
+
+def test_semantickitti_labels(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt = ground_truth(sample)
+    kitti_from_truth(tmp_path / "kitti", gt)
+    code, out, err = run(capsys, sample, tmp_path / "kitti", "--json", tmp_path / "s.json")
+    assert (code, err) == (0, "")
+    report = json.loads((tmp_path / "s.json").read_text())
+    assert report["format"] == "semantickitti" and report["overall"]["iou"] == 1.0
+    assert "epe_mps" not in report["overall"] and "end-point" not in out
+
+    # 254 (moving-person) is a person too; every label of sequence 1, frame 2 read back the
+    # way SemanticKITTI's loaders do, with its human beams turned into class 50: known FN.
+    kitti_from_truth(tmp_path / "moving", gt, person=254)
+    path = tmp_path / "moving/sequences/01/labels/000002.label"
+    raw = np.fromfile(path, dtype=np.uint32)
+    semantic, instance = raw & 0xFFFF, raw >> 16
+    assert set(np.unique(semantic)) <= {50, 254} and instance.max() > 0
+    write_kitti(tmp_path / "moving", 1, 2, np.where(semantic == 254, 50, semantic))
+    missed = int(np.count_nonzero(semantic == 254))
+    code, _, _ = run(capsys, sample, tmp_path / "moving", "--json", tmp_path / "m.json")
+    o = json.loads((tmp_path / "m.json").read_text())["overall"]
+    assert code == 0 and (o["fn"], o["fp"]) == (missed, 0)
+    assert o["iou"] == pytest.approx((o["human_beams"] - missed) / o["human_beams"])
+
+
+def test_missing_or_short_label_files_exit_2_naming_them(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    kitti = tmp_path / "kitti"
+    kitti_from_truth(kitti, ground_truth(sample))
+    (kitti / "sequences/01/labels/000002.label").unlink()
+    code, out, err = run(capsys, sample, kitti)
+    assert code == 2 and out == ""
+    assert "sequences/01/labels/000002.label: missing" in err
+
+    kitti_from_truth(kitti, ground_truth(sample))
+    short = kitti / "sequences/00/labels/000003.label"
+    short.write_bytes(short.read_bytes()[:-4])
+    write_kitti(kitti, 0, 4, np.zeros(3, np.uint32))
+    code, _, err = run(capsys, sample, kitti)
+    assert code == 2
+    assert "sequences/00/labels/000003.label:" in err and "frame 3 of seq_000000.h5" in err
+    assert "sequences/00/labels/000004.label: no such frame" in err
+
+    shutil.rmtree(kitti / "sequences/01")
+    code, _, err = run(capsys, sample, kitti)
+    assert code == 2 and "sequences/01/labels: missing (sequence 1, 4 frames)" in err
+
+
+def test_mismatched_hdf5_predictions_exit_2_naming_them(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    gt = ground_truth(sample)
+    preds = tmp_path / "preds"
+    write_h5(preds, "seq_000000.h5", gt["seq_000000.h5"]["label"][:3])
+    code, _, err = run(capsys, sample, preds)
+    assert code == 2
+    assert "seq_000000.h5: /label has shape (3, 16, 512)" in err
+    assert "seq_000001.h5: missing (sequence 1, 4 frames)" in err
+    code, _, err = run(capsys, sample, sample / "seq_000000.h5")
+    assert code == 2 and "one prediction file for 2 sequences" in err
+    code, _, err = run(capsys, sample / "seq_000000.h5", sample / "seq_000000.h5")
+    assert code == 0
+
+
+def test_velocities_without_ground_truth_velocity_are_noted(
+    sample_minimal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with h5py.File(sample_minimal / "seq_000000.h5", "r") as f:
+        label = f["label"][()]
+    write_h5(tmp_path, "seq_000000.h5", label, np.zeros(label.shape + (3,), np.float32))
+    code, out, _ = run(capsys, sample_minimal, tmp_path)
+    assert code == 0
+    assert "seq_000000.h5: no /velocity to score the predicted velocities on" in out
+    assert "end-point" not in out and "human IoU 1.0000" in out
+
+
+def test_unknown_format_exits_2(sample: Path, tmp_path: Path) -> None:
+    (tmp_path / "labels.txt").write_text("1 0 1\n")
+    for predictions in (tmp_path, tmp_path / "labels.txt"):
+        done = subprocess.run(
+            [sys.executable, "-m", "pedscan_data.evaluate", str(sample), str(predictions)],
+            capture_output=True, text=True, check=False,
+        )
+        assert done.returncode == 2
+        assert f"{predictions}: unknown predictions format" in done.stderr

@@ -1,0 +1,86 @@
+"""The N-frame window dataset: numpy core, and the PyTorch wrapper where torch is installed."""
+
+from __future__ import annotations
+
+import pickle
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from pedscan_data import PedscanError, TorchWindowDataset, WindowDataset, class_weight
+
+
+def test_windows_stay_inside_their_sequence(sample: Path) -> None:
+    ds = WindowDataset(sample, length=3)
+    assert len(ds) == 4
+    assert [(ds[i]["sequence"], ds[i]["frame"]) for i in range(len(ds))] == [(0, 2), (0, 3), (1, 2), (1, 3)]
+    strided = WindowDataset(sample, length=2, stride=2)
+    assert [(w["sequence"], w["frame"]) for w in (strided[i] for i in range(len(strided)))] == [
+        (0, 1), (0, 3), (1, 1), (1, 3)
+    ]
+    assert len(WindowDataset(sample, length=5)) == 0
+    assert len(WindowDataset(sample / "seq_000001.h5", length=4)) == 1
+
+
+def test_window_holds_n_ranges_and_the_last_frames_targets(sample: Path) -> None:
+    ds = WindowDataset(sample, length=3)
+    item = ds[3]
+    with h5py.File(sample / "seq_000001.h5", "r") as f:
+        assert item["range"].shape == (3, 16, 512) and item["range"].dtype == np.float32
+        np.testing.assert_array_equal(item["range"], f["range"][1:4])
+        np.testing.assert_array_equal(item["label"], f["label"][3])
+        np.testing.assert_array_equal(item["velocity"], f["velocity"][3])
+        assert item["velocity"].shape == (16, 512, 3)
+        assert "instance" not in item
+        with_instance = WindowDataset(sample, length=3, targets=("label", "instance"))[3]
+        np.testing.assert_array_equal(with_instance["instance"], f["instance"][3])
+
+
+def test_class_weight_is_background_over_human_beams(sample: Path) -> None:
+    label = np.array([[1, 1, 0, 0], [0, 0, 0, 0], [1, 0, 0, 0]], np.uint8)
+    range_m = np.array([[2, 3, 4, 5], [6, 7, 8, 9], [0, 0, 1, 1]], np.float32)
+    assert class_weight(label, range_m) == 8 / 2  # the human beam without a return is left out
+    assert class_weight(np.zeros_like(label), range_m) == 1.0
+    ds = WindowDataset(sample, length=2)
+    with h5py.File(sample / "seq_000000.h5", "r") as f:
+        for i in range(3):
+            r, lab = f["range"][i + 1], f["label"][i + 1]
+            humans = np.count_nonzero((r > 0) & (lab == 1))
+            expected = (np.count_nonzero(r > 0) - humans) / humans
+            assert ds[i]["class_weight"] == pytest.approx(expected, rel=1e-6)
+            assert ds[i]["class_weight"].dtype == np.float32
+
+
+def test_missing_target_is_named(sample_minimal: Path) -> None:
+    with pytest.raises(PedscanError, match=r"seq_000000\.h5: no dataset /velocity"):
+        WindowDataset(sample_minimal, length=2)
+    assert WindowDataset(sample_minimal, length=2, targets=("label",))[0]["range"].shape == (2, 32, 1024)
+
+
+def test_pickles_for_spawned_workers(sample: Path) -> None:
+    ds = WindowDataset(sample, length=2)
+    before = ds[1]
+    ds[5]  # leaves both files open
+    again = pickle.loads(pickle.dumps(ds))
+    np.testing.assert_array_equal(again[1]["range"], before["range"])
+
+
+def test_torch_dataset_without_torch_says_so(sample: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "torch", None)
+    with pytest.raises(ImportError, match="TorchWindowDataset needs PyTorch"):
+        TorchWindowDataset(sample, length=2)
+
+
+def test_torch_dataset_batches(sample: Path) -> None:
+    torch = pytest.importorskip("torch")
+    ds = TorchWindowDataset(sample, length=3)
+    batch = next(iter(torch.utils.data.DataLoader(ds, batch_size=4)))
+    assert batch["range"].shape == (4, 3, 16, 512) and batch["range"].dtype == torch.float32
+    assert batch["label"].shape == (4, 16, 512) and batch["label"].dtype == torch.int64
+    assert batch["velocity"].shape == (4, 16, 512, 3)
+    assert batch["class_weight"].shape == (4,)
+    assert batch["sequence"].tolist() == [0, 0, 1, 1] and batch["frame"].tolist() == [2, 3, 2, 3]
+    np.testing.assert_array_equal(batch["label"][3].numpy(), WindowDataset(sample, length=3)[3]["label"])
