@@ -10,7 +10,7 @@
 use crate::backend::{self, Backend, BeamHits, Gpu, Layer, LayerKind};
 use crate::input::recording::is_recording;
 use crate::input::Recording;
-use crate::config::{CompressionChoice, Config};
+use crate::config::{CompressionChoice, Config, Format};
 use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, FrameGeometry};
 use crate::human::{model_files, HumanModel, MODEL_TO_BODY};
@@ -38,6 +38,8 @@ pub struct WrittenSequence {
     pub people: usize,
     /// Frames written.
     pub frames: usize,
+    /// Points per class of the SemanticKITTI export, when written.
+    pub class_points: Option<crate::output::semantickitti::ClassPoints>,
 }
 
 /// Everything loaded once for a run, and the per-frame buffers.
@@ -685,6 +687,8 @@ impl Generator {
                 CompressionChoice::None => Compression::None,
                 CompressionChoice::Deflate => Compression::Deflate(1),
             },
+            h5: self.cfg.output.formats.contains(&Format::H5),
+            semantickitti: self.cfg.output.formats.contains(&Format::Semantickitti),
         };
         let mut writer = SequenceWriter::create(out_dir, &meta, &opts)?;
         // `debug.overlap_write = false` writes each frame on this thread (to measure the
@@ -698,7 +702,8 @@ impl Generator {
                 self.timings.write_s += t0.elapsed().as_secs_f64();
                 on_frame()?;
             }
-            return Ok(WrittenSequence { files: writer.finish()?, people, frames });
+            let done = writer.finish()?;
+            return Ok(WrittenSequence { files: done.files, class_points: done.class_points, people, frames });
         }
         // The writer runs on its own thread, one frame behind: frame k+1 is posed, rendered
         // and composited while frame k is compressed and written. Two frame buffers travel
@@ -714,7 +719,7 @@ impl Generator {
         to_main.send(FrameOutput::default()).ok();
         to_main.send(FrameOutput::default()).ok();
         std::thread::scope(|scope| {
-            let write = scope.spawn(move || -> Result<(Option<Vec<PathBuf>>, f64)> {
+            let write = scope.spawn(move || -> Result<(Option<crate::output::Finished>, f64)> {
                 let mut write_s = 0.0;
                 let mut writer = writer;
                 for msg in from_main {
@@ -749,8 +754,8 @@ impl Generator {
             computed?;
             let (written, write_s) = written?;
             self.timings.write_s += write_s;
-            let files = written.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))?;
-            Ok(WrittenSequence { files, people, frames })
+            let done = written.ok_or_else(|| Error::Internal("the writer stopped before the last frame".into()))?;
+            Ok(WrittenSequence { files: done.files, class_points: done.class_points, people, frames })
         })
     }
 }

@@ -143,7 +143,8 @@ enum Existing {
 
 fn existing(out: &Path, manifest: &Manifest, index: usize, hash: &str, verify: bool) -> Existing {
     let stem = sequence_stem(index);
-    let present: Vec<String> = [format!("{stem}.h5"), format!("{stem}.xml"), format!("{stem}_png")]
+    let sk = crate::output::semantickitti::sequence_dir(Path::new(""), index).to_string_lossy().into_owned();
+    let present: Vec<String> = [format!("{stem}.h5"), format!("{stem}.xml"), format!("{stem}_png"), sk]
         .into_iter()
         .filter(|n| std::fs::symlink_metadata(out.join(n)).is_ok())
         .collect();
@@ -231,6 +232,7 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
             version: env!("CARGO_PKG_VERSION").to_string(),
             device: gen.backend().device_name(),
             config_hash: hash.clone(),
+            class_points: seq.class_points,
         };
         Manifest::append(&out, &entry)?;
         frames += seq.frames;
@@ -238,6 +240,9 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
         written += 1;
     }
     bar.finish_and_clear();
+    if cfg.output.formats.contains(&crate::config::Format::Semantickitti) {
+        write_semantickitti_yaml(&out, &hash)?;
+    }
     let summary = Summary {
         sequences: written,
         skipped,
@@ -251,6 +256,21 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     // the run, so tests of the binary see them.
     gen.finish()?;
     Ok(summary)
+}
+
+/// `semantickitti/pedscan.yaml` over every sequence of this configuration in the manifest
+/// (shards and resumed runs included: the last run to finish writes the whole picture).
+fn write_semantickitti_yaml(out: &Path, hash: &str) -> Result<()> {
+    let m = Manifest::load(out)?;
+    let mut counts = crate::output::semantickitti::ClassPoints::default();
+    let mut sequences = Vec::new();
+    for e in m.latest.values().filter(|e| e.config_hash == hash) {
+        if let Some(c) = &e.class_points {
+            counts.add(c);
+            sequences.push(e.sequence);
+        }
+    }
+    crate::output::semantickitti::write_yaml(out, &counts, &sequences)
 }
 
 fn replace_refused(out: &Path, index: usize, why: &str) -> Error {

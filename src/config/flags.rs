@@ -2,7 +2,7 @@
 //! each flag replacing its key (or, for switches, turning it on). The binary only parses
 //! them; [`Flags::config`] applies them here, so every caller gets the same configuration.
 
-use super::{BackendChoice, CompressionChoice, Config, Projection, Refine, VelocityModel, WalkMode};
+use super::{BackendChoice, CompressionChoice, Config, Format, Projection, Refine, VelocityModel, WalkMode};
 use crate::error::{Error, Result};
 use crate::human::MotionMode;
 use clap::Args;
@@ -92,6 +92,9 @@ pub struct Flags {
     /// HDF5 compression.
     #[arg(long, value_enum)]
     pub compression: Option<CompressionChoice>,
+    /// Formats to write, comma separated: h5 (with the XML), semantickitti.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub formats: Option<Vec<Format>>,
     /// Per-beam outputs to compute and store: range, label and instance always, plus any of
     /// xyz, velocity, background (comma separated, e.g. `range,label,instance,velocity`).
     #[arg(long, value_delimiter = ',')]
@@ -209,6 +212,10 @@ impl Flags {
         }
         if let Some(v) = a.compression {
             cfg.output.compression = v;
+        }
+        if let Some(v) = &a.formats {
+            cfg.output.formats = v.clone();
+            cfg.output.formats.dedup();
         }
         if let Some(list) = &a.outputs {
             cfg.output.xyz = false;

@@ -96,6 +96,16 @@ pub enum CompressionChoice {
     Deflate,
 }
 
+/// A file format a sequence is written in (`output.formats`, `--formats`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// `seq_NNNNNN.h5` with the XML annotation `seq_NNNNNN.xml`.
+    H5,
+    /// `semantickitti/sequences/SS/` (velodyne, labels, velocity, poses, calib, times).
+    Semantickitti,
+}
+
 /// The whole configuration (TOML form; every field has a default).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -200,6 +210,8 @@ pub struct RenderConfig {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct OutputConfig {
+    /// The formats each sequence is written in, from the same frame data.
+    pub formats: Vec<Format>,
     pub compression: CompressionChoice,
     pub velocity: VelocityModel,
     pub xyz: bool,
@@ -305,6 +317,7 @@ impl Default for RenderConfig {
 impl Default for OutputConfig {
     fn default() -> Self {
         OutputConfig {
+            formats: vec![Format::H5],
             compression: CompressionChoice::Deflate,
             velocity: VelocityModel::Paper,
             xyz: true,
@@ -364,6 +377,9 @@ impl Config {
         let bad = |key: &str, msg: String| Err(Error::input(format!("config key `{key}`"), msg));
         if self.sequences == 0 {
             return bad("sequences", "must be at least 1".into());
+        }
+        if self.output.formats.is_empty() {
+            return bad("output.formats", "needs at least one format (h5, semantickitti)".into());
         }
         if self.frames == 0 {
             return bad("frames", "must be at least 1".into());

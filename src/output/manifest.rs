@@ -36,6 +36,9 @@ pub struct ManifestEntry {
     pub version: String,
     pub device: String,
     pub config_hash: String,
+    /// Points per class of the SemanticKITTI export, when written (its `content`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub class_points: Option<crate::output::semantickitti::ClassPoints>,
 }
 
 /// The hash of a recorded configuration (`Config::to_recorded_toml`): 16 hex digits of its
@@ -65,21 +68,27 @@ pub fn sha256_file(path: &Path) -> std::io::Result<(String, u64)> {
     Ok((hex(&hasher.finalize()), bytes))
 }
 
+/// The files of `p`: itself, or the files under the folder `p` at any depth, sorted.
+fn files_under(p: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+    if !p.is_dir() {
+        out.push(p.to_path_buf());
+        return Ok(());
+    }
+    let mut inner: Vec<PathBuf> =
+        std::fs::read_dir(p).map_err(|e| Error::io(p, e))?.map(|d| d.map(|d| d.path()).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
+    inner.sort();
+    for q in inner {
+        files_under(&q, out)?;
+    }
+    Ok(())
+}
+
 /// Records of `paths` (files, or folders whose files are listed one by one, sorted), named
 /// relative to `out_dir`.
 pub fn file_records(out_dir: &Path, paths: &[PathBuf]) -> Result<Vec<FileRecord>> {
     let mut files = Vec::new();
     for p in paths {
-        if p.is_dir() {
-            let mut inner: Vec<PathBuf> = std::fs::read_dir(p)
-                .map_err(|e| Error::io(p, e))?
-                .map(|d| d.map(|d| d.path()).map_err(|e| Error::io(p, e)))
-                .collect::<Result<_>>()?;
-            inner.sort();
-            files.extend(inner);
-        } else {
-            files.push(p.clone());
-        }
+        files_under(p, &mut files)?;
     }
     files
         .iter()
@@ -220,6 +229,16 @@ impl std::fmt::Display for VerifyReport {
     }
 }
 
+/// The folder entry a listed file stands for: its first path component, or for the
+/// SemanticKITTI export the sequence folder (`semantickitti/sequences/SS`).
+fn listed_name(name: &str) -> String {
+    let parts: Vec<&str> = name.split('/').collect();
+    match parts[..] {
+        [sk, "sequences", ss, ..] if sk == crate::output::semantickitti::FOLDER => format!("{sk}/sequences/{ss}"),
+        _ => parts[0].to_string(),
+    }
+}
+
 /// Checks every file the manifest of `out_dir` lists (size and SHA-256) and that every
 /// sequence file in the folder is listed. A folder without a manifest is a bad-input error.
 pub fn verify_dir(out_dir: &Path) -> Result<VerifyReport> {
@@ -234,7 +253,7 @@ pub fn verify_dir(out_dir: &Path) -> Result<VerifyReport> {
     let mut listed = std::collections::BTreeSet::new();
     for e in m.latest.values() {
         for f in &e.files {
-            listed.insert(f.name.split('/').next().unwrap_or(&f.name).to_string());
+            listed.insert(listed_name(&f.name));
             r.files += 1;
             r.bytes += f.bytes;
         }
@@ -254,11 +273,21 @@ pub fn verify_dir(out_dir: &Path) -> Result<VerifyReport> {
         .filter_map(|d| d.ok().map(|d| d.file_name().to_string_lossy().into_owned()))
         .collect();
     names.sort();
+    let sequences = out_dir.join(crate::output::semantickitti::FOLDER).join("sequences");
+    if let Ok(dir) = std::fs::read_dir(&sequences) {
+        let mut sk: Vec<String> = dir
+            .filter_map(|d| d.ok().map(|d| format!("{}/sequences/{}", crate::output::semantickitti::FOLDER, d.file_name().to_string_lossy())))
+            .collect();
+        sk.sort();
+        names.extend(sk);
+    }
     for name in names {
-        if !name.starts_with("seq_") {
+        let sk = name.starts_with(&format!("{}/", crate::output::semantickitti::FOLDER));
+        if !name.starts_with("seq_") && !sk {
             continue;
         }
         if name.ends_with(".tmp") || name.ends_with(".lock") || name.ends_with(".old") {
+            // Temporaries of a run in flight or killed.
             r.notes.push(format!("{name}: left by a run that is still writing or was killed (`generate --resume` cleans it up)"));
         } else if !listed.contains(&name) {
             r.problems.push(format!("{name}: a sequence file the manifest does not list"));
@@ -283,6 +312,7 @@ mod tests {
             version: "test".into(),
             device: "cpu".into(),
             config_hash: hash.into(),
+            class_points: None,
         }
     }
 

@@ -13,12 +13,13 @@ pub mod lock;
 pub mod manifest;
 pub mod ply;
 pub mod png;
+pub mod semantickitti;
 mod writer;
 mod xml;
 
 pub use info::info;
 pub use png::{label_png, range_png, velocity_png};
-pub use writer::{sequence_stem, Compression, SequenceWriter, WriterOptions};
+pub use writer::{sequence_stem, Compression, Finished, SequenceWriter, WriterOptions};
 
 /// What a sequence is about; written once per sequence.
 #[derive(Clone, Debug)]

@@ -6,6 +6,7 @@
 
 use super::h5::H5Writer;
 use super::png::{label_png, range_png, save_png, velocity_png, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE};
+use super::semantickitti::SemanticKittiWriter;
 use super::xml::XmlWriter;
 use super::{FrameOutput, SequenceMeta};
 use crate::error::{Error, Result};
@@ -27,11 +28,31 @@ impl Default for Compression {
 }
 
 /// How a sequence is written.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WriterOptions {
     /// Also write debug PNGs per frame into `seq_NNNNNN_png/`.
     pub png: bool,
     pub compression: Compression,
+    /// Write the HDF5 file and the XML annotation (`seq_NNNNNN.h5`, `.xml`).
+    pub h5: bool,
+    /// Write the SemanticKITTI export (`semantickitti/sequences/SS/`).
+    pub semantickitti: bool,
+}
+
+impl Default for WriterOptions {
+    fn default() -> Self {
+        WriterOptions { png: false, compression: Compression::default(), h5: true, semantickitti: false }
+    }
+}
+
+/// What [`SequenceWriter::finish`] wrote.
+#[derive(Clone, Debug, Default)]
+pub struct Finished {
+    /// The final paths: the HDF5 file, the XML file, the PNG folder, the SemanticKITTI
+    /// sequence folder (those written).
+    pub files: Vec<PathBuf>,
+    /// Points per class of the SemanticKITTI export, when written.
+    pub class_points: Option<super::semantickitti::ClassPoints>,
 }
 
 /// The base name of sequence `index`: `seq_{index:06}`.
@@ -48,13 +69,14 @@ pub struct SequenceWriter {
     h5_path: (PathBuf, PathBuf),
     xml_path: (PathBuf, PathBuf),
     png_dir: Option<(PathBuf, PathBuf)>,
+    semantickitti: Option<SemanticKittiWriter>,
     frames_written: usize,
     /// Set once everything is renamed; `Drop` then leaves the files alone.
     done: bool,
     beams: Vec<u32>,
 }
 
-fn tmp_name(p: &Path) -> PathBuf {
+pub(crate) fn tmp_name(p: &Path) -> PathBuf {
     let mut s = p.as_os_str().to_owned();
     s.push(".tmp");
     PathBuf::from(s)
@@ -99,6 +121,7 @@ impl SequenceWriter {
             h5_path: (tmp_name(&h5_final), h5_final),
             xml_path: (tmp_name(&xml_final), xml_final),
             png_dir: None,
+            semantickitti: None,
             frames_written: 0,
             done: false,
             beams: vec![0; meta.humans.len()],
@@ -112,8 +135,16 @@ impl SequenceWriter {
             w.png_dir = Some((tmp.clone(), png_final));
             std::fs::create_dir(&tmp).map_err(|e| Error::io(&tmp, e))?;
         }
-        w.xml = Some(XmlWriter::create(&w.xml_path.0, meta)?);
-        w.h5 = Some(H5Writer::create(&w.h5_path.0, &w.h5_path.1, meta, opts.compression)?);
+        if !opts.h5 && !opts.semantickitti {
+            return Err(Error::input("formats", "no output format: give at least one of h5, semantickitti"));
+        }
+        if opts.h5 {
+            w.xml = Some(XmlWriter::create(&w.xml_path.0, meta)?);
+            w.h5 = Some(H5Writer::create(&w.h5_path.0, &w.h5_path.1, meta, opts.compression)?);
+        }
+        if opts.semantickitti {
+            w.semantickitti = Some(SemanticKittiWriter::create(out_dir, meta)?);
+        }
         Ok(w)
     }
 
@@ -128,8 +159,15 @@ impl SequenceWriter {
         let index = self.frames_written;
         self.validate(index, frame)?;
         self.count_beams(index, frame)?;
-        self.xml.as_mut().expect("open until finish").frame(index, frame, &self.beams)?;
-        self.h5.as_mut().expect("open until finish").write_frame(index, frame)?;
+        if let Some(xml) = self.xml.as_mut() {
+            xml.frame(index, frame, &self.beams)?;
+        }
+        if let Some(h5) = self.h5.as_mut() {
+            h5.write_frame(index, frame)?;
+        }
+        if let Some(sk) = self.semantickitti.as_mut() {
+            sk.write_frame(index, frame)?;
+        }
         if let Some((dir, _)) = &self.png_dir {
             self.write_pngs(dir, index, frame)?;
         }
@@ -230,55 +268,76 @@ impl SequenceWriter {
     /// Checks that every announced frame was written, closes the files and renames them to
     /// their final names (replacing those of an earlier run). Returns the final paths: the
     /// HDF5 file, the XML file and, with PNGs, the PNG directory.
-    pub fn finish(mut self) -> Result<Vec<PathBuf>> {
+    pub fn finish(mut self) -> Result<Finished> {
         if self.frames_written != self.meta.frames {
             return Err(Error::Internal(format!(
                 "sequence {}: finished after {} of {} frames",
                 self.meta.index, self.frames_written, self.meta.frames
             )));
         }
-        self.xml.take().expect("open until finish").finish()?;
-        self.h5.take().expect("open until finish").finish(&self.meta)?;
-        let tmp = &self.h5_path.0;
-        std::fs::File::open(tmp).and_then(|f| f.sync_all()).map_err(|e| Error::io(tmp, e))?;
+        let h5 = self.h5.is_some();
+        if let Some(xml) = self.xml.take() {
+            xml.finish()?;
+        }
+        if let Some(file) = self.h5.take() {
+            file.finish(&self.meta)?;
+            let tmp = &self.h5_path.0;
+            std::fs::File::open(tmp).and_then(|f| f.sync_all()).map_err(|e| Error::io(tmp, e))?;
+        }
 
         // Every final name must be free or a file of an earlier run (never a folder, which
         // a rename cannot replace) before the first rename, so that the files of a sequence
         // appear together or not at all.
-        for fin in [&self.xml_path.1, &self.h5_path.1] {
-            if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_file()) {
-                return Err(Error::input(fin.display(), "exists and is not a file; cannot replace it with the sequence's file"));
+        if h5 {
+            for fin in [&self.xml_path.1, &self.h5_path.1] {
+                if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_file()) {
+                    return Err(Error::input(fin.display(), "exists and is not a file; cannot replace it with the sequence's file"));
+                }
             }
         }
-        if let Some((_, fin)) = &self.png_dir {
+        let sk_final = self.semantickitti.as_ref().map(|sk| sk.final_dir().to_path_buf());
+        for fin in self.png_dir.iter().map(|(_, f)| f).chain(sk_final.iter()) {
             if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_dir()) {
-                return Err(Error::input(fin.display(), "exists and is not a folder; cannot replace it with the sequence's PNGs"));
+                return Err(Error::input(fin.display(), "exists and is not a folder; cannot replace it with the sequence's files"));
             }
         }
-        let mut out = Vec::with_capacity(3);
-        // PNGs and XML first, the HDF5 file last: its presence marks a complete sequence. If
-        // a later rename fails, the earlier ones are undone.
-        if let Some((tmp, fin)) = &self.png_dir {
-            replace_dir(tmp, fin)?;
-        }
-        let renamed = rename(&self.xml_path.0, &self.xml_path.1).and_then(|_| {
-            rename(&self.h5_path.0, &self.h5_path.1).inspect_err(|_| {
-                let _ = std::fs::remove_file(&self.xml_path.1);
-            })
-        });
+        // PNGs, SemanticKITTI and XML first, the HDF5 file last. If a later rename fails,
+        // the earlier ones are undone.
+        let mut done = Finished::default();
+        let mut undo: Vec<PathBuf> = Vec::new();
+        let renamed = (|| -> Result<()> {
+            if let Some((tmp, fin)) = &self.png_dir {
+                replace_dir(tmp, fin)?;
+                undo.push(fin.clone());
+            }
+            if let Some(sk) = self.semantickitti.take() {
+                let (fin, counts) = sk.finish()?;
+                undo.push(fin);
+                done.class_points = Some(counts);
+            }
+            if h5 {
+                rename(&self.xml_path.0, &self.xml_path.1)?;
+                undo.push(self.xml_path.1.clone());
+                rename(&self.h5_path.0, &self.h5_path.1)?;
+            }
+            Ok(())
+        })();
         if let Err(e) = renamed {
-            if let Some((_, fin)) = &self.png_dir {
-                let _ = std::fs::remove_dir_all(fin);
+            for p in &undo {
+                let _ = if p.is_dir() { std::fs::remove_dir_all(p) } else { std::fs::remove_file(p) };
             }
             return Err(e);
         }
         self.done = true;
-        out.push(self.h5_path.1.clone());
-        out.push(self.xml_path.1.clone());
-        if let Some((_, fin)) = &self.png_dir {
-            out.push(fin.clone());
+        if h5 {
+            done.files.push(self.h5_path.1.clone());
+            done.files.push(self.xml_path.1.clone());
         }
-        Ok(out)
+        if let Some((_, fin)) = &self.png_dir {
+            done.files.push(fin.clone());
+        }
+        done.files.extend(sk_final);
+        Ok(done)
     }
 }
 
@@ -288,7 +347,7 @@ fn rename(from: &Path, to: &Path) -> Result<()> {
 
 /// Renames directory `tmp` to `fin`, replacing an existing `fin` (a rerun): the old one is
 /// moved aside first and deleted after, so `fin` is never a mix of both.
-fn replace_dir(tmp: &Path, fin: &Path) -> Result<()> {
+pub(crate) fn replace_dir(tmp: &Path, fin: &Path) -> Result<()> {
     if fin.exists() {
         let old = {
             let mut s = fin.as_os_str().to_owned();
@@ -319,6 +378,9 @@ impl Drop for SequenceWriter {
         let _ = std::fs::remove_file(&self.xml_path.0);
         if let Some((tmp, _)) = &self.png_dir {
             let _ = std::fs::remove_dir_all(tmp);
+        }
+        if let Some(sk) = self.semantickitti.take() {
+            let _ = std::fs::remove_dir_all(sk.tmp_dir());
         }
     }
 }

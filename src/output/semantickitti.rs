@@ -1,0 +1,239 @@
+//! The SemanticKITTI export (`--formats ...,semantickitti`): the layout most point-cloud
+//! segmentation code reads unchanged (RangeNet++, SalsaNext, CENet, LMNet / LiDAR-MOS, 4DMOS),
+//! under `OUT/semantickitti/`:
+//!
+//! ```text
+//! pedscan.yaml                        labels, color_map, content, learning_map(_inv),
+//!                                     learning_ignore, split (semantic-kitti-api's format)
+//! sequences/SS/velodyne/NNNNNN.bin    f32 x y z remission per returned beam (sensor frame)
+//! sequences/SS/labels/NNNNNN.label    u32 instance << 16 | class, same order
+//! sequences/SS/velocity/NNNNNN.bin    f32 vx vy vz per point, same order (pedscan's sidecar)
+//! sequences/SS/poses.txt              3x4 world_from_sensor per frame (row-major)
+//! sequences/SS/calib.txt              P0..P3 and Tr = identity, so loaders that compute
+//!                                     inv(Tr) pose Tr get world_from_sensor back
+//! sequences/SS/times.txt              seconds from the sequence start
+//! ```
+//!
+//! Points are the returned beams in row-major grid order (row 0 = highest beam), holes
+//! skipped. Remission is 0: pedscan writes no intensity yet. Classes: person 30, moving-person
+//! 254 (the person walks faster than [`MOVING_SPEED_MPS`]), background 50 (SemanticKITTI's
+//! "building": pedscan does not know what the background is, and this class, unlike 0, 1, 52
+//! or 99, is one the common learning maps keep). A sequence is written into `SS.tmp/` and
+//! renamed to `SS/` when complete.
+
+use crate::error::{Error, Result};
+use crate::output::{FrameOutput, SequenceMeta};
+use glam::DVec3;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+/// SemanticKITTI's class of a person.
+pub const PERSON: u32 = 30;
+/// SemanticKITTI's class of a moving person (LiDAR-MOS: classes >= 250 move).
+pub const MOVING_PERSON: u32 = 254;
+/// The class pedscan gives every background point.
+pub const BACKGROUND: u32 = 50;
+/// A person walking faster than this (horizontal world speed, m/s) is a moving person.
+pub const MOVING_SPEED_MPS: f64 = 0.1;
+/// The export's folder under the output folder.
+pub const FOLDER: &str = "semantickitti";
+
+/// The folder name of sequence `index`: at least two digits, like SemanticKITTI's.
+pub fn sequence_dir_name(index: usize) -> String {
+    format!("{index:02}")
+}
+
+/// The final folder of sequence `index` under `out_dir`.
+pub fn sequence_dir(out_dir: &Path, index: usize) -> PathBuf {
+    out_dir.join(FOLDER).join("sequences").join(sequence_dir_name(index))
+}
+
+/// Points per class of one sequence: background, person, moving person.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct ClassPoints {
+    pub background: u64,
+    pub person: u64,
+    pub moving_person: u64,
+}
+
+impl ClassPoints {
+    pub fn add(&mut self, o: &ClassPoints) {
+        self.background += o.background;
+        self.person += o.person;
+        self.moving_person += o.moving_person;
+    }
+}
+
+/// Writes one sequence of the export.
+pub struct SemanticKittiWriter {
+    tmp: PathBuf,
+    fin: PathBuf,
+    dirs: Vec<DVec3>,
+    velocity: bool,
+    poses: String,
+    times: String,
+    counts: ClassPoints,
+    /// Per-frame scratch: points, labels, velocities as bytes.
+    points: Vec<u8>,
+    labels: Vec<u8>,
+    velocities: Vec<u8>,
+}
+
+fn create_dir(p: &Path) -> Result<()> {
+    std::fs::create_dir_all(p).map_err(|e| Error::io(p, e))
+}
+
+fn write_file(p: &Path, bytes: &[u8]) -> Result<()> {
+    let mut f = std::fs::File::create(p).map_err(|e| Error::io(p, e))?;
+    f.write_all(bytes).map_err(|e| Error::io(p, e))
+}
+
+impl SemanticKittiWriter {
+    /// Creates `OUT/semantickitti/sequences/SS.tmp/` (an older one is replaced).
+    pub fn create(out_dir: &Path, meta: &SequenceMeta) -> Result<SemanticKittiWriter> {
+        let fin = sequence_dir(out_dir, meta.index);
+        let tmp = super::writer::tmp_name(&fin);
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        }
+        create_dir(&tmp.join("velodyne"))?;
+        create_dir(&tmp.join("labels"))?;
+        if meta.outputs.velocity {
+            create_dir(&tmp.join("velocity"))?;
+        }
+        Ok(SemanticKittiWriter {
+            tmp,
+            fin,
+            dirs: meta.sensor.beam_dirs(),
+            velocity: meta.outputs.velocity,
+            poses: String::new(),
+            times: String::new(),
+            counts: ClassPoints::default(),
+            points: Vec::new(),
+            labels: Vec::new(),
+            velocities: Vec::new(),
+        })
+    }
+
+    /// The folder the sequence gets when complete.
+    pub fn final_dir(&self) -> &Path {
+        &self.fin
+    }
+
+    /// The temporary folder (removed by the owner when the sequence fails).
+    pub fn tmp_dir(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Writes frame `index`: its point, label and velocity files; keeps its pose and time.
+    pub fn write_frame(&mut self, index: usize, f: &FrameOutput) -> Result<()> {
+        self.points.clear();
+        self.labels.clear();
+        self.velocities.clear();
+        for (b, &r) in f.range.iter().enumerate() {
+            if r <= 0.0 {
+                continue;
+            }
+            // The same point as /xyz: range times the unit beam direction, in f64 then f32.
+            let p = (self.dirs[b] * r as f64).as_vec3();
+            for c in [p.x, p.y, p.z, 0.0] {
+                self.points.extend_from_slice(&c.to_le_bytes());
+            }
+            let k = f.instance[b] as usize;
+            let class = if k == 0 {
+                self.counts.background += 1;
+                BACKGROUND
+            } else {
+                let v = f.humans.get(k - 1).map_or([0.0; 3], |h| h.velocity_mps);
+                if (v[0] as f64).hypot(v[1] as f64) > MOVING_SPEED_MPS {
+                    self.counts.moving_person += 1;
+                    MOVING_PERSON
+                } else {
+                    self.counts.person += 1;
+                    PERSON
+                }
+            };
+            self.labels.extend_from_slice(&(((k as u32) << 16) | class).to_le_bytes());
+            if self.velocity {
+                for c in f.velocity[b] {
+                    self.velocities.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+        let name = format!("{index:06}");
+        write_file(&self.tmp.join("velodyne").join(format!("{name}.bin")), &self.points)?;
+        write_file(&self.tmp.join("labels").join(format!("{name}.label")), &self.labels)?;
+        if self.velocity {
+            write_file(&self.tmp.join("velocity").join(format!("{name}.bin")), &self.velocities)?;
+        }
+        let m = f.world_from_sensor;
+        let row = |r: [f64; 4]| format!("{:e} {:e} {:e} {:e}", r[0], r[1], r[2], r[3]);
+        let _ = writeln!(self.poses, "{} {} {}", row(m[0]), row(m[1]), row(m[2]));
+        let _ = writeln!(self.times, "{:e}", f.time_s);
+        Ok(())
+    }
+
+    /// Writes poses, times and calibration, then renames `SS.tmp/` to `SS/` (replacing an
+    /// older one). Returns the final folder and the points per class.
+    pub fn finish(self) -> Result<(PathBuf, ClassPoints)> {
+        write_file(&self.tmp.join("poses.txt"), self.poses.as_bytes())?;
+        write_file(&self.tmp.join("times.txt"), self.times.as_bytes())?;
+        let eye = "1 0 0 0 0 1 0 0 0 0 1 0";
+        let calib: String = ["P0", "P1", "P2", "P3", "Tr"].iter().map(|k| format!("{k}: {eye}\n")).collect();
+        write_file(&self.tmp.join("calib.txt"), calib.as_bytes())?;
+        super::writer::replace_dir(&self.tmp, &self.fin)?;
+        Ok((self.fin, self.counts))
+    }
+}
+
+/// `pedscan.yaml`: the export's label configuration in semantic-kitti-api's format. Learning
+/// classes: 0 ignored (unlabeled), 1 background, 2 person (moving or not); `content` is each
+/// class's share of the points in `counts`; the split puts sequences with index 8 modulo 10 in
+/// `valid`, 9 in `test`, the rest in `train`.
+pub fn yaml(counts: &ClassPoints, sequences: &[usize]) -> String {
+    let total = (counts.background + counts.person + counts.moving_person).max(1) as f64;
+    let list = |keep: &dyn Fn(usize) -> bool| {
+        let v: Vec<String> = sequences.iter().filter(|&&s| keep(s)).map(|&s| s.to_string()).collect();
+        format!("[{}]", v.join(", "))
+    };
+    format!(
+        "# pedscan's SemanticKITTI export: labels in semantic-kitti-api's config format.\n\
+         name: \"pedscan\"\n\
+         labels:\n  0: \"unlabeled\"\n  {PERSON}: \"person\"\n  {BACKGROUND}: \"background\"\n  {MOVING_PERSON}: \"moving-person\"\n\
+         color_map: # bgr\n  0: [0, 0, 0]\n  {PERSON}: [30, 30, 255]\n  {BACKGROUND}: [200, 200, 200]\n  {MOVING_PERSON}: [255, 30, 30]\n\
+         content: # share of all points\n  0: 0.0\n  {PERSON}: {:.9}\n  {BACKGROUND}: {:.9}\n  {MOVING_PERSON}: {:.9}\n\
+         learning_map:\n  0: 0\n  {PERSON}: 2\n  {BACKGROUND}: 1\n  {MOVING_PERSON}: 2\n\
+         learning_map_inv:\n  0: 0\n  1: {BACKGROUND}\n  2: {PERSON}\n\
+         learning_ignore:\n  0: True\n  1: False\n  2: False\n\
+         split:\n  train: {}\n  valid: {}\n  test: {}\n",
+        counts.person as f64 / total,
+        counts.background as f64 / total,
+        counts.moving_person as f64 / total,
+        list(&|s| s % 10 < 8),
+        list(&|s| s % 10 == 8),
+        list(&|s| s % 10 == 9),
+    )
+}
+
+/// Writes `OUT/semantickitti/pedscan.yaml` atomically.
+pub fn write_yaml(out_dir: &Path, counts: &ClassPoints, sequences: &[usize]) -> Result<()> {
+    let dir = out_dir.join(FOLDER);
+    create_dir(&dir)?;
+    let fin = dir.join("pedscan.yaml");
+    let tmp = super::writer::tmp_name(&fin);
+    write_file(&tmp, yaml(counts, sequences).as_bytes())?;
+    std::fs::rename(&tmp, &fin).map_err(|e| Error::io(&fin, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_yaml_splits_sequences_and_shares_points() {
+        let y = yaml(&ClassPoints { background: 6, person: 1, moving_person: 3 }, &[0, 1, 8, 9, 18]);
+        assert!(y.contains("train: [0, 1]") && y.contains("valid: [8, 18]") && y.contains("test: [9]"), "{y}");
+        assert!(y.contains("30: 0.100000000") && y.contains("50: 0.600000000") && y.contains("254: 0.300000000"), "{y}");
+    }
+}
