@@ -203,3 +203,18 @@ pub(crate) fn node_parents(path: &Path, doc: &gltf::Document) -> Result<Vec<Opti
     }
     Ok(parents)
 }
+
+/// Checks that every root node of `scene` is a root of the hierarchy (no parent), listed once.
+pub(crate) fn scene_roots(path: &Path, scene: &gltf::Scene, parents: &[Option<usize>]) -> Result<()> {
+    let mut listed = vec![false; parents.len()];
+    for n in scene.nodes() {
+        let i = n.index();
+        if let Some(p) = parents[i] {
+            return Err(Error::input(path.display(), format!("node {i} is a root of scene {} and a child of node {p}", scene.index())));
+        }
+        if std::mem::replace(&mut listed[i], true) {
+            return Err(Error::input(path.display(), format!("node {i} is listed twice as a root of scene {}", scene.index())));
+        }
+    }
+    Ok(())
+}
