@@ -7,6 +7,7 @@ mod beam_caster;
 mod crosscheck;
 mod generate;
 mod gpu_raster;
+mod hostile_models;
 mod humans;
 mod output;
 mod proxy;
