@@ -96,8 +96,11 @@ impl Sensor {
 
     /// Builds and checks a sensor from its TOML form; `input` names the source in errors.
     pub fn from_file(file: SensorFile, name: String, input: &str) -> Result<Sensor> {
+        // Every number is checked before the elevations are sorted: a NaN has no place in an
+        // order.
+        check_elevations(&file.elevation_deg, input)?;
         let mut elevation_deg = file.elevation_deg;
-        elevation_deg.sort_by(|a, b| b.partial_cmp(a).unwrap_or(std::cmp::Ordering::Equal));
+        elevation_deg.sort_by(|a, b| b.total_cmp(a));
         let s = Sensor {
             name,
             elevation_deg,
@@ -113,22 +116,13 @@ impl Sensor {
     /// Rejects impossible sensors with a message naming `input`.
     pub fn validate(&self, input: &str) -> Result<()> {
         let bad = |m: String| Err(Error::input(input, m));
-        if self.elevation_deg.is_empty() {
-            return bad("sensor has no beams (elevation_deg is empty)".into());
-        }
-        if self.elevation_deg.len() > 4096 {
-            return bad(format!("{} rows is more than the supported 4096", self.elevation_deg.len()));
-        }
-        for e in &self.elevation_deg {
-            if !e.is_finite() || e.abs() > MAX_ELEVATION_DEG {
-                return bad(format!(
-                    "elevation {e} deg is outside the supported band of +-{MAX_ELEVATION_DEG} deg"
-                ));
-            }
-        }
+        check_elevations(&self.elevation_deg, input)?;
         for w in self.elevation_deg.windows(2) {
             if w[0] == w[1] {
                 return bad(format!("elevation {} deg appears twice", w[0]));
+            }
+            if w[0] < w[1] {
+                return bad(format!("elevations {} and {} deg are not in descending order", w[0], w[1]));
             }
         }
         if self.columns < 8 || self.columns > 65536 {
@@ -207,6 +201,32 @@ impl Sensor {
     pub fn max_abs_elevation_deg(&self) -> f64 {
         self.elevation_deg.iter().fold(0.0f64, |m, e| m.max(e.abs()))
     }
+}
+
+/// Most rows a sensor may have.
+pub const MAX_ROWS: usize = 4096;
+
+/// Checks a list of elevations in any order: not empty, at most [`MAX_ROWS`], every one finite
+/// and inside +-[`MAX_ELEVATION_DEG`]; `input` names the source in errors.
+fn check_elevations(elevation_deg: &[f64], input: &str) -> Result<()> {
+    let bad = |m: String| Err(Error::input(input, m));
+    if elevation_deg.is_empty() {
+        return bad("sensor has no beams (elevation_deg is empty)".into());
+    }
+    if elevation_deg.len() > MAX_ROWS {
+        return bad(format!("{} rows is more than the supported {MAX_ROWS}", elevation_deg.len()));
+    }
+    for (k, e) in elevation_deg.iter().enumerate() {
+        if !e.is_finite() {
+            return bad(format!("elevation_deg[{k}] = {e} is not a finite number"));
+        }
+        if e.abs() > MAX_ELEVATION_DEG {
+            return bad(format!(
+                "elevation_deg[{k}] = {e} deg is outside the supported band of +-{MAX_ELEVATION_DEG} deg"
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Beams must stay inside the band that 4 side faces of a cube can see (atan(1/sqrt 2)).
@@ -317,5 +337,36 @@ mod tests {
             max_range_m: None,
         };
         assert!(Sensor::from_file(bad_cols, "x".into(), "c.toml").is_err());
+    }
+
+    /// A NaN among unsorted elevations used to reach the sort (which panicked: "does not
+    /// correctly implement a total order"); every number is now checked first.
+    #[test]
+    fn non_finite_numbers_are_rejected_before_sorting() {
+        // 32 unsorted elevations with `elevation` at index 17, and the other numbers.
+        let file = |elevation: f64, rate_hz: f64, min_range_m: f64, max_range_m: f64| {
+            let mut elevation_deg: Vec<f64> = (0..32).map(|k| ((k * 7) % 32) as f64 - 20.0).collect();
+            elevation_deg[17] = elevation;
+            let (rate_hz, min_range_m, max_range_m) = (Some(rate_hz), Some(min_range_m), Some(max_range_m));
+            SensorFile { name: None, elevation_deg, columns: 1024, rate_hz, min_range_m, max_range_m }
+        };
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e300] {
+            let e = Sensor::from_file(file(bad, 10.0, 0.5, 100.0), "x".into(), "nan.toml").unwrap_err();
+            assert!(e.is_input());
+            assert!(e.to_string().contains("nan.toml") && e.to_string().contains("elevation_deg[17]"), "{e}");
+        }
+        for (f, field) in [
+            (file(3.5, f64::NAN, 0.5, 100.0), "rate_hz"),
+            (file(3.5, 10.0, f64::NAN, 100.0), "min_range_m"),
+            (file(3.5, 10.0, 0.5, f64::INFINITY), "max_range_m"),
+        ] {
+            let e = Sensor::from_file(f, "x".into(), "n.toml").unwrap_err();
+            assert!(e.to_string().contains("n.toml") && e.to_string().contains(field), "{e}");
+        }
+        let s = Sensor::from_file(file(3.5, 10.0, 0.5, 100.0), "x".into(), "ok.toml").unwrap();
+        assert!(s.elevation_deg.windows(2).all(|w| w[0] > w[1]));
+        let mut ascending = Sensor::vlp16();
+        ascending.elevation_deg.reverse();
+        assert!(ascending.validate("up").unwrap_err().to_string().contains("descending"));
     }
 }

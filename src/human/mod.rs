@@ -9,8 +9,10 @@
 //! Gait: the phase advances by distance walked / stride length; the stride length comes from
 //! Alexander's relation between relative stride and Froude number (see [`stride_length_m`]).
 
-
+pub(crate) mod checks;
 pub mod proxy;
+
+pub use checks::MAX_NODE_DEPTH;
 
 use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, MeshLayout};
@@ -53,8 +55,35 @@ pub const MODEL_TO_BODY: Mat4 = Mat4::from_cols(
     Vec4::new(0.0, 0.0, 0.0, 1.0),
 );
 
-/// Deepest node hierarchy accepted in a human glTF (skeletons are a few dozen levels deep).
-pub const MAX_NODE_DEPTH: usize = 512;
+/// Standing heights of a person, metres (exclusive bounds): the rest mesh and the height
+/// label of the metadata must lie between them.
+pub const PERSON_HEIGHT_M: (f32, f32) = (0.1, 5.0);
+
+/// Heaviest person a model's metadata may label, kg.
+pub const MAX_WEIGHT_KG: f32 = 500.0;
+
+/// Longest stride length a model's metadata may record, metres.
+pub const MAX_STRIDE_M: f32 = 5.0;
+
+/// Longest gait cycle a model's metadata may record, seconds.
+pub const MAX_CYCLE_S: f32 = 10.0;
+
+/// Largest recorded geometric error of a level of detail, metres.
+pub const MAX_LOD_ERROR_M: f32 = 1.0;
+
+/// Most nodes in a human glTF (a skeleton has tens to hundreds of bones).
+pub const MAX_NODES: usize = 4096;
+
+/// Most distinct key times of the walk animation (a cycle keyed at 1 kHz for 4 s has 4000).
+pub const MAX_KEY_TIMES: usize = 4096;
+
+/// Most triangles of one model, all its levels of detail together (each bundled model has
+/// about 34,000); vertices may be three times as many.
+pub const MAX_MODEL_TRIANGLES: usize = 2_000_000;
+
+/// The mesh lies within this distance of the model's origin, and every joint, at rest and at
+/// every key time of the walk, within this distance of the mesh's bounding box, metres.
+pub const MAX_REACH_M: f32 = 10.0;
 
 /// How people move (the paper's Table 5 ablations).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize, clap::ValueEnum)]
@@ -96,6 +125,37 @@ struct PedscanExtras {
 struct LodExtras {
     mesh: usize,
     error_m: f32,
+}
+
+impl PedscanExtras {
+    /// Checks every number of the metadata: finite and in the range of a person, each level of
+    /// detail a distinct mesh of the `mesh_count`.
+    fn check(&self, path: &Path, mesh_count: usize) -> Result<()> {
+        let field = |key: &str, value: Option<f32>, (lo, hi): (f32, f32), unit: &str| match value {
+            Some(v) if !(v.is_finite() && v > lo && v <= hi) => {
+                Err(gltf_err(path, format!("scenes[0].extras.pedscan.{key} = {v} {unit} must be in ({lo}, {hi}]")))
+            }
+            _ => Ok(()),
+        };
+        field("height_m", self.height_m, PERSON_HEIGHT_M, "m")?;
+        field("weight_kg", self.weight_kg, (0.0, MAX_WEIGHT_KG), "kg")?;
+        field("stride_length_m", self.stride_length_m, (0.0, MAX_STRIDE_M), "m")?;
+        field("cycle_s", self.cycle_s, (0.0, MAX_CYCLE_S), "s")?;
+        let mut listed = vec![false; mesh_count];
+        for (k, l) in self.lods.iter().enumerate() {
+            if !(l.error_m >= 0.0 && l.error_m <= MAX_LOD_ERROR_M) {
+                return Err(gltf_err(path, format!("scenes[0].extras.pedscan.lods[{k}].error_m = {} m must be in [0, {MAX_LOD_ERROR_M}]", l.error_m)));
+            }
+            match listed.get_mut(l.mesh) {
+                None => return Err(gltf_err(path, format!("scenes[0].extras.pedscan.lods[{k}]: LOD mesh {} does not exist", l.mesh))),
+                Some(seen) if *seen => {
+                    return Err(gltf_err(path, format!("scenes[0].extras.pedscan.lods[{k}]: mesh {} is listed twice", l.mesh)))
+                }
+                Some(seen) => *seen = true,
+            }
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -210,36 +270,22 @@ impl HumanModel {
             .and_then(|r| r.pedscan)
             .unwrap_or_default();
 
-        // Node hierarchy at rest.
-        let mut nodes: Vec<NodeRest> = doc
-            .nodes()
-            .map(|n| {
-                let (t, r, s) = n.transform().decomposed();
-                NodeRest {
-                    parent: None,
-                    translation: Vec3::from(t),
-                    rotation: Quat::from_array(r).normalize(),
-                    scale: Vec3::from(s),
-                }
-            })
-            .collect();
-        for n in doc.nodes() {
-            for c in n.children() {
-                nodes[c.index()].parent = Some(n.index());
-            }
+        extras.check(path, doc.meshes().len())?;
+
+        // Node hierarchy at rest: strict trees of bounded depth (transforms are composed
+        // recursively), finite transforms.
+        if doc.nodes().len() > MAX_NODES {
+            return Err(gltf_err(path, format!("{} nodes is more than the supported {MAX_NODES}", doc.nodes().len())));
         }
-        // The node tree must have no cycle and a sane depth (transforms are composed
-        // recursively; a hostile file could make either).
-        for i in 0..nodes.len() {
-            let mut k = i;
-            let mut steps = 0;
-            while let Some(p) = nodes[k].parent {
-                k = p;
-                steps += 1;
-                if steps > MAX_NODE_DEPTH {
-                    return Err(gltf_err(path, format!("node hierarchy is cyclic or deeper than {MAX_NODE_DEPTH} levels")));
-                }
+        let parents = checks::node_parents(path, doc)?;
+        let mut nodes = Vec::with_capacity(parents.len());
+        for (n, parent) in doc.nodes().zip(parents) {
+            let (t, r, s) = n.transform().decomposed();
+            let rest = NodeRest { parent, translation: Vec3::from(t), rotation: Quat::from_array(r).normalize(), scale: Vec3::from(s) };
+            if !(rest.translation.is_finite() && rest.rotation.is_finite() && rest.scale.is_finite()) {
+                return Err(gltf_err(path, format!("node {} has a transform that is not finite", n.index())));
             }
+            nodes.push(rest);
         }
 
         // Skin.
@@ -247,15 +293,8 @@ impl HumanModel {
         let (joint_nodes, inverse_bind) = match &skin {
             Some(skin) => {
                 let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-                let reader = skin.reader(|b| Some(&buffers[b.index()]));
-                let ibm: Vec<Mat4> = match reader.read_inverse_bind_matrices() {
-                    Some(it) => it.map(|m| Mat4::from_cols_array_2d(&m)).collect(),
-                    None => vec![Mat4::IDENTITY; joints.len()],
-                };
-                if ibm.len() != joints.len() {
-                    return Err(gltf_err(path, "skin has a different number of inverse bind matrices and joints"));
-                }
-                (joints, ibm)
+                let inverse_bind = read_inverse_bind(path, skin, &joints, &buffers)?;
+                (joints, inverse_bind)
             }
             None => (Vec::new(), Vec::new()),
         };
@@ -265,43 +304,10 @@ impl HumanModel {
             .animations()
             .find(|a| a.name().map(|n| n.eq_ignore_ascii_case("walk")).unwrap_or(false))
             .or_else(|| doc.animations().next());
-        let mut channels = Vec::new();
-        if let Some(anim) = &anim {
-            for ch in anim.channels() {
-                let property = match ch.target().property() {
-                    gltf::animation::Property::Translation => Property::Translation,
-                    gltf::animation::Property::Rotation => Property::Rotation,
-                    gltf::animation::Property::Scale => Property::Scale,
-                    gltf::animation::Property::MorphTargetWeights => continue,
-                };
-                let interp = match ch.sampler().interpolation() {
-                    gltf::animation::Interpolation::Step => Interp::Step,
-                    gltf::animation::Interpolation::Linear => Interp::Linear,
-                    gltf::animation::Interpolation::CubicSpline => Interp::CubicSpline,
-                };
-                let reader = ch.reader(|b| Some(&buffers[b.index()]));
-                let times: Vec<f32> = reader
-                    .read_inputs()
-                    .ok_or_else(|| gltf_err(path, "animation channel without input times"))?
-                    .collect();
-                let values: Vec<Vec4> = match reader.read_outputs() {
-                    Some(gltf::animation::util::ReadOutputs::Translations(it)) => {
-                        it.map(|v| Vec3::from(v).extend(0.0)).collect()
-                    }
-                    Some(gltf::animation::util::ReadOutputs::Scales(it)) => it.map(|v| Vec3::from(v).extend(0.0)).collect(),
-                    Some(gltf::animation::util::ReadOutputs::Rotations(it)) => it.into_f32().map(Vec4::from).collect(),
-                    _ => return Err(gltf_err(path, "animation channel without readable outputs")),
-                };
-                let per_key = if interp == Interp::CubicSpline { 3 } else { 1 };
-                if times.is_empty() || values.len() != times.len() * per_key {
-                    return Err(gltf_err(path, "animation channel has mismatched input/output counts"));
-                }
-                if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
-                    return Err(gltf_err(path, "animation input times are not strictly increasing"));
-                }
-                channels.push(Channel { node: ch.target().node().index(), property, interp, times, values });
-            }
-        }
+        let channels = match &anim {
+            Some(anim) => read_channels(path, anim, &buffers)?,
+            None => Vec::new(),
+        };
         let anim_duration = channels.iter().map(|c| *c.times.last().unwrap()).fold(0.0f32, f32::max);
 
         if needs_animation {
@@ -324,13 +330,28 @@ impl HumanModel {
             lod_meshes.push((mesh.index(), 0.0));
         }
         lod_meshes.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let meshes: Vec<gltf::Mesh> = lod_meshes
+            .iter()
+            .map(|&(m, _)| doc.meshes().nth(m).ok_or_else(|| gltf_err(path, format!("LOD mesh {m} does not exist"))))
+            .collect::<Result<_>>()?;
+        // Every accessor is checked, and the levels' sizes summed, before any is read.
+        let (mut vertices, mut triangles) = (0usize, 0usize);
+        for mesh in &meshes {
+            let (v, t) = check_mesh(path, mesh, &buffers, joint_nodes.len())?;
+            (vertices, triangles) = (vertices + v, triangles + t);
+        }
+        if triangles > MAX_MODEL_TRIANGLES || vertices > 3 * MAX_MODEL_TRIANGLES {
+            return Err(gltf_err(
+                path,
+                format!(
+                    "its levels of detail hold {triangles} triangles ({vertices} vertices); at most {MAX_MODEL_TRIANGLES} triangles and {} vertices are supported",
+                    3 * MAX_MODEL_TRIANGLES
+                ),
+            ));
+        }
         let mut lods = Vec::new();
-        for (mesh_index, error_m) in lod_meshes {
-            let mesh = doc
-                .meshes()
-                .nth(mesh_index)
-                .ok_or_else(|| gltf_err(path, format!("LOD mesh {mesh_index} does not exist")))?;
-            lods.push(read_lod(path, &mesh, &buffers, error_m, joint_nodes.len())?);
+        for (mesh, (_, error_m)) in meshes.iter().zip(lod_meshes) {
+            lods.push(read_lod(path, mesh, &buffers, error_m, joint_nodes.len())?);
         }
         // Meshes without a skin: put the mesh node's own transform into the vertices.
         if skin.is_none() {
@@ -346,29 +367,84 @@ impl HumanModel {
 
         let (lo, hi) = lods[0].positions.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p.y), hi.max(p.y)));
         let height_m = hi - lo;
-        if !(height_m.is_finite() && height_m > 0.1 && height_m < 5.0) {
+        if !(height_m.is_finite() && height_m > PERSON_HEIGHT_M.0 && height_m < PERSON_HEIGHT_M.1) {
             return Err(gltf_err(path, format!("rest mesh height {height_m} m is not that of a person (0.1..5 m); is it in metres with y up?")));
         }
-
-        if nodes.iter().any(|n| !n.translation.is_finite() || !n.rotation.is_finite() || !n.scale.is_finite()) {
-            return Err(gltf_err(path, "a node transform is not finite"));
+        if let Some(label) = extras.height_m {
+            if !(label >= 0.8 * height_m && label <= 1.25 * height_m) {
+                return Err(gltf_err(
+                    path,
+                    format!("scenes[0].extras.pedscan.height_m = {label} m disagrees with the rest mesh's height of {height_m} m (more than -20 %/+25 %)"),
+                ));
+            }
         }
         nodes.shrink_to_fit();
 
-        Ok(HumanModel {
+        let model = HumanModel {
             name,
             path: path.to_path_buf(),
             height_m,
             labelled_height_m: extras.height_m,
             weight_kg: extras.weight_kg,
             stride_length_m: extras.stride_length_m,
-            cycle_s: extras.cycle_s.filter(|c| *c > 0.0).unwrap_or(anim_duration),
+            cycle_s: extras.cycle_s.unwrap_or(anim_duration),
             lods,
             nodes,
             joint_nodes,
             inverse_bind,
             channels,
-        })
+        };
+        model.check_reach(path)?;
+        Ok(model)
+    }
+
+    /// Checks that the mesh lies within [`MAX_REACH_M`] of the model's origin (where the
+    /// person stands) and, at rest and at every key time of the walk, that every joint lies
+    /// within [`MAX_REACH_M`] of the mesh's bounding box and its joint matrix (pose times
+    /// inverse bind matrix) keeps that box within [`MAX_REACH_M`] of itself (an affine map
+    /// takes the box into the hull of its corners' images, and skinning blends those): a bone
+    /// far away (a hostile or broken transform, keyframe or skin) would tear the person apart
+    /// or lose its precision.
+    fn check_reach(&self, path: &Path) -> Result<()> {
+        let (lo, hi) = self.lods[0].positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let off_box = |p: Vec3| p.distance(p.clamp(lo, hi));
+        let origin = off_box(Vec3::ZERO);
+        if !(origin <= MAX_REACH_M) {
+            return Err(gltf_err(path, format!("the mesh lies {origin} m from the model's origin, more than {MAX_REACH_M} m")));
+        }
+        let corners: Vec<Vec3> = (0..8).map(|k| Vec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo)).collect();
+        let check = |globals: &[Mat4], when: &str| {
+            for (j, (g, inverse_bind)) in globals.iter().zip(&self.inverse_bind).enumerate() {
+                let joint = off_box(g.w_axis.truncate());
+                let skinned = corners.iter().map(|&c| off_box((*g * *inverse_bind).transform_point3(c))).fold(0.0f32, |a, b| a.max(b));
+                let fault = if !(joint <= MAX_REACH_M) {
+                    format!("lies {joint} m from the mesh")
+                } else if !(skinned <= MAX_REACH_M) {
+                    format!("with its inverse bind matrix moves the mesh up to {skinned} m off itself")
+                } else {
+                    continue;
+                };
+                return Err(gltf_err(
+                    path,
+                    format!("joint {j} (node {}) {fault} {when}; joints must stay within {MAX_REACH_M} m of the mesh", self.joint_nodes[j]),
+                ));
+            }
+            Ok(())
+        };
+        let rest: Vec<Mat4> = self.joint_nodes.iter().map(|&n| global_rest(&self.nodes, n)).collect();
+        check(&rest, "at rest")?;
+        let mut times: Vec<f32> = self.channels.iter().flat_map(|c| c.times.iter().copied()).collect();
+        times.sort_by(f32::total_cmp);
+        times.dedup();
+        if times.len() > MAX_KEY_TIMES {
+            return Err(gltf_err(path, format!("the walk has {} key times, more than the supported {MAX_KEY_TIMES}", times.len())));
+        }
+        let mut globals = Vec::new();
+        for t in times {
+            self.joint_globals(t, &mut globals);
+            check(&globals, &format!("at t = {t} s of the walk"))?;
+        }
+        Ok(())
     }
 
     /// Nominal height: the metadata's label when present, else the measured rest height.
@@ -389,11 +465,18 @@ impl HumanModel {
 
     /// Joint matrices (model frame) of the walk sampled at `phase` in [0, 1).
     pub fn joint_matrices(&self, phase: f32, out: &mut Vec<Mat4>) {
+        self.joint_globals(phase.rem_euclid(1.0) * self.cycle_s, out);
+        for (m, inverse_bind) in out.iter_mut().zip(&self.inverse_bind) {
+            *m *= *inverse_bind;
+        }
+    }
+
+    /// Global transforms (model frame) of the joints at time `t` (s) of the walk.
+    fn joint_globals(&self, t: f32, out: &mut Vec<Mat4>) {
         out.clear();
         if self.joint_nodes.is_empty() {
             return;
         }
-        let t = phase.rem_euclid(1.0) * self.cycle_s;
         let mut local: Vec<(Vec3, Quat, Vec3)> =
             self.nodes.iter().map(|n| (n.translation, n.rotation, n.scale)).collect();
         for ch in &self.channels {
@@ -406,10 +489,7 @@ impl HumanModel {
             }
         }
         let mut global: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
-        for (j, &node) in self.joint_nodes.iter().enumerate() {
-            let g = global_of(&self.nodes, &local, &mut global, node);
-            out.push(g * self.inverse_bind[j]);
-        }
+        out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
     }
 
     /// Skins LOD `lod` with `joints` and maps it through `transform` (model -> target frame),
@@ -539,6 +619,115 @@ fn sample(ch: &Channel, t: f32) -> Vec4 {
     }
 }
 
+/// A skin's inverse bind matrices (identity where it has none), one per joint of `joints`,
+/// each finite, affine and invertible.
+fn read_inverse_bind(path: &Path, skin: &gltf::Skin, joints: &[usize], buffers: &[gltf::buffer::Data]) -> Result<Vec<Mat4>> {
+    let Some(acc) = skin.inverse_bind_matrices() else {
+        return Ok(vec![Mat4::IDENTITY; joints.len()]);
+    };
+    let what = format!("inverse bind matrices of skin {}", skin.index());
+    let count = checks::accessor(path, &what, &acc, Some(&checks::MATRICES), buffers)?;
+    if count != joints.len() {
+        return Err(gltf_err(path, format!("skin {} has {count} inverse bind matrices for {} joints", skin.index(), joints.len())));
+    }
+    let matrices: Vec<Mat4> = skin
+        .reader(|b| Some(&buffers[b.index()]))
+        .read_inverse_bind_matrices()
+        .ok_or_else(|| gltf_err(path, format!("{what} cannot be read")))?
+        .map(|m| Mat4::from_cols_array_2d(&m))
+        .collect();
+    for (j, m) in matrices.iter().enumerate() {
+        let fault = if !m.is_finite() {
+            "is not finite"
+        } else if !(m.determinant().abs() > 1e-12) {
+            "is singular"
+        } else if m.row(3).distance(Vec4::W) > 1e-5 {
+            "is not affine (its last row is not 0 0 0 1)"
+        } else {
+            continue;
+        };
+        return Err(gltf_err(path, format!("inverse bind matrix {j} (joint node {}) of skin {} {fault}", joints[j], skin.index())));
+    }
+    Ok(matrices)
+}
+
+/// The channels of the walk animation `anim`, checked: accessors as their readers assume them,
+/// one channel per node and property, input times finite and strictly increasing, every key
+/// finite and every rotation key of a length (within 1e-3..1e3) that normalizes to a rotation.
+fn read_channels(path: &Path, anim: &gltf::Animation, buffers: &[gltf::buffer::Data]) -> Result<Vec<Channel>> {
+    let mut channels: Vec<Channel> = Vec::new();
+    for (c, ch) in anim.channels().enumerate() {
+        let (property, name) = match ch.target().property() {
+            gltf::animation::Property::Translation => (Property::Translation, "translation"),
+            gltf::animation::Property::Rotation => (Property::Rotation, "rotation"),
+            gltf::animation::Property::Scale => (Property::Scale, "scale"),
+            gltf::animation::Property::MorphTargetWeights => continue,
+        };
+        let node = ch.target().node().index();
+        let what = format!("{name} channel {c} of animation {} on node {node}", anim.index());
+        if channels.iter().any(|o| o.node == node && o.property == property) {
+            return Err(gltf_err(path, format!("{what}: node {node} has a second {name} channel")));
+        }
+        let interp = match ch.sampler().interpolation() {
+            gltf::animation::Interpolation::Step => Interp::Step,
+            gltf::animation::Interpolation::Linear => Interp::Linear,
+            gltf::animation::Interpolation::CubicSpline => Interp::CubicSpline,
+        };
+        let keys = if property == Property::Rotation { &checks::ROTATION_KEYS } else { &checks::VEC3_KEYS };
+        checks::accessor(path, &format!("input times of {what}"), &ch.sampler().input(), Some(&checks::TIMES), buffers)?;
+        checks::accessor(path, &format!("keys of {what}"), &ch.sampler().output(), Some(keys), buffers)?;
+        let reader = ch.reader(|b| Some(&buffers[b.index()]));
+        let times: Vec<f32> = reader
+            .read_inputs()
+            .ok_or_else(|| gltf_err(path, format!("{what} has no readable input times")))?
+            .collect();
+        let values: Vec<Vec4> = match reader.read_outputs() {
+            Some(gltf::animation::util::ReadOutputs::Translations(it)) => it.map(|v| Vec3::from(v).extend(0.0)).collect(),
+            Some(gltf::animation::util::ReadOutputs::Scales(it)) => it.map(|v| Vec3::from(v).extend(0.0)).collect(),
+            Some(gltf::animation::util::ReadOutputs::Rotations(it)) => it.into_f32().map(Vec4::from).collect(),
+            _ => return Err(gltf_err(path, format!("{what} has no readable keys"))),
+        };
+        let per_key = if interp == Interp::CubicSpline { 3 } else { 1 };
+        if values.len() != times.len() * per_key {
+            return Err(gltf_err(path, format!("{what} has {} input times but {} keys", times.len(), values.len())));
+        }
+        if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+            return Err(gltf_err(path, format!("{what}: input times are not finite and strictly increasing")));
+        }
+        for (k, v) in values.iter().enumerate() {
+            // Cubic-spline tangents (all but every third value) need not be unit quaternions.
+            let is_value = interp != Interp::CubicSpline || k % 3 == 1;
+            if !v.is_finite() {
+                return Err(gltf_err(path, format!("{what}: key {k} = {v} is not finite")));
+            }
+            // Rotations are normalized when sampled; one far from unit length is no rotation.
+            if property == Property::Rotation && is_value && !(v.length() >= 1e-3 && v.length() <= 1e3) {
+                return Err(gltf_err(path, format!("{what}: key {k} = {v} has length {}, too far from a unit quaternion", v.length())));
+            }
+        }
+        channels.push(Channel { node, property, interp, times, values });
+    }
+    Ok(channels)
+}
+
+/// Checks every accessor of the triangle primitives of `mesh` before any is read (where
+/// `joint_count` > 0 the model has a skin, and each primitive needs JOINTS_0 and WEIGHTS_0);
+/// returns the vertices and triangles reading it will hold.
+fn check_mesh(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], joint_count: usize) -> Result<(usize, usize)> {
+    let (mut vertices, mut triangles) = (0, 0);
+    for prim in mesh.primitives() {
+        match checks::primitive(path, mesh, &prim, buffers, joint_count > 0)? {
+            Some((n, corners)) => (vertices, triangles) = (vertices + n, triangles + corners / 3),
+            None if prim.mode() == gltf::mesh::Mode::Triangles => {
+                return Err(gltf_err(path, format!("POSITION of mesh {} primitive {} is missing", mesh.index(), prim.index())))
+            }
+            None => {}
+        }
+    }
+    Ok((vertices, triangles))
+}
+
+/// Reads one level of detail from `mesh`, whose accessors [`check_mesh`] has checked.
 fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], error_m: f32, joint_count: usize) -> Result<Lod> {
     let mut positions = Vec::new();
     let mut joints = Vec::new();
@@ -548,41 +737,43 @@ fn read_lod(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data], erro
         if prim.mode() != gltf::mesh::Mode::Triangles {
             continue;
         }
+        let at = format!("mesh {} primitive {}", mesh.index(), prim.index());
         let reader = prim.reader(|b| Some(&buffers[b.index()]));
         let base = positions.len() as u32;
         let pos: Vec<Vec3> = reader
             .read_positions()
-            .ok_or_else(|| gltf_err(path, format!("mesh {} has no POSITION", mesh.index())))?
+            .ok_or_else(|| gltf_err(path, format!("POSITION of {at} cannot be read")))?
             .map(Vec3::from)
             .collect();
         let n = pos.len();
         positions.extend(pos);
-        match (reader.read_joints(0), reader.read_weights(0)) {
-            (Some(j), Some(w)) if joint_count > 0 => {
-                let j: Vec<[u16; 4]> = j.into_u16().collect();
-                let w: Vec<[f32; 4]> = w.into_f32().collect();
-                if j.len() != n || w.len() != n {
-                    return Err(gltf_err(path, "JOINTS_0/WEIGHTS_0 count differs from POSITION"));
+        if joint_count > 0 {
+            let (Some(j), Some(w)) = (reader.read_joints(0), reader.read_weights(0)) else {
+                return Err(gltf_err(path, format!("JOINTS_0 or WEIGHTS_0 of {at} cannot be read")));
+            };
+            for (v, (jj, ww)) in j.into_u16().zip(w.into_f32()).enumerate() {
+                if let Some(&bad) = jj.iter().find(|&&ji| ji as usize >= joint_count) {
+                    return Err(gltf_err(path, format!("JOINTS_0 of {at}: vertex {v} names joint {bad} of a skin with {joint_count} joints")));
                 }
-                for (jj, ww) in j.iter().zip(&w) {
-                    let sum: f32 = ww.iter().sum();
-                    if !(sum > 0.0) || jj.iter().zip(ww).any(|(ji, wi)| *wi != 0.0 && *ji as usize >= joint_count) {
-                        return Err(gltf_err(path, "a vertex has invalid skin weights or joint indices"));
-                    }
-                    joints.push(*jj);
-                    weights.push(ww.map(|x| x / sum));
+                let sum: f32 = ww.iter().sum();
+                if ww.iter().any(|x| !(x.is_finite() && *x >= 0.0)) || !(sum > 0.0 && sum.is_finite()) {
+                    return Err(gltf_err(
+                        path,
+                        format!("WEIGHTS_0 of {at}: vertex {v} has skin weights {ww:?}; they must be finite, non-negative and not all zero"),
+                    ));
                 }
+                joints.push(jj);
+                weights.push(ww.map(|x| x / sum));
             }
-            _ => {
-                joints.extend(std::iter::repeat([0u16; 4]).take(n));
-                weights.extend(std::iter::repeat([0.0f32; 4]).take(n));
-            }
+        } else {
+            joints.extend(std::iter::repeat([0u16; 4]).take(n));
+            weights.extend(std::iter::repeat([0.0f32; 4]).take(n));
         }
         match reader.read_indices() {
             Some(idx) => {
                 for i in idx.into_u32() {
                     if i as usize >= n {
-                        return Err(gltf_err(path, "an index points past the vertex array"));
+                        return Err(gltf_err(path, format!("indices of {at}: index {i} points past the {n} vertices")));
                     }
                     indices.push(base + i);
                 }

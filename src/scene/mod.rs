@@ -12,6 +12,7 @@ pub mod recorded;
 pub mod sequence;
 
 use crate::error::{Error, Result};
+use crate::human::checks;
 use glam::{DMat4, DVec2, DVec3};
 use rand::RngExt;
 use std::path::Path;
@@ -22,6 +23,10 @@ pub const WALKABLE_CELL_M: f64 = 0.1;
 /// The most cells a [`WalkableGrid`] may have (about 2 GB of working memory while it is built;
 /// 0.5 km² at [`WALKABLE_CELL_M`]). A larger area is an input error, never an allocation.
 pub const MAX_GRID_CELLS: usize = 50_000_000;
+
+/// Most triangles an environment may instance, all its nodes together; vertices may be three
+/// times as many.
+pub const MAX_ENVIRONMENT_TRIANGLES: usize = 10_000_000;
 
 /// A static environment in the world frame (f64).
 #[derive(Clone, Debug, Default)]
@@ -46,70 +51,89 @@ pub fn world_from_gltf() -> DMat4 {
 
 impl Environment {
     /// Loads every mesh of the default scene of a glTF/GLB file, with node transforms applied.
+    /// The nodes must form strict trees, every accessor read must be what its reader assumes
+    /// and fit in its buffer, and the instanced meshes together hold at most
+    /// [`MAX_ENVIRONMENT_TRIANGLES`] triangles; all of it is checked before anything is copied.
     pub fn load(path: &Path) -> Result<Environment> {
-        let bytes = std::fs::read(path).map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
-        let gltf = gltf::Gltf::from_slice(&bytes)
-            .map_err(|e| Error::input(path.display(), format!("not a valid glTF: {e}")))?;
+        let bad = |m: String| Error::input(path.display(), m);
+        let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+        let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(format!("not a valid glTF: {e}")))?;
         let base = path.parent().map(Path::to_path_buf);
         let buffers = gltf::import_buffers(&gltf.document, base.as_deref(), gltf.blob.clone())
-            .map_err(|e| Error::input(path.display(), format!("cannot read buffers: {e}")))?;
+            .map_err(|e| bad(format!("cannot read buffers: {e}")))?;
         let doc = &gltf.document;
         let scene = doc
             .default_scene()
             .or_else(|| doc.scenes().next())
-            .ok_or_else(|| Error::input(path.display(), "has no scene"))?;
-        let mut env = Environment::default();
+            .ok_or_else(|| bad("has no scene".into()))?;
+        let parents = checks::node_parents(path, doc)?;
+        checks::scene_roots(path, &scene, &parents)?;
+        // The nodes in walk order with their global transforms: strict trees, so each node
+        // once.
+        let mut placed: Vec<(gltf::Node, DMat4)> = Vec::new();
         let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, world_from_gltf())).collect();
-        let mut visited = 0usize;
         while let Some((node, parent)) = stack.pop() {
-            visited += 1;
-            if visited > 1_000_000 {
-                return Err(Error::input(path.display(), "node hierarchy too deep or cyclic"));
-            }
             let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(|v| v as f64)));
             let m = parent * local;
-            if let Some(mesh) = node.mesh() {
-                for prim in mesh.primitives() {
-                    if prim.mode() != gltf::mesh::Mode::Triangles {
-                        continue;
-                    }
-                    let reader = prim.reader(|b| Some(&buffers[b.index()]));
-                    let Some(pos) = reader.read_positions() else { continue };
-                    let base = env.positions.len() as u32;
-                    let before = env.positions.len();
-                    env.positions.extend(pos.map(|p| m.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))));
-                    let n = (env.positions.len() - before) as u32;
-                    let indices: Vec<u32> = match reader.read_indices() {
-                        Some(idx) => idx.into_u32().collect(),
-                        None => (0..n).collect(),
-                    };
-                    if indices.iter().any(|&i| i >= n) || indices.len() % 3 != 0 {
-                        return Err(Error::input(path.display(), format!("mesh '{}' has bad indices", mesh.name().unwrap_or("?"))));
-                    }
-                    // A mirroring transform flips the winding; keep triangles front-facing.
-                    let flip = m.determinant() < 0.0;
-                    let mut local: Vec<u32> = indices.iter().map(|i| i + base).collect();
-                    if flip {
-                        for t in local.chunks_exact_mut(3) {
-                            t.swap(1, 2);
-                        }
-                    }
-                    env.meshes.push(EnvMesh {
-                        name: mesh.name().unwrap_or("").to_string(),
-                        indices: local,
-                        double_sided: prim.material().double_sided(),
-                    });
+            stack.extend(node.children().map(|c| (c, m)));
+            placed.push((node, m));
+        }
+        // Every accessor checked and the instanced copies counted before any is made.
+        let (mut vertices, mut triangles) = (0usize, 0usize);
+        for mesh in placed.iter().filter_map(|(node, _)| node.mesh()) {
+            for prim in mesh.primitives() {
+                if let Some((n, corners)) = checks::primitive(path, &mesh, &prim, &buffers, false)? {
+                    vertices += n;
+                    triangles += corners / 3;
                 }
             }
-            for c in node.children() {
-                stack.push((c, m));
+        }
+        if triangles > MAX_ENVIRONMENT_TRIANGLES || vertices > 3 * MAX_ENVIRONMENT_TRIANGLES {
+            return Err(bad(format!(
+                "its nodes instance {triangles} triangles ({vertices} vertices); at most {MAX_ENVIRONMENT_TRIANGLES} triangles and {} vertices are supported",
+                3 * MAX_ENVIRONMENT_TRIANGLES
+            )));
+        }
+        let mut env = Environment::default();
+        for (node, m) in placed {
+            let Some(mesh) = node.mesh() else { continue };
+            for prim in mesh.primitives() {
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let reader = prim.reader(|b| Some(&buffers[b.index()]));
+                let Some(pos) = reader.read_positions() else { continue };
+                let base = env.positions.len() as u32;
+                let before = env.positions.len();
+                env.positions.extend(pos.map(|p| m.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))));
+                let n = (env.positions.len() - before) as u32;
+                let indices: Vec<u32> = match reader.read_indices() {
+                    Some(idx) => idx.into_u32().collect(),
+                    None => (0..n).collect(),
+                };
+                if indices.iter().any(|&i| i >= n) || indices.len() % 3 != 0 {
+                    return Err(bad(format!("mesh '{}' has bad indices", mesh.name().unwrap_or("?"))));
+                }
+                // A mirroring transform flips the winding; keep triangles front-facing.
+                let flip = m.determinant() < 0.0;
+                let mut local: Vec<u32> = indices.iter().map(|i| i + base).collect();
+                if flip {
+                    for t in local.chunks_exact_mut(3) {
+                        t.swap(1, 2);
+                    }
+                }
+                env.meshes.push(EnvMesh {
+                    name: mesh.name().unwrap_or("").to_string(),
+                    indices: local,
+                    double_sided: prim.material().double_sided(),
+                });
             }
         }
         if env.meshes.is_empty() {
-            return Err(Error::input(path.display(), "environment has no triangles"));
+            return Err(bad("environment has no triangles".into()));
         }
         if env.positions.iter().any(|p| !p.is_finite()) {
-            return Err(Error::input(path.display(), "a vertex position is not finite"));
+            return Err(bad("a vertex position is not finite".into()));
         }
         Ok(env)
     }

@@ -8,6 +8,7 @@ mod crosscheck;
 mod generate;
 mod gpu_raster;
 mod hostile_inputs;
+mod hostile_models;
 mod humans;
 mod output;
 mod production;
