@@ -185,7 +185,7 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     gen.set_export_geometry(opts.export_geometry.clone());
     let cfg = gen.config().clone();
     let hash = config_hash(&cfg.to_recorded_toml());
-    let manifest = Manifest::load(&out)?;
+    let mut manifest = Manifest::load(&out)?;
     let indices: Vec<usize> = (cfg.first_sequence..cfg.first_sequence + cfg.sequences).filter(|&i| opts.shard.takes(i)).collect();
     let total = (indices.len() * cfg.frames) as u64;
     let bar = if opts.progress { indicatif::ProgressBar::new(total) } else { indicatif::ProgressBar::hidden() };
@@ -203,7 +203,14 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     for index in indices {
         stopped()?;
         let _lock = SequenceLock::acquire(&out, index)?;
-        match existing(&out, &manifest, index, &hash, opts.resume) {
+        let mut found = existing(&out, &manifest, index, &hash, opts.resume);
+        if matches!(found, Existing::Same | Existing::Foreign(_)) {
+            // Another run in this folder may have completed the sequence since the manifest
+            // was read (it appends its line before releasing the lock we now hold).
+            manifest = Manifest::load(&out)?;
+            found = existing(&out, &manifest, index, &hash, opts.resume);
+        }
+        match found {
             Existing::None => {}
             Existing::Complete => {
                 skipped += 1;
