@@ -5,6 +5,7 @@ mod common;
 
 mod beam_caster;
 mod crosscheck;
+mod exports;
 mod generate;
 mod gpu_raster;
 mod hostile_inputs;

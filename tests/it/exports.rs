@@ -1,0 +1,114 @@
+//! The SemanticKITTI export against the HDF5 of the same run: the same points, labels,
+//! instances, velocities, poses and times, read the way the standard loaders read them, and
+//! RangeNet++'s spherical projection putting every point back in its own cell.
+
+use crate::common::{expect_input_error, ok, pedscan};
+use std::path::Path;
+
+fn f32s(path: &Path) -> Vec<f32> {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(b.len() % 4, 0, "{}", path.display());
+    b.chunks(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect()
+}
+
+fn u32s(path: &Path) -> Vec<u32> {
+    std::fs::read(path).unwrap().chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect()
+}
+
+fn numbers(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path).unwrap().lines().map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect()).collect()
+}
+
+/// RangeNet++'s projection (its `laserscan.py`): the cell of a point for `fov_up` /
+/// `fov_down` in degrees and an H x W image.
+fn rangenet_cell(p: [f32; 3], fov_up: f64, fov_down: f64, h: usize, w: usize) -> (usize, usize) {
+    let (x, y, z) = (p[0] as f64, p[1] as f64, p[2] as f64);
+    let r = (x * x + y * y + z * z).sqrt();
+    let (up, down) = (fov_up.to_radians(), fov_down.to_radians());
+    let pitch = (z / r).asin();
+    let px = 0.5 * (1.0 - y.atan2(x) / std::f64::consts::PI) * w as f64;
+    let py = (1.0 - (pitch + down.abs()) / (up + down.abs())) * h as f64;
+    ((py.floor().clamp(0.0, h as f64 - 1.0)) as usize, (px.floor().clamp(0.0, w as f64 - 1.0)) as usize)
+}
+
+#[test]
+fn the_semantickitti_export_holds_what_the_hdf5_holds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    // A 20 m range limit leaves holes in the hall, which the export must skip.
+    std::fs::write(dir.join("s.toml"), "elevation_deg = [10.67, 6.67, 2.67, -1.33, -5.33, -9.33, -13.33, -17.33]\ncolumns = 512\nmax_range_m = 20.0\n").unwrap();
+    let args = ["generate", "--backend", "raycast", "--sensor", "s.toml", "--sequences", "2", "--frames", "3", "--humans", "3..5", "--formats", "h5,semantickitti", "--out", "o"];
+    ok(&pedscan(&args, dir));
+    let (mut holes, mut moving, mut people) = (0, 0, 0);
+    for seq in 0..2 {
+        let f = hdf5::File::open(dir.join(format!("o/seq_{seq:06}.h5"))).unwrap();
+        let range: Vec<f32> = f.dataset("range").unwrap().read_raw().unwrap();
+        let xyz: Vec<f32> = f.dataset("xyz").unwrap().read_raw().unwrap();
+        let instance: Vec<u16> = f.dataset("instance").unwrap().read_raw().unwrap();
+        let velocity: Vec<f32> = f.dataset("velocity").unwrap().read_raw().unwrap();
+        let pose: Vec<f64> = f.dataset("sensor/world_from_sensor").unwrap().read_raw().unwrap();
+        let time: Vec<f64> = f.dataset("sensor/time_s").unwrap().read_raw().unwrap();
+        let speed: Vec<f32> = f.dataset("humans/velocity_mps").unwrap().read_raw().unwrap();
+        let n = speed.len() / 3 / 3;
+        let sk = dir.join(format!("o/semantickitti/sequences/{seq:02}"));
+        let (beams, frames) = (8 * 512, 3);
+        let poses = numbers(&sk.join("poses.txt"));
+        let times = numbers(&sk.join("times.txt"));
+        assert_eq!((poses.len(), times.len()), (frames, frames));
+        for t in 0..frames {
+            let name = format!("{t:06}");
+            let pts = f32s(&sk.join(format!("velodyne/{name}.bin")));
+            let labels = u32s(&sk.join(format!("labels/{name}.label")));
+            let vel = f32s(&sk.join(format!("velocity/{name}.bin")));
+            let returned: Vec<usize> = (0..beams).filter(|&b| range[t * beams + b] > 0.0).collect();
+            holes += beams - returned.len();
+            assert_eq!(pts.len(), 4 * returned.len(), "one x y z remission per returned beam");
+            assert_eq!((labels.len(), vel.len()), (returned.len(), 3 * returned.len()));
+            for (i, &b) in returned.iter().enumerate() {
+                let g = t * beams + b;
+                for a in 0..3 {
+                    assert!((pts[4 * i + a] - xyz[3 * g + a]).abs() <= 1e-5 * range[g].max(1.0), "seq {seq} frame {t} beam {b}");
+                    assert_eq!(vel[3 * i + a], velocity[3 * g + a]);
+                }
+                assert_eq!(pts[4 * i + 3], 0.0, "no intensity yet: remission 0");
+                let k = instance[g] as usize;
+                assert_eq!((labels[i] >> 16) as usize, k);
+                let class = labels[i] & 0xffff;
+                if k == 0 {
+                    assert_eq!(class, 50);
+                } else {
+                    let v = &speed[(t * n + k - 1) * 3..][..2];
+                    let walking = (v[0] as f64).hypot(v[1] as f64) > 0.1;
+                    assert_eq!(class, if walking { 254 } else { 30 }, "person {k}");
+                    people += 1;
+                    moving += walking as usize;
+                }
+            }
+            for (a, want) in poses[t].iter().zip(pose[16 * t..16 * t + 12].iter()) {
+                assert!((a - want).abs() <= 1e-12 * want.abs().max(1.0));
+            }
+            assert!((times[t][0] - time[t]).abs() < 1e-12);
+        }
+        assert!(std::fs::read_to_string(sk.join("calib.txt")).unwrap().contains("Tr: 1 0 0 0 0 1 0 0 0 0 1 0"));
+    }
+    assert!(holes > 0 && people > 0 && moving > 0, "holes {holes}, person points {people}, moving {moving}");
+    let yaml = std::fs::read_to_string(dir.join("o/semantickitti/pedscan.yaml")).unwrap();
+    assert!(yaml.contains("254: \"moving-person\"") && yaml.contains("train: [0, 1]"), "{yaml}");
+    ok(&pedscan(&["verify", "o"], dir));
+    expect_input_error(&["generate", "--formats", "h5,mcap", "--out", "x"], dir, "mcap");
+}
+
+#[test]
+fn rangenet_projection_puts_every_hdl32e_point_in_its_own_cell() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&pedscan(&["generate", "--backend", "raycast", "--frames", "1", "--humans", "4..4", "--formats", "semantickitti", "--out", "o"], dir));
+    assert!(!dir.join("o/seq_000000.h5").exists(), "only the formats asked for");
+    let pts = f32s(&dir.join("o/semantickitti/sequences/00/velodyne/000000.bin"));
+    assert_eq!(pts.len(), 4 * 32 * 1024, "the hall returns every beam");
+    // The README's parameters for the HDL-32E: fov_up 34/3, fov_down -94/3 deg, 32 x 1024.
+    for (i, p) in pts.chunks(4).enumerate() {
+        let cell = rangenet_cell([p[0], p[1], p[2]], 34.0 / 3.0, -94.0 / 3.0, 32, 1024);
+        assert_eq!(cell, (i / 1024, i % 1024), "point {i}");
+    }
+}
