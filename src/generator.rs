@@ -620,6 +620,7 @@ impl Generator {
             seed: self.cfg.seed,
             sensor: self.sensor.clone(),
             config_toml: self.cfg.to_recorded_toml(),
+            rigid_velocity: self.cfg.output.velocity == crate::config::VelocityModel::Rigid,
             frames: plan.times_s.len(),
             humans: plan
                 .humans

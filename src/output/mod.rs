@@ -37,6 +37,8 @@ pub struct SequenceMeta {
     pub humans: Vec<HumanMeta>,
     /// Which optional per-beam outputs are present in every frame.
     pub outputs: OutputSet,
+    /// `/velocity` follows the `rigid` model (the sensor's yaw rate subtracted as well).
+    pub rigid_velocity: bool,
     /// Where the background and the people come from, as `key=value` lines (root attribute
     /// `provenance`, XML element `<provenance>`): the recorded frames used, the floor, the
     /// window of the tracks.

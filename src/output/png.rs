@@ -1,8 +1,10 @@
-//! Debug images of one frame (stage 5, optional): range, label and velocity as RGB images.
+//! Debug images of one frame (stage 5, optional): range, label and velocity as RGB images,
+//! and a bird's-eye view.
 //!
 //! In: row-major per-beam grids (`row * columns + col`, row 0 = highest beam). Out: an
 //! [`RgbImage`] `columns` wide and `rows * row_scale` high (nearest-neighbour row repeat, so a
-//! 32 x 1024 strip becomes readable). Black always means "no return" (range 0).
+//! 32 x 1024 strip becomes readable); the range and velocity images carry a legend strip
+//! [`LEGEND_H`] pixels high below the grid. Black always means "no return" (range 0).
 
 use crate::error::{Error, Result};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
@@ -14,6 +16,88 @@ pub const PNG_ROW_SCALE: u32 = 4;
 
 /// Speed that maps to full brightness in [`velocity_png`], m/s.
 pub const PNG_MAX_SPEED_MPS: f32 = 3.0;
+
+/// Height of the legend strip under the range and velocity images, pixels.
+pub const LEGEND_H: u32 = 40;
+
+/// Side of the bird's-eye view, pixels, and the half-width it shows, metres.
+pub const BEV_SIDE: u32 = 640;
+pub const BEV_HALF_WIDTH_M: f64 = 20.0;
+
+const LEGEND_BG: [u8; 3] = [255, 255, 255];
+const LEGEND_INK: [u8; 3] = [0, 0, 0];
+
+/// `img` with a white strip of [`LEGEND_H`] pixels added below, for `draw` to fill (its
+/// origin is the strip's top-left corner).
+fn with_legend(img: RgbImage, draw: impl FnOnce(&mut RgbImage, i64)) -> RgbImage {
+    let (w, h) = img.dimensions();
+    let mut out = RgbImage::from_pixel(w, h + LEGEND_H, image::Rgb(LEGEND_BG));
+    image::imageops::replace(&mut out, &img, 0, 0);
+    draw(&mut out, h as i64);
+    out
+}
+
+fn fill_rect(img: &mut RgbImage, x0: i64, y0: i64, w: i64, h: i64, colour: [u8; 3]) {
+    for y in y0.max(0)..(y0 + h).min(img.height() as i64) {
+        for x in x0.max(0)..(x0 + w).min(img.width() as i64) {
+            img.put_pixel(x as u32, y as u32, image::Rgb(colour));
+        }
+    }
+}
+
+/// The range scale: the Turbo bar on its log scale with ticks at 1-2-5 steps up to `max`.
+fn range_legend(img: &mut RgbImage, top: i64, max_range_m: f32) {
+    use crate::plot::font::{draw_text, text_width};
+    let (x0, bar_w) = (8i64, (img.width() as i64 - 16).min(600).max(60));
+    for x in 0..bar_w {
+        let t = x as f32 / (bar_w - 1) as f32;
+        fill_rect(img, x0 + x, top + 6, 1, 12, turbo(t));
+    }
+    let ln_max = (1.0 + max_range_m.max(0.0)).ln();
+    for tick in [0.5f32, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0] {
+        if tick > max_range_m {
+            break;
+        }
+        let x = x0 + ((1.0 + tick).ln() / ln_max * (bar_w - 1) as f32).round() as i64;
+        fill_rect(img, x, top + 18, 1, 4, LEGEND_INK);
+        let label = format!("{tick}");
+        draw_text(img, x - text_width(&label, 1) as i64 / 2, top + 24, &label, 1, LEGEND_INK);
+    }
+    draw_text(img, x0 + bar_w + 10, top + 10, "range, m (log scale); black: no return", 1, LEGEND_INK);
+}
+
+/// The velocity key: a colour wheel (hue = direction in the sensor frame, +x forward to the
+/// right) and a speed bar from 0 to `max_speed_mps`.
+fn velocity_legend(img: &mut RgbImage, top: i64, max_speed_mps: f32) {
+    use crate::plot::font::{draw_text, text_width};
+    let r = (LEGEND_H as i64 - 6) / 2;
+    let (cx, cy) = (8 + r, top + 3 + r);
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let d = ((dx * dx + dy * dy) as f32).sqrt();
+            if d <= r as f32 {
+                // Image y grows downwards; the sensor's +y is left of +x, drawn upwards.
+                let (vx, vy) = (dx as f32, -dy as f32);
+                let s = d / r as f32;
+                fill_rect(img, cx + dx, cy + dy, 1, 1, hsv(vy.atan2(vx) / std::f32::consts::TAU, s, 0.25 + 0.75 * s));
+            }
+        }
+    }
+    draw_text(img, cx + r + 4, cy - 4, "+x", 1, LEGEND_INK);
+    let (x0, bar_w) = (cx + r + 24, 200i64);
+    for x in 0..bar_w {
+        let s = x as f32 / (bar_w - 1) as f32;
+        fill_rect(img, x0 + x, top + 6, 1, 12, hsv(0.0, s, 0.25 + 0.75 * s));
+    }
+    for k in 0..=3 {
+        let v = max_speed_mps * k as f32 / 3.0;
+        let x = x0 + (k as i64 * (bar_w - 1)) / 3;
+        fill_rect(img, x, top + 18, 1, 4, LEGEND_INK);
+        let label = format!("{v:.1}");
+        draw_text(img, x - text_width(&label, 1) as i64 / 2, top + 24, &label, 1, LEGEND_INK);
+    }
+    draw_text(img, x0 + bar_w + 10, top + 10, "speed over the ground, m/s (hue: direction, sensor frame)", 1, LEGEND_INK);
+}
 
 /// Google's Turbo colormap (polynomial fit, Mikhailov 2019); `t` in [0, 1], clamped.
 pub fn turbo(t: f32) -> [u8; 3] {
@@ -103,7 +187,7 @@ pub fn range_display(r: f32, max_range_m: f32) -> f32 {
 }
 
 /// Range image: Turbo over `0..max_range_m` on a log scale ([`range_display`]; blue near, red
-/// far), black = no return.
+/// far), black = no return; a scale bar below.
 ///
 /// Panics if `range.len() != rows * columns`.
 pub fn range_png(
@@ -114,14 +198,15 @@ pub fn range_png(
     row_scale: u32,
 ) -> RgbImage {
     check(range.len(), rows, columns, "range");
-    grid_image(rows, columns, row_scale, |i| {
+    let grid = grid_image(rows, columns, row_scale, |i| {
         let r = range[i];
         if r > 0.0 {
             turbo(range_display(r, max_range_m))
         } else {
             [0, 0, 0]
         }
-    })
+    });
+    with_legend(grid, |img, top| range_legend(img, top, max_range_m))
 }
 
 /// Label image: returns in grey (bright = near, dark = far, log scale), each human instance in its own
@@ -152,14 +237,18 @@ pub fn label_png(
     })
 }
 
-/// Velocity image (sensor frame): hue = direction of the xy velocity (red = +x, then
-/// counter-clockwise), saturation and brightness grow with the speed up to `max_speed_mps`;
-/// a return at rest is dark grey, no return is black.
+/// Velocity image: each return's velocity over the ground, in the sensor frame: `velocity`
+/// (relative to the sensor, as stored) plus `ego(i)`, the sensor's own contribution at beam i
+/// (see [`ego_velocity`]), so the static world is dark grey and the people stand out however
+/// fast the sensor moves. Hue = direction (red = +x, then counter-clockwise), saturation and
+/// brightness grow with the speed up to `max_speed_mps`; no return is black; a colour wheel
+/// and a speed bar below.
 ///
 /// Panics if a grid's length is not `rows * columns`.
 pub fn velocity_png(
     range: &[f32],
     velocity: &[[f32; 3]],
+    ego: impl Fn(usize) -> [f32; 3],
     rows: usize,
     columns: usize,
     max_speed_mps: f32,
@@ -168,9 +257,10 @@ pub fn velocity_png(
     check(range.len(), rows, columns, "range");
     check(velocity.len(), rows, columns, "velocity");
     let inv = if max_speed_mps > 0.0 { 1.0 / max_speed_mps } else { 0.0 };
-    grid_image(rows, columns, row_scale, |i| {
+    let grid = grid_image(rows, columns, row_scale, |i| {
         if range[i] > 0.0 {
-            let [vx, vy, vz] = velocity[i];
+            let (v, e) = (velocity[i], ego(i));
+            let [vx, vy, vz] = [v[0] + e[0], v[1] + e[1], v[2] + e[2]];
             let speed = (vx * vx + vy * vy + vz * vz).sqrt();
             let s = if speed.is_finite() { (speed * inv).clamp(0.0, 1.0) } else { 1.0 };
             let hue = vy.atan2(vx) / std::f32::consts::TAU;
@@ -178,7 +268,83 @@ pub fn velocity_png(
         } else {
             [0, 0, 0]
         }
-    })
+    });
+    with_legend(grid, |img, top| velocity_legend(img, top, max_speed_mps))
+}
+
+/// What the sensor's own motion adds to a point's stored velocity to give its velocity over
+/// the ground, sensor frame: `R^T V_s` (both velocity models), plus `w x p` for the `rigid`
+/// model, which also subtracted the sensor's yaw rate w at the point p.
+pub fn ego_velocity(world_from_sensor: &[[f64; 4]; 4], sensor_velocity_mps: [f64; 3], yaw_rate_rps: f64, rigid: bool, point: [f32; 3]) -> [f32; 3] {
+    let m = world_from_sensor;
+    let v = sensor_velocity_mps;
+    // R^T v: column j of R dotted with v.
+    let mut out = [0f64; 3];
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = m[0][j] * v[0] + m[1][j] * v[1] + m[2][j] * v[2];
+    }
+    if rigid {
+        let (px, py) = (point[0] as f64, point[1] as f64);
+        out[0] += -yaw_rate_rps * py;
+        out[1] += yaw_rate_rps * px;
+    }
+    [out[0] as f32, out[1] as f32, out[2] as f32]
+}
+
+/// Bird's-eye view of a frame, sensor frame, +x up, +y left, [`BEV_HALF_WIDTH_M`] around the
+/// sensor: background returns grey, each person's returns in their instance colour, each
+/// person's ground velocity as an arrow from their position (1 s of walking), the sensor as a
+/// white triangle with its own velocity arrow. `people` holds per person (sensor frame) the
+/// position and the velocity over the ground.
+pub fn bev_png(xyz: &[[f32; 3]], range: &[f32], instance: &[u16], people: &[([f64; 3], [f64; 3])], sensor_velocity: [f64; 3]) -> RgbImage {
+    let side = BEV_SIDE as i64;
+    let mut img = RgbImage::from_pixel(BEV_SIDE, BEV_SIDE, image::Rgb([16, 16, 16]));
+    let scale = side as f64 / (2.0 * BEV_HALF_WIDTH_M);
+    let to_px = |x: f64, y: f64| ((side as f64 / 2.0 - y * scale).round() as i64, (side as f64 / 2.0 - x * scale).round() as i64);
+    // Rings every 5 m.
+    for ring in (5..=BEV_HALF_WIDTH_M as i64).step_by(5) {
+        let r = ring as f64 * scale;
+        for k in 0..720 {
+            let a = k as f64 / 720.0 * std::f64::consts::TAU;
+            let (u, v) = (side as f64 / 2.0 + r * a.cos(), side as f64 / 2.0 + r * a.sin());
+            fill_rect(&mut img, u as i64, v as i64, 1, 1, [48, 48, 48]);
+        }
+    }
+    // Background first, people over it.
+    for pass in [false, true] {
+        for (i, p) in xyz.iter().enumerate() {
+            let human = instance[i] > 0;
+            if range[i] <= 0.0 || human != pass {
+                continue;
+            }
+            let (u, v) = to_px(p[0] as f64, p[1] as f64);
+            let c = if human { instance_colour(instance[i]) } else { [150, 150, 150] };
+            fill_rect(&mut img, u, v, 1 + human as i64, 1 + human as i64, c);
+        }
+    }
+    let arrow = |img: &mut RgbImage, from: (f64, f64), v: [f64; 3], colour: [u8; 3]| {
+        let (a, b) = (to_px(from.0, from.1), to_px(from.0 + v[0], from.1 + v[1]));
+        let n = (a.0 - b.0).abs().max((a.1 - b.1).abs()).max(1);
+        for k in 0..=n {
+            let t = k as f64 / n as f64;
+            let (u, w) = (a.0 as f64 + t * (b.0 - a.0) as f64, a.1 as f64 + t * (b.1 - a.1) as f64);
+            fill_rect(img, u as i64, w as i64, 2, 2, colour);
+        }
+        fill_rect(img, b.0 - 2, b.1 - 2, 5, 5, colour);
+    };
+    for (k, (pos, vel)) in people.iter().enumerate() {
+        let c = instance_colour(k as u16 + 1);
+        let (u, v) = to_px(pos[0], pos[1]);
+        fill_rect(&mut img, u - 3, v - 3, 7, 7, c);
+        arrow(&mut img, (pos[0], pos[1]), *vel, c);
+    }
+    let (u, v) = to_px(0.0, 0.0);
+    for dy in 0..8 {
+        fill_rect(&mut img, u - dy / 2, v - 4 + dy, dy + 1, 1, [255, 255, 255]);
+    }
+    arrow(&mut img, (0.0, 0.0), sensor_velocity, [255, 255, 255]);
+    crate::plot::font::draw_text(&mut img, 6, 6, &format!("bird's-eye view, +x up, rings every 5 m, arrows: 1 s of motion over the ground"), 1, [220, 220, 220]);
+    img
 }
 
 /// Writes `img` as a PNG (fast compression) to `path`.
@@ -200,12 +366,41 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_moving_sensor_leaves_the_static_world_grey_and_the_people_coloured() {
+        // The sensor drives at 4.9 m/s along world +y, turned 90 degrees (its +x is world +y):
+        // stored background velocity is -4.9 m/s along its +x; a person walks 1.3 m/s along
+        // world +x (the sensor's -y).
+        let pose = [[0.0, -1.0, 0.0, 5.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        let vs = [0.0, 4.9, 0.0];
+        let ego = |_: usize| ego_velocity(&pose, vs, 0.0, false, [0.0; 3]);
+        assert_eq!(ego(0), [4.9, 0.0, 0.0]);
+        let velocity = [[-4.9, 0.0, 0.0], [-4.9, -1.3, 0.0]];
+        let img = velocity_png(&[5.0, 5.0], &velocity, ego, 1, 2, 3.0, 1);
+        assert_eq!(img.get_pixel(0, 0).0, hsv(0.0, 0.0, 0.25), "static world: dark grey");
+        let person = img.get_pixel(1, 0).0;
+        assert_eq!(person, hsv(-0.25, 1.3 / 3.0, 0.25 + 0.75 * 1.3 / 3.0), "the person's own walk, sensor -y");
+        // The rigid model also subtracted w x p: added back.
+        let e = ego_velocity(&pose, [0.0; 3], 0.5, true, [2.0, 0.0, 0.0]);
+        assert!((e[1] - 1.0).abs() < 1e-6 && e[0].abs() < 1e-6, "{e:?}");
+    }
+
+    #[test]
+    fn the_birds_eye_view_puts_points_and_people_where_they_are() {
+        let xyz = [[10.0, 0.0, 0.0], [0.0, 10.0, 0.0], [50.0, 0.0, 0.0]];
+        let img = bev_png(&xyz, &[10.0, 10.0, 50.0], &[1, 0, 0], &[([10.0, 0.0, 0.0], [0.0, 0.0, 0.0])], [0.0; 3]);
+        let (c, s) = (BEV_SIDE as f64 / 2.0, BEV_SIDE as f64 / (2.0 * BEV_HALF_WIDTH_M));
+        // +x forward is up, +y left is left.
+        assert_eq!(img.get_pixel(c as u32, (c - 10.0 * s) as u32).0, instance_colour(1));
+        assert_eq!(img.get_pixel((c - 10.0 * s) as u32, c as u32).0, [150, 150, 150]);
+    }
+
+    #[test]
     fn images_have_scaled_size_and_black_for_no_return() {
         let (rows, cols) = (4, 16);
         let mut range = vec![0.0f32; rows * cols];
         range[5] = 10.0;
         let img = range_png(&range, rows, cols, 50.0, 4);
-        assert_eq!(img.dimensions(), (16, 16));
+        assert_eq!(img.dimensions(), (16, 16 + LEGEND_H));
         assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0]);
         assert_ne!(img.get_pixel(5, 0).0, [0, 0, 0]);
         assert_eq!(img.get_pixel(5, 3).0, img.get_pixel(5, 0).0);
@@ -214,7 +409,7 @@ mod tests {
         inst[5] = 1;
         let lab = label_png(&range, &inst, rows, cols, 50.0, 2);
         assert_eq!(lab.get_pixel(5, 1).0, instance_colour(1));
-        let vel = velocity_png(&range, &vec![[1.0, 0.0, 0.0]; rows * cols], rows, cols, 3.0, 1);
+        let vel = velocity_png(&range, &vec![[1.0, 0.0, 0.0]; rows * cols], |_| [0.0; 3], rows, cols, 3.0, 1);
         assert_eq!(vel.get_pixel(0, 0).0, [0, 0, 0]);
         let p = vel.get_pixel(5, 0).0;
         assert!(p[0] > p[1] && p[0] > p[2], "+x is red-ish: {p:?}");

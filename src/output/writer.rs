@@ -5,7 +5,7 @@
 //! complete sequences.
 
 use super::h5::H5Writer;
-use super::png::{label_png, range_png, save_png, velocity_png, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE};
+use super::png::{bev_png, ego_velocity, label_png, range_png, save_png, velocity_png, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE};
 use super::semantickitti::SemanticKittiWriter;
 use super::xml::XmlWriter;
 use super::{FrameOutput, SequenceMeta};
@@ -73,6 +73,8 @@ pub struct SequenceWriter {
     frames_written: usize,
     /// Set once everything is renamed; `Drop` then leaves the files alone.
     done: bool,
+    /// The sensor's unit beam directions, for the PNGs of a run without `/xyz`.
+    beam_dirs: std::sync::OnceLock<Vec<glam::DVec3>>,
     beams: Vec<u32>,
 }
 
@@ -124,6 +126,7 @@ impl SequenceWriter {
             semantickitti: None,
             frames_written: 0,
             done: false,
+            beam_dirs: std::sync::OnceLock::new(),
             beams: vec![0; meta.humans.len()],
         };
         // From here on, an early return drops `w`, which removes whatever was created.
@@ -240,6 +243,17 @@ impl SequenceWriter {
         let (rows, cols) = (self.meta.sensor.rows(), self.meta.sensor.columns);
         let max_r = self.meta.sensor.max_range_m as f32;
         let velocity = self.meta.outputs.velocity;
+        let dirs = self.beam_dirs.get_or_init(|| self.meta.sensor.beam_dirs());
+        let point = |i: usize| -> [f32; 3] {
+            if self.meta.outputs.xyz {
+                f.xyz[i]
+            } else {
+                (dirs[i] * f.range[i] as f64).as_vec3().to_array()
+            }
+        };
+        let m = &f.world_from_sensor;
+        // Sensor frame of a world vector: R^T v.
+        let to_sensor = |v: [f64; 3]| -> [f64; 3] { std::array::from_fn(|j| m[0][j] * v[0] + m[1][j] * v[1] + m[2][j] * v[2]) };
         let range = || {
             save_png(
                 &range_png(&f.range, rows, cols, max_r, PNG_ROW_SCALE),
@@ -256,13 +270,31 @@ impl SequenceWriter {
             if !velocity {
                 return Ok(());
             }
+            let ego = |i: usize| ego_velocity(m, f.sensor_velocity_mps, f.sensor_yaw_rate_rps, self.meta.rigid_velocity, point(i));
             save_png(
-                &velocity_png(&f.range, &f.velocity, rows, cols, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE),
+                &velocity_png(&f.range, &f.velocity, ego, rows, cols, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE),
                 &dir.join(format!("velocity_{index:04}.png")),
             )
         };
-        let (a, (b, c)) = rayon::join(range, || rayon::join(label, vel));
-        a.and(b).and(c)
+        let bev = || {
+            let xyz: Vec<[f32; 3]> = (0..f.range.len()).map(point).collect();
+            let t = [m[0][3], m[1][3], m[2][3]];
+            let people: Vec<([f64; 3], [f64; 3])> = f
+                .humans
+                .iter()
+                .map(|h| {
+                    let p = h.position_m;
+                    let v = h.velocity_mps.map(|c| c as f64);
+                    (to_sensor([p[0] - t[0], p[1] - t[1], p[2] - t[2]]), to_sensor(v))
+                })
+                .collect();
+            save_png(
+                &bev_png(&xyz, &f.range, &f.instance, &people, to_sensor(f.sensor_velocity_mps)),
+                &dir.join(format!("bev_{index:04}.png")),
+            )
+        };
+        let ((a, b), (c, d)) = rayon::join(|| rayon::join(range, label), || rayon::join(vel, bev));
+        a.and(b).and(c).and(d)
     }
 
     /// Checks that every announced frame was written, closes the files and renames them to

@@ -34,6 +34,7 @@ fn meta(index: usize, frames: usize, humans: usize, outputs: OutputSet) -> Seque
             })
             .collect(),
         outputs,
+        rigid_velocity: false,
         provenance: vec![("background".into(), "recording <a&b>.pcap".into()), ("first_frame".into(), "7".into())],
     }
 }
@@ -101,7 +102,7 @@ fn write_seq(dir: &Path, m: &SequenceMeta, opts: &WriterOptions) -> Vec<PathBuf>
     for t in 0..m.frames {
         w.write_frame(&frame(m, t)).unwrap();
     }
-    w.finish().unwrap()
+    w.finish().unwrap().files
 }
 
 fn dir_names(dir: &Path) -> Vec<String> {
@@ -120,7 +121,7 @@ fn read_str_attr(f: &hdf5::File, k: &str) -> String {
 fn check_roundtrip(compression: Compression, humans: usize) {
     let dir = tempfile::tempdir().unwrap();
     let m = meta(3, 3, humans, OutputSet::default());
-    let paths = write_seq(dir.path(), &m, &WriterOptions { png: false, compression });
+    let paths = write_seq(dir.path(), &m, &WriterOptions { png: false, compression, ..Default::default() });
     assert_eq!(paths, vec![dir.path().join("seq_000003.h5"), dir.path().join("seq_000003.xml")]);
     assert_eq!(dir_names(dir.path()), vec!["seq_000003.h5", "seq_000003.xml"]);
 
@@ -248,7 +249,7 @@ fn optional_outputs_absent_when_disabled() {
     assert!(f.group("background").is_err());
     // No velocity PNGs without velocity.
     let pngs = dir_names(&paths[2]);
-    assert_eq!(pngs, vec!["label_0000.png", "label_0001.png", "range_0000.png", "range_0001.png"]);
+    assert_eq!(pngs, vec!["bev_0000.png", "bev_0001.png", "label_0000.png", "label_0001.png", "range_0000.png", "range_0001.png"]);
 }
 
 #[test]
@@ -259,12 +260,15 @@ fn pngs_exist_decode_and_have_the_scaled_size() {
     assert_eq!(paths[2], dir.path().join("seq_000007_png"));
     assert_eq!(dir_names(dir.path()), vec!["seq_000007.h5", "seq_000007.xml", "seq_000007_png"]);
     let names = dir_names(&paths[2]);
-    assert_eq!(names.len(), 6, "{names:?}");
-    for kind in ["range", "label", "velocity"] {
+    assert_eq!(names.len(), 8, "{names:?}");
+    // The grid at 4 pixels per row; range and velocity with their legend strip below.
+    let legend = pedscan::output::png::LEGEND_H;
+    let side = pedscan::output::png::BEV_SIDE;
+    for (kind, size) in [("range", (16, 4 * 4 + legend)), ("label", (16, 4 * 4)), ("velocity", (16, 4 * 4 + legend)), ("bev", (side, side))] {
         for t in 0..2 {
             let p = paths[2].join(format!("{kind}_{t:04}.png"));
             let img = image::open(&p).unwrap().to_rgb8();
-            assert_eq!(img.dimensions(), (16, 4 * 4), "{}", p.display());
+            assert_eq!(img.dimensions(), size, "{}", p.display());
         }
     }
     // Rerun into the same directory replaces the set cleanly.
@@ -334,7 +338,7 @@ fn reruns_are_bit_identical() {
     let a = tempfile::tempdir().unwrap();
     let b = tempfile::tempdir().unwrap();
     let m = meta(5, 3, 2, OutputSet::default());
-    let opts = WriterOptions { png: true, compression: Compression::Deflate(1) };
+    let opts = WriterOptions { png: true, compression: Compression::Deflate(1), ..Default::default() };
     let pa = write_seq(a.path(), &m, &opts);
     // HDF5 timestamps have one-second resolution: make sure a clock tick separates the runs.
     std::thread::sleep(std::time::Duration::from_millis(1100));
