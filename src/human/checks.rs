@@ -49,6 +49,19 @@ pub(crate) const ROTATION_KEYS: Layout = Layout {
     normalized: true,
 };
 
+/// Parses a glTF or GLB file's container. A GLB whose header declares a length shorter than
+/// the header itself is refused here: the `gltf` crate subtracts the header size from it
+/// unchecked (an overflow panic where overflow checks are on).
+pub(crate) fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+    if bytes.len() >= 12 && &bytes[..4] == b"glTF" {
+        let length = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+        if length < 12 {
+            return Err(format!("GLB header declares {length} bytes, less than the 12-byte header itself"));
+        }
+    }
+    gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF: {e}"))
+}
+
 /// Checks accessor `acc` (called `what` in errors, e.g. "JOINTS_0 of mesh 0 primitive 1")
 /// of the file `path`: its layout where `layout` is given, and in every case that it is
 /// dense (not sparse), holds at least one element, and that every element lies inside its
@@ -217,4 +230,18 @@ pub(crate) fn scene_roots(path: &Path, scene: &gltf::Scene, parents: &[Option<us
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_glb_shorter_than_its_header_is_refused_not_a_panic() {
+        let mut glb = b"glTF".to_vec();
+        glb.extend_from_slice(&2u32.to_le_bytes());
+        glb.extend_from_slice(&4u32.to_le_bytes());
+        glb.extend_from_slice(&[0; 8]);
+        assert!(parse(&glb).unwrap_err().contains("less than the 12-byte header"));
+    }
 }

@@ -253,7 +253,7 @@ impl HumanModel {
     /// and an animation are required.
     pub fn load(path: &Path, needs_animation: bool) -> Result<HumanModel> {
         let bytes = std::fs::read(path).map_err(|e| Error::input(path.display(), format!("cannot read: {e}")))?;
-        let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| gltf_err(path, format!("not a valid glTF: {e}")))?;
+        let gltf = checks::parse(&bytes).map_err(|e| gltf_err(path, e))?;
         let base = path.parent().map(Path::to_path_buf);
         let buffers = gltf::import_buffers(&gltf.document, base.as_deref(), gltf.blob.clone())
             .map_err(|e| gltf_err(path, format!("cannot read buffers: {e}")))?;

@@ -57,7 +57,7 @@ impl Environment {
     pub fn load(path: &Path) -> Result<Environment> {
         let bad = |m: String| Error::input(path.display(), m);
         let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read: {e}")))?;
-        let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(format!("not a valid glTF: {e}")))?;
+        let gltf = checks::parse(&bytes).map_err(bad)?;
         let base = path.parent().map(Path::to_path_buf);
         let buffers = gltf::import_buffers(&gltf.document, base.as_deref(), gltf.blob.clone())
             .map_err(|e| bad(format!("cannot read buffers: {e}")))?;
