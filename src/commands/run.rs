@@ -144,7 +144,7 @@ enum Existing {
 fn existing(out: &Path, manifest: &Manifest, index: usize, hash: &str, verify: bool) -> Existing {
     let stem = sequence_stem(index);
     let sk = crate::output::semantickitti::sequence_dir(Path::new(""), index).to_string_lossy().into_owned();
-    let present: Vec<String> = [format!("{stem}.h5"), format!("{stem}.xml"), format!("{stem}_png"), sk]
+    let present: Vec<String> = [format!("{stem}.h5"), format!("{stem}.xml"), format!("{stem}_png"), format!("{stem}_bag"), sk]
         .into_iter()
         .filter(|n| std::fs::symlink_metadata(out.join(n)).is_ok())
         .collect();

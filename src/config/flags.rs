@@ -92,7 +92,7 @@ pub struct Flags {
     /// HDF5 compression.
     #[arg(long, value_enum)]
     pub compression: Option<CompressionChoice>,
-    /// Formats to write, comma separated: h5 (with the XML), semantickitti.
+    /// Formats to write, comma separated: h5 (with the XML), semantickitti, mcap (a ROS 2 bag).
     #[arg(long, value_enum, value_delimiter = ',')]
     pub formats: Option<Vec<Format>>,
     /// Per-beam outputs to compute and store: range, label and instance always, plus any of

@@ -104,6 +104,8 @@ pub enum Format {
     H5,
     /// `semantickitti/sequences/SS/` (velodyne, labels, velocity, poses, calib, times).
     Semantickitti,
+    /// `seq_NNNNNN_bag/`: a ROS 2 bag (MCAP, `metadata.yaml`).
+    Mcap,
 }
 
 /// The whole configuration (TOML form; every field has a default).
@@ -379,7 +381,7 @@ impl Config {
             return bad("sequences", "must be at least 1".into());
         }
         if self.output.formats.is_empty() {
-            return bad("output.formats", "needs at least one format (h5, semantickitti)".into());
+            return bad("output.formats", "needs at least one format (h5, semantickitti, mcap)".into());
         }
         if self.frames == 0 {
             return bad("frames", "must be at least 1".into());

@@ -13,6 +13,7 @@ pub mod lock;
 pub mod manifest;
 pub mod ply;
 pub mod png;
+pub mod ros2bag;
 pub mod semantickitti;
 mod writer;
 mod xml;

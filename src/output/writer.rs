@@ -6,6 +6,7 @@
 
 use super::h5::H5Writer;
 use super::png::{bev_png, ego_velocity, label_png, range_png, save_png, velocity_png, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE};
+use super::ros2bag::Ros2BagWriter;
 use super::semantickitti::SemanticKittiWriter;
 use super::xml::XmlWriter;
 use super::{FrameOutput, SequenceMeta};
@@ -37,11 +38,13 @@ pub struct WriterOptions {
     pub h5: bool,
     /// Write the SemanticKITTI export (`semantickitti/sequences/SS/`).
     pub semantickitti: bool,
+    /// Write a ROS 2 bag (`seq_NNNNNN_bag/`).
+    pub mcap: bool,
 }
 
 impl Default for WriterOptions {
     fn default() -> Self {
-        WriterOptions { png: false, compression: Compression::default(), h5: true, semantickitti: false }
+        WriterOptions { png: false, compression: Compression::default(), h5: true, semantickitti: false, mcap: false }
     }
 }
 
@@ -70,6 +73,7 @@ pub struct SequenceWriter {
     xml_path: (PathBuf, PathBuf),
     png_dir: Option<(PathBuf, PathBuf)>,
     semantickitti: Option<SemanticKittiWriter>,
+    bag: Option<Ros2BagWriter>,
     frames_written: usize,
     /// Set once everything is renamed; `Drop` then leaves the files alone.
     done: bool,
@@ -124,6 +128,7 @@ impl SequenceWriter {
             xml_path: (tmp_name(&xml_final), xml_final),
             png_dir: None,
             semantickitti: None,
+            bag: None,
             frames_written: 0,
             done: false,
             beam_dirs: std::sync::OnceLock::new(),
@@ -138,8 +143,8 @@ impl SequenceWriter {
             w.png_dir = Some((tmp.clone(), png_final));
             std::fs::create_dir(&tmp).map_err(|e| Error::io(&tmp, e))?;
         }
-        if !opts.h5 && !opts.semantickitti {
-            return Err(Error::input("formats", "no output format: give at least one of h5, semantickitti"));
+        if !opts.h5 && !opts.semantickitti && !opts.mcap {
+            return Err(Error::input("formats", "no output format: give at least one of h5, semantickitti, mcap"));
         }
         if opts.h5 {
             w.xml = Some(XmlWriter::create(&w.xml_path.0, meta)?);
@@ -147,6 +152,9 @@ impl SequenceWriter {
         }
         if opts.semantickitti {
             w.semantickitti = Some(SemanticKittiWriter::create(out_dir, meta)?);
+        }
+        if opts.mcap {
+            w.bag = Some(Ros2BagWriter::create(out_dir, meta)?);
         }
         Ok(w)
     }
@@ -170,6 +178,9 @@ impl SequenceWriter {
         }
         if let Some(sk) = self.semantickitti.as_mut() {
             sk.write_frame(index, frame)?;
+        }
+        if let Some(bag) = self.bag.as_mut() {
+            bag.write_frame(index, frame)?;
         }
         if let Some((dir, _)) = &self.png_dir {
             self.write_pngs(dir, index, frame)?;
@@ -328,7 +339,8 @@ impl SequenceWriter {
             }
         }
         let sk_final = self.semantickitti.as_ref().map(|sk| sk.final_dir().to_path_buf());
-        for fin in self.png_dir.iter().map(|(_, f)| f).chain(sk_final.iter()) {
+        let bag_final = self.bag.as_ref().map(|b| b.final_dir().to_path_buf());
+        for fin in self.png_dir.iter().map(|(_, f)| f).chain(sk_final.iter()).chain(bag_final.iter()) {
             if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_dir()) {
                 return Err(Error::input(fin.display(), "exists and is not a folder; cannot replace it with the sequence's files"));
             }
@@ -346,6 +358,9 @@ impl SequenceWriter {
                 let (fin, counts) = sk.finish()?;
                 undo.push(fin);
                 done.class_points = Some(counts);
+            }
+            if let Some(bag) = self.bag.take() {
+                undo.push(bag.finish()?);
             }
             if h5 {
                 rename(&self.xml_path.0, &self.xml_path.1)?;
@@ -369,6 +384,7 @@ impl SequenceWriter {
             done.files.push(fin.clone());
         }
         done.files.extend(sk_final);
+        done.files.extend(bag_final);
         Ok(done)
     }
 }
@@ -413,6 +429,11 @@ impl Drop for SequenceWriter {
         }
         if let Some(sk) = self.semantickitti.take() {
             let _ = std::fs::remove_dir_all(sk.tmp_dir());
+        }
+        if let Some(bag) = self.bag.take() {
+            let tmp = bag.tmp_dir().to_path_buf();
+            drop(bag);
+            let _ = std::fs::remove_dir_all(tmp);
         }
     }
 }

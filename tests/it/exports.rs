@@ -95,7 +95,7 @@ fn the_semantickitti_export_holds_what_the_hdf5_holds() {
     let yaml = std::fs::read_to_string(dir.join("o/semantickitti/pedscan.yaml")).unwrap();
     assert!(yaml.contains("254: \"moving-person\"") && yaml.contains("train: [0, 1]"), "{yaml}");
     ok(&pedscan(&["verify", "o"], dir));
-    expect_input_error(&["generate", "--formats", "h5,mcap", "--out", "x"], dir, "mcap");
+    expect_input_error(&["generate", "--formats", "h5,las", "--out", "x"], dir, "las");
 }
 
 #[test]
@@ -111,4 +111,39 @@ fn rangenet_projection_puts_every_hdl32e_point_in_its_own_cell() {
         let cell = rangenet_cell([p[0], p[1], p[2]], 34.0 / 3.0, -94.0 / 3.0, 32, 1024);
         assert_eq!(cell, (i / 1024, i % 1024), "point {i}");
     }
+}
+
+#[test]
+fn the_ros2_bag_is_read_back_by_the_mcap_crate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&pedscan(&["generate", "--backend", "raycast", "--frames", "3", "--humans", "2..2", "--formats", "mcap", "--out", "o"], dir));
+    assert!(!dir.join("o/seq_000000.h5").exists(), "only the formats asked for");
+    let bag = dir.join("o/seq_000000_bag");
+    let bytes = std::fs::read(bag.join("seq_000000.mcap")).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary section");
+    let stats = summary.stats.as_ref().expect("statistics");
+    assert_eq!((stats.message_count, stats.channel_count, stats.schema_count), (6, 2, 2));
+    assert!(!summary.chunk_indexes.is_empty(), "chunked, with chunk indexes");
+    let mut topics = std::collections::BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m.channel.schema.as_ref().unwrap();
+        assert_eq!((schema.encoding.as_str(), m.channel.message_encoding.as_str()), ("ros2msg", "cdr"));
+        *topics.entry((m.channel.topic.clone(), schema.name.clone())).or_insert(0) += 1;
+        // CDR little endian, and for the cloud: 32 x 1024 points of 40 bytes after the header.
+        assert_eq!(&m.data[..4], &[0, 1, 0, 0]);
+        if m.channel.topic == "/pedscan/points" {
+            assert!(m.data.len() > 32 * 1024 * 40);
+        }
+    }
+    let want: std::collections::BTreeMap<_, _> = [
+        (("/pedscan/points".to_string(), "sensor_msgs/msg/PointCloud2".to_string()), 3),
+        (("/tf".to_string(), "tf2_msgs/msg/TFMessage".to_string()), 3),
+    ]
+    .into();
+    assert_eq!(topics, want);
+    let meta = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
+    assert!(meta.contains("storage_identifier: mcap") && meta.contains("- seq_000000.mcap") && meta.contains("message_count: 6"), "{meta}");
+    ok(&pedscan(&["verify", "o"], dir));
 }
