@@ -3,7 +3,8 @@
 # cargo is missing), then either runs pedscan or its test suite.
 #
 #   bash tools/setup.sh generate [flags...]   # install, build, run `pedscan generate`
-#   bash tools/setup.sh test                  # install, build, run the whole test suite
+#   bash tools/setup.sh test                  # install, build, run the whole test suite and a
+#                                             # few seconds of every fuzz target
 #   bash tools/setup.sh <any pedscan subcommand and flags>
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,7 +30,9 @@ case "$1" in
   test)
     shift
     # Lavapipe runs every GPU test; the validation layer is on in each of them.
-    exec cargo test --locked "$@"
+    cargo test --locked "$@"
+    # The whole suite (no filter given) ends with a fuzz smoke run: 5 s per reader's target.
+    if [ $# -eq 0 ]; then exec bash tools/fuzz.sh ci 5; fi
     ;;
   *)
     exec cargo run --locked --release --quiet -- "$@"
