@@ -3,9 +3,10 @@
 #
 #   tools/fuzz.sh list                 # the fuzz targets
 #   tools/fuzz.sh build                # build every target (fuzz/target, apart from the main build)
-#   tools/fuzz.sh run TARGET SECONDS   # fuzz one target; new inputs go to fuzz/corpus/TARGET
+#   tools/fuzz.sh run TARGET SECONDS [FLAGS...]  # fuzz one target; new inputs go to
+#                                      # fuzz/corpus/TARGET; FLAGS go to libFuzzer
 #   tools/fuzz.sh ci SECONDS           # every target for SECONDS each; fails on any finding
-#   tools/fuzz.sh min TARGET           # minimise fuzz/corpus/TARGET in place (-merge=1)
+#   tools/fuzz.sh min TARGET           # minimise fuzz/corpus/TARGET in place (set cover of its edges)
 #   tools/fuzz.sh repro TARGET FILE... # run the target once on each FILE (a crash reproduces)
 #
 # Findings (crash-*, leak-*, timeout-*, oom-*) are written to fuzz/artifacts/TARGET/.
@@ -69,11 +70,13 @@ case "$cmd" in
     build
     ;;
   run)
-    [ $# -eq 3 ] || die "usage: tools/fuzz.sh run TARGET SECONDS"
-    max_len "$2" >/dev/null
+    [ $# -ge 3 ] || die "usage: tools/fuzz.sh run TARGET SECONDS [LIBFUZZER_FLAGS...]"
+    t=$2 secs=$3
+    shift 3
+    max_len "$t" >/dev/null
     build
-    mkdir -p "corpus/$2"
-    fuzz "$2" "$3" "corpus/$2"
+    mkdir -p "corpus/$t"
+    fuzz "$t" "$secs" "corpus/$t" "$@"
     ;;
   ci)
     [ $# -eq 2 ] || die "usage: tools/fuzz.sh ci SECONDS"
@@ -104,12 +107,13 @@ case "$cmd" in
     t=$2
     max_len "$t" >/dev/null
     build
-    # The seeds stay as they are; of the other inputs only those that add coverage to the
-    # seeds' are kept, under libFuzzer's names (the SHA-1 of the input).
+    # The seeds stay as they are; of the other inputs, a small set that covers every code edge
+    # they reach beyond the seeds is kept (edges only: counters and compare operands would
+    # keep hundreds of near-copies), under libFuzzer's names (the SHA-1 of the input).
     kept="$scratch/kept"
     mkdir -p "$kept"
     cp corpus/"$t"/seed-* "$kept"/
-    "$bin_dir/$t" -merge=1 -max_len="$(max_len "$t")" $limits "$kept" "corpus/$t"
+    "$bin_dir/$t" -set_cover_merge=1 -use_counters=0 -use_cmp=0 -max_len="$(max_len "$t")" $limits "$kept" "corpus/$t"
     find "corpus/$t" -type f ! -name 'seed-*' -delete
     find "$kept" -type f ! -name 'seed-*' -exec mv -t "corpus/$t" {} +
     echo "corpus/$t: $(find "corpus/$t" -type f | wc -l) inputs"
