@@ -25,7 +25,7 @@ export RUSTFLAGS="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-co
 -Cforce-frame-pointers=yes"
 # An explicit --target keeps RUSTFLAGS off build scripts and proc macros.
 triple=$(rustc -vV | sed -n 's/^host: //p')
-bin_dir="target/$triple/release"
+bin_dir="${CARGO_TARGET_DIR:-target}/$triple/release"
 export RUST_BACKTRACE=1
 
 # Every target with the longest input it is given (bytes): room for the seeds and some growth,
