@@ -3,7 +3,8 @@
 # cargo is missing), then either runs pedscan or its test suite.
 #
 #   bash tools/setup.sh generate [flags...]   # install, build, run `pedscan generate`
-#   bash tools/setup.sh test                  # install, build, run the whole test suite
+#   bash tools/setup.sh test                  # install, build, run the whole test suite and a
+#                                             # few seconds of every fuzz target
 #   bash tools/setup.sh <any pedscan subcommand and flags>
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,6 +37,8 @@ case "$1" in
     [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
     "$venv/bin/pip" install --quiet --disable-pip-version-check -e "tools/python[test]"
     PEDSCAN="$PWD/target/debug/pedscan" "$venv/bin/python" -m pytest tools/python/tests
+    # The whole suite (no filter given) ends with a fuzz smoke run: 5 s per reader's target.
+    if [ $# -eq 0 ]; then bash tools/fuzz.sh ci 5; fi
     ;;
   *)
     exec cargo run --locked --release --quiet -- "$@"
