@@ -45,6 +45,9 @@ max_len() {
   die "no target '$1' (tools/fuzz.sh list)"
 }
 build() {
+  # fuzz/Cargo.lock must follow the main crate's dependencies; say how when it does not.
+  cargo metadata --locked --format-version 1 >/dev/null 2>&1 \
+    || die "fuzz/Cargo.lock is out of date with Cargo.toml: run 'cargo fetch --manifest-path fuzz/Cargo.toml' and commit it"
   cargo build --release --locked --target "$triple" --bins
 }
 # The readers take paths: each process writes its inputs under TMPDIR, removed afterwards.
