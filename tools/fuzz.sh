@@ -5,7 +5,9 @@
 #   tools/fuzz.sh build                # build every target (fuzz/target, apart from the main build)
 #   tools/fuzz.sh run TARGET SECONDS [FLAGS...]  # fuzz one target; new inputs go to
 #                                      # fuzz/corpus/TARGET; FLAGS go to libFuzzer
-#   tools/fuzz.sh ci SECONDS           # every target for SECONDS each; fails on any finding
+#   tools/fuzz.sh ci SECONDS           # every target on its corpus, then a fixed-seed short run
+#                                      # (4000 inputs per second given, at most SECONDS); fails on
+#                                      # any finding
 #   tools/fuzz.sh min TARGET           # minimise fuzz/corpus/TARGET in place (set cover of its edges)
 #   tools/fuzz.sh repro TARGET FILE... # run the target once on each FILE (a crash reproduces)
 #
@@ -90,7 +92,10 @@ case "$cmd" in
       # New inputs go to a throw-away folder: a CI run leaves the kept corpus as it is.
       mkdir -p "$scratch/new-$t"
       log="$scratch/$t.log"
-      if fuzz "$t" "$2" "$scratch/new-$t" "corpus/$t" >"$log" 2>&1; then
+      # A fixed seed and a bounded number of mutations: the same inputs on every machine, so
+      # CI is a regression check of the kept corpus plus a reproducible short exploration
+      # (campaigns with `run` explore at random).
+      if fuzz "$t" "$2" "$scratch/new-$t" "corpus/$t" -seed=1 -runs=$((4000 * $2)) >"$log" 2>&1; then
         echo "fuzz $t: ok, $(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$') runs," \
           "$(grep -E '^#[0-9]+.*(DONE|INITED)' "$log" | tail -1 | grep -oE 'cov: [0-9]+ ft: [0-9]+')"
       else

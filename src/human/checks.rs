@@ -59,7 +59,48 @@ pub(crate) fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
             return Err(format!("GLB header declares {length} bytes, less than the 12-byte header itself"));
         }
     }
+    let json = if bytes.starts_with(b"glTF") {
+        gltf::Glb::from_slice(bytes).map_err(|e| format!("not a valid GLB: {e}"))?.json
+    } else {
+        std::borrow::Cow::Borrowed(bytes)
+    };
+    let root = gltf::json::Root::from_slice(&json).map_err(|e| format!("not a valid glTF: {e}"))?;
+    references(&root)?;
     gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF: {e}"))
+}
+
+/// The references the `gltf` crate follows without checking them (its validator indexes a
+/// primitive's POSITION accessor directly, and animation channel targets are not validated,
+/// then unwrapped by their readers): each must name an element that exists.
+fn references(root: &gltf::json::Root) -> Result<(), String> {
+    use gltf::json::validation::Checked;
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let targets = prim.targets.iter().flatten().flat_map(|t| [t.positions, t.normals, t.tangents]).flatten();
+            for a in prim.attributes.values().copied().chain(prim.indices).chain(targets) {
+                if a.value() >= accessors {
+                    return Err(format!("meshes[{m}].primitives[{p}] names accessor {} of {accessors}", a.value()));
+                }
+            }
+        }
+    }
+    for (a, anim) in root.animations.iter().enumerate() {
+        for (c, ch) in anim.channels.iter().enumerate() {
+            if ch.target.node.value() >= root.nodes.len() {
+                return Err(format!("animations[{a}].channels[{c}] targets node {} of {}", ch.target.node.value(), root.nodes.len()));
+            }
+            if !matches!(ch.target.path, Checked::Valid(_)) {
+                return Err(format!("animations[{a}].channels[{c}] targets an unknown property"));
+            }
+        }
+        for (k, smp) in anim.samplers.iter().enumerate() {
+            if smp.input.value() >= accessors || smp.output.value() >= accessors {
+                return Err(format!("animations[{a}].samplers[{k}] names an accessor beyond the {accessors} there are"));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Checks accessor `acc` (called `what` in errors, e.g. "JOINTS_0 of mesh 0 primitive 1")
@@ -235,6 +276,18 @@ pub(crate) fn scene_roots(path: &Path, scene: &gltf::Scene, parents: &[Option<us
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn references_the_gltf_crate_follows_unchecked_are_refused() {
+        let base = r#""asset":{"version":"2.0"},"accessors":[{"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,1]}],"nodes":[{}]"#;
+        let mesh = format!(r#"{{{base},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":2}}}}]}}]}}"#);
+        assert!(parse(mesh.as_bytes()).unwrap_err().contains("names accessor 2 of 1"));
+        let anim = |target: &str| format!(r#"{{{base},"animations":[{{"samplers":[{{"input":0,"output":0}}],"channels":[{{"sampler":0,"target":{target}}}]}}]}}"#);
+        assert!(parse(anim(r#"{"node":5,"path":"rotation"}"#).as_bytes()).unwrap_err().contains("targets node 5 of 1"));
+        assert!(parse(anim(r#"{"node":0,"path":"spin"}"#).as_bytes()).unwrap_err().contains("unknown property"));
+        let fine = gltf::json::Root::from_slice(anim(r#"{"node":0,"path":"rotation"}"#).as_bytes()).unwrap();
+        assert_eq!(references(&fine), Ok(()));
+    }
 
     #[test]
     fn a_glb_shorter_than_its_header_is_refused_not_a_panic() {
