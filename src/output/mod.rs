@@ -106,3 +106,19 @@ pub struct FrameOutput {
     /// One entry per person of the sequence (same order as `SequenceMeta::humans`).
     pub humans: Vec<HumanState>,
 }
+
+impl FrameOutput {
+    /// The sensor-frame point of beam `b` (None without a return): `/xyz` when the frame has
+    /// it, else its range along `dirs[b]`, the sensor's unit beam direction. Every format
+    /// writes its points through this, so they agree with `/xyz`.
+    pub fn point(&self, dirs: &[glam::DVec3], b: usize) -> Option<[f32; 3]> {
+        let r = self.range[b];
+        if r <= 0.0 {
+            None
+        } else if self.xyz.len() == self.range.len() {
+            Some(self.xyz[b])
+        } else {
+            Some((dirs[b] * r as f64).as_vec3().to_array())
+        }
+    }
+}

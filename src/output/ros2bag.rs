@@ -20,6 +20,7 @@ use glam::{DMat3, DQuat, DVec3};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Seconds added to the sequence time for ROS stamps (2001-09-09T01:46:40Z).
 pub const STAMP_BASE_S: u64 = 1_000_000_000;
@@ -133,7 +134,7 @@ pub struct Ros2BagWriter {
     writer: Option<mcap::Writer<BufWriter<std::fs::File>>>,
     points: u16,
     tf: u16,
-    dirs: Vec<DVec3>,
+    dirs: Arc<[DVec3]>,
     rows: usize,
     columns: usize,
     velocity: bool,
@@ -150,7 +151,8 @@ fn mcap_err(path: &Path) -> impl Fn(mcap::McapError) -> Error + '_ {
 
 impl Ros2BagWriter {
     /// Creates `OUT/seq_NNNNNN_bag.tmp/seq_NNNNNN.mcap` (an older temporary is replaced).
-    pub fn create(out_dir: &Path, meta: &SequenceMeta) -> Result<Ros2BagWriter> {
+    /// `dirs`: the sensor's unit beam directions.
+    pub fn create(out_dir: &Path, meta: &SequenceMeta, dirs: Arc<[DVec3]>) -> Result<Ros2BagWriter> {
         let fin = bag_dir(out_dir, meta.index);
         let tmp = super::writer::tmp_name(&fin);
         if tmp.exists() {
@@ -174,7 +176,7 @@ impl Ros2BagWriter {
             writer: Some(w),
             points,
             tf,
-            dirs: meta.sensor.beam_dirs(),
+            dirs,
             rows: meta.sensor.rows(),
             columns: meta.sensor.columns,
             velocity: meta.outputs.velocity,
@@ -206,7 +208,7 @@ impl Ros2BagWriter {
         self.data.resize(rows * cols * POINT_STEP as usize, 0);
         for (b, p) in self.data.chunks_exact_mut(POINT_STEP as usize).enumerate() {
             let r = f.range[b];
-            let xyz = if r > 0.0 { (self.dirs[b] * r as f64).as_vec3().to_array() } else { [f32::NAN; 3] };
+            let xyz = f.point(&self.dirs, b).unwrap_or([f32::NAN; 3]);
             let v = if self.velocity && r > 0.0 { f.velocity[b] } else { [0.0; 3] };
             let ring = (rows - 1 - b / cols) as u16;
             let put = |p: &mut [u8], at: usize, bytes: &[u8]| p[at..at + bytes.len()].copy_from_slice(bytes);

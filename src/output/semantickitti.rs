@@ -27,6 +27,7 @@ use glam::DVec3;
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// SemanticKITTI's class of a person.
 pub const PERSON: u32 = 30;
@@ -69,7 +70,7 @@ impl ClassPoints {
 pub struct SemanticKittiWriter {
     tmp: PathBuf,
     fin: PathBuf,
-    dirs: Vec<DVec3>,
+    dirs: Arc<[DVec3]>,
     velocity: bool,
     poses: String,
     times: String,
@@ -91,7 +92,8 @@ fn write_file(p: &Path, bytes: &[u8]) -> Result<()> {
 
 impl SemanticKittiWriter {
     /// Creates `OUT/semantickitti/sequences/SS.tmp/` (an older one is replaced).
-    pub fn create(out_dir: &Path, meta: &SequenceMeta) -> Result<SemanticKittiWriter> {
+    /// `dirs`: the sensor's unit beam directions.
+    pub fn create(out_dir: &Path, meta: &SequenceMeta, dirs: Arc<[DVec3]>) -> Result<SemanticKittiWriter> {
         let fin = sequence_dir(out_dir, meta.index);
         let tmp = super::writer::tmp_name(&fin);
         if tmp.exists() {
@@ -105,7 +107,7 @@ impl SemanticKittiWriter {
         Ok(SemanticKittiWriter {
             tmp,
             fin,
-            dirs: meta.sensor.beam_dirs(),
+            dirs,
             velocity: meta.outputs.velocity,
             poses: String::new(),
             times: String::new(),
@@ -131,13 +133,9 @@ impl SemanticKittiWriter {
         self.points.clear();
         self.labels.clear();
         self.velocities.clear();
-        for (b, &r) in f.range.iter().enumerate() {
-            if r <= 0.0 {
-                continue;
-            }
-            // The same point as /xyz: range times the unit beam direction, in f64 then f32.
-            let p = (self.dirs[b] * r as f64).as_vec3();
-            for c in [p.x, p.y, p.z, 0.0] {
+        for b in 0..f.range.len() {
+            let Some([x, y, z]) = f.point(&self.dirs, b) else { continue };
+            for c in [x, y, z, 0.0] {
                 self.points.extend_from_slice(&c.to_le_bytes());
             }
             let k = f.instance[b] as usize;

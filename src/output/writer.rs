@@ -77,8 +77,8 @@ pub struct SequenceWriter {
     frames_written: usize,
     /// Set once everything is renamed; `Drop` then leaves the files alone.
     done: bool,
-    /// The sensor's unit beam directions, for the PNGs of a run without `/xyz`.
-    beam_dirs: std::sync::OnceLock<Vec<glam::DVec3>>,
+    /// The sensor's unit beam directions, shared by the formats that write points.
+    beam_dirs: std::sync::Arc<[glam::DVec3]>,
     beams: Vec<u32>,
 }
 
@@ -131,7 +131,7 @@ impl SequenceWriter {
             bag: None,
             frames_written: 0,
             done: false,
-            beam_dirs: std::sync::OnceLock::new(),
+            beam_dirs: if opts.png || opts.semantickitti || opts.mcap { meta.sensor.beam_dirs().into() } else { Vec::new().into() },
             beams: vec![0; meta.humans.len()],
         };
         // From here on, an early return drops `w`, which removes whatever was created.
@@ -151,10 +151,10 @@ impl SequenceWriter {
             w.h5 = Some(H5Writer::create(&w.h5_path.0, &w.h5_path.1, meta, opts.compression)?);
         }
         if opts.semantickitti {
-            w.semantickitti = Some(SemanticKittiWriter::create(out_dir, meta)?);
+            w.semantickitti = Some(SemanticKittiWriter::create(out_dir, meta, w.beam_dirs.clone())?);
         }
         if opts.mcap {
-            w.bag = Some(Ros2BagWriter::create(out_dir, meta)?);
+            w.bag = Some(Ros2BagWriter::create(out_dir, meta, w.beam_dirs.clone())?);
         }
         Ok(w)
     }
@@ -254,14 +254,7 @@ impl SequenceWriter {
         let (rows, cols) = (self.meta.sensor.rows(), self.meta.sensor.columns);
         let max_r = self.meta.sensor.max_range_m as f32;
         let velocity = self.meta.outputs.velocity;
-        let dirs = self.beam_dirs.get_or_init(|| self.meta.sensor.beam_dirs());
-        let point = |i: usize| -> [f32; 3] {
-            if self.meta.outputs.xyz {
-                f.xyz[i]
-            } else {
-                (dirs[i] * f.range[i] as f64).as_vec3().to_array()
-            }
-        };
+        let point = |i: usize| f.point(&self.beam_dirs, i).unwrap_or([0.0; 3]);
         let m = &f.world_from_sensor;
         // Sensor frame of a world vector: R^T v.
         let to_sensor = |v: [f64; 3]| -> [f64; 3] { std::array::from_fn(|j| m[0][j] * v[0] + m[1][j] * v[1] + m[2][j] * v[2]) };
