@@ -137,7 +137,10 @@ enum Existing {
     Complete,
     /// From this configuration, not verified: writing it again gives the same bytes.
     Same,
-    /// Not from this configuration, or not in the manifest; why.
+    /// Not in the manifest (a run killed between its renames and its manifest line, or
+    /// files from elsewhere); which.
+    Unlisted(String),
+    /// From another configuration; why.
     Foreign(String),
 }
 
@@ -152,7 +155,7 @@ fn existing(out: &Path, manifest: &Manifest, index: usize, hash: &str, verify: b
         return Existing::None;
     }
     match manifest.latest.get(&index) {
-        None => Existing::Foreign(format!("{} not in {}", present.join(" and "), crate::output::manifest::MANIFEST)),
+        None => Existing::Unlisted(format!("{} not in {}", present.join(" and "), crate::output::manifest::MANIFEST)),
         Some(e) if e.config_hash != hash => {
             Existing::Foreign(format!("written by another configuration: config hash {}, this run {hash}", e.config_hash))
         }
@@ -202,9 +205,9 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     let (mut files, mut written, mut skipped, mut frames) = (Vec::new(), 0, 0, 0);
     for index in indices {
         stopped()?;
-        let _lock = SequenceLock::acquire(&out, index)?;
+        let lock = SequenceLock::acquire(&out, index)?;
         let mut found = existing(&out, &manifest, index, &hash, opts.resume);
-        if matches!(found, Existing::Same | Existing::Foreign(_)) {
+        if matches!(found, Existing::Same | Existing::Unlisted(_) | Existing::Foreign(_)) {
             // Another run in this folder may have completed the sequence since the manifest
             // was read (it appends its line before releasing the lock we now hold).
             manifest = Manifest::load(&out)?;
@@ -220,9 +223,12 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
             // With --resume, a sequence of this configuration that does not verify is
             // written again; anything else already there only with --overwrite.
             Existing::Same if opts.resume => {}
+            // The files of a run that died before recording them: its lock file was left
+            // behind, so it was writing this very sequence; --resume writes it again.
+            Existing::Unlisted(_) if opts.resume && lock.taken_over() => {}
             Existing::Same if !opts.overwrite => return Err(replace_refused(&out, index, "from this configuration")),
-            Existing::Foreign(why) if !opts.overwrite => return Err(replace_refused(&out, index, &why)),
-            Existing::Same | Existing::Foreign(_) => {}
+            Existing::Unlisted(why) | Existing::Foreign(why) if !opts.overwrite => return Err(replace_refused(&out, index, &why)),
+            Existing::Same | Existing::Unlisted(_) | Existing::Foreign(_) => {}
         }
         bar.set_message(sequence_stem(index));
         let t0 = Instant::now();

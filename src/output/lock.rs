@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 pub struct SequenceLock {
     path: PathBuf,
     file: Option<std::fs::File>,
+    taken_over: bool,
 }
 
 impl SequenceLock {
@@ -25,6 +26,7 @@ impl SequenceLock {
         // A holder may remove the file between our open and our lock: then we locked a file
         // that no longer has the name, and try again on the new one.
         for _ in 0..16 {
+            let existed = path.exists();
             let mut file = std::fs::OpenOptions::new()
                 .read(true)
                 .write(true)
@@ -60,9 +62,18 @@ impl SequenceLock {
                 .and_then(|_| file.rewind())
                 .and_then(|_| file.write_all(holder.as_bytes()))
                 .map_err(|e| Error::io(&path, e))?;
-            return Ok(SequenceLock { path, file: Some(file) });
+            return Ok(SequenceLock { path, file: Some(file), taken_over: existed });
         }
         Err(Error::Internal(format!("{}: the lock file keeps being replaced", path.display())))
+    }
+}
+
+impl SequenceLock {
+    /// Whether the lock file was there, unlocked, before this run locked it: a run died while
+    /// writing the sequence (a lock file lives from the sequence's start until its manifest
+    /// line is written).
+    pub fn taken_over(&self) -> bool {
+        self.taken_over
     }
 }
 
@@ -107,6 +118,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("seq_000000.lock"), "pedscan (pid 1 on gone)").unwrap();
         let lock = SequenceLock::acquire(dir.path(), 0).unwrap();
+        assert!(lock.taken_over());
+        assert!(!SequenceLock::acquire(dir.path(), 1).unwrap().taken_over());
         let text = std::fs::read_to_string(dir.path().join("seq_000000.lock")).unwrap();
         assert!(text.contains(&format!("pid {}", std::process::id())), "{text}");
         drop(lock);

@@ -199,3 +199,27 @@ fn a_sequence_whose_final_name_is_taken_by_a_folder_leaves_none_of_its_files() {
     assert!(err.contains("seq_000000.h5") && err.contains("not a file"), "{err}");
     assert_eq!(names(&dir.join("out")), vec!["seq_000000.h5".to_string()]);
 }
+
+#[test]
+fn a_run_killed_between_its_renames_and_its_manifest_line_is_resumed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let args: Vec<String> = ["generate", "--backend", "raycast", "--sequences", "2", "--frames", "2", "--out", "out"].map(String::from).to_vec();
+    ok(&run(&args, dir));
+    let good = std::fs::read(dir.join("out/seq_000001.h5")).unwrap();
+    // What SIGKILL leaves after sequence 1's files got their names, before its manifest line:
+    // the files, no line, and its lock file.
+    let manifest = dir.join("out/manifest.jsonl");
+    let first = std::fs::read_to_string(&manifest).unwrap().lines().next().unwrap().to_string();
+    std::fs::write(&manifest, format!("{first}\n")).unwrap();
+    let mut resume = args.clone();
+    resume.push("--resume".into());
+    // Without the lock file nothing says whose files these are: refused.
+    let o = run(&resume, dir);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::write(dir.join("out/seq_000001.lock"), "pedscan (pid 1 on gone)").unwrap();
+    ok(&run(&resume, dir));
+    assert!(std::fs::read(dir.join("out/seq_000001.h5")).unwrap() == good);
+    assert!(!dir.join("out/seq_000001.lock").exists());
+    ok(&verify(dir, "out"));
+}
