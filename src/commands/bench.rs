@@ -22,7 +22,8 @@ use std::time::Instant;
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PointSpec {
     /// `cube` (Vulkan raster into cube faces), `cylinder` (Vulkan raster into one cylindrical
-    /// panorama) or `raycast` (the CPU ray caster as the generation backend; resolution and
+    /// panorama), `beams` (Vulkan raster into the beam grid, exact per beam; resolution does
+    /// not apply) or `raycast` (the CPU ray caster as the generation backend; resolution and
     /// refinement do not apply).
     pub projection: String,
     /// Face texels per beam spacing (`render.oversample`).
@@ -111,9 +112,11 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
         for (res, refine) in [(2.0, Refine::Exact), (1.0, Refine::Exact), (2.0, Refine::None)] {
             v.push(PointSpec { projection: "cylinder".into(), ..p(res, 1.0, refine, 5, 1024) });
         }
+        v.push(PointSpec { projection: "beams".into(), ..p(1.0, 1.0, Refine::Exact, 5, 1024) });
         return v;
     }
     let cyl = |s: PointSpec| PointSpec { projection: "cylinder".into(), ..s };
+    let beams = |s: PointSpec| PointSpec { projection: "beams".into(), ..s };
     for res in [1.0, 2.0, 3.0] {
         for lod in [0.0, 1.0, 3.0, 10.0] {
             for refine in [Refine::None, Refine::Exact] {
@@ -133,14 +136,19 @@ pub fn sweep(quick: bool) -> Vec<PointSpec> {
     for lod in [0.0, 1.0, 3.0, 10.0] {
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, lod, Refine::Exact, 10, 1024) });
     }
+    for lod in [0.0, 1.0, 3.0, 10.0] {
+        v.push(beams(p(1.0, lod, Refine::Exact, 10, 1024)));
+    }
     for humans in [1, 30, 100] {
         v.push(p(2.0, 1.0, Refine::Exact, humans, 1024));
         v.push(cyl(p(2.0, 1.0, Refine::Exact, humans, 1024)));
+        v.push(beams(p(1.0, 1.0, Refine::Exact, humans, 1024)));
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, humans, 1024) });
     }
     for columns in [2048, 4096] {
         v.push(p(2.0, 1.0, Refine::Exact, 10, columns));
         v.push(cyl(p(2.0, 1.0, Refine::Exact, 10, columns)));
+        v.push(beams(p(1.0, 1.0, Refine::Exact, 10, columns)));
         v.push(PointSpec { projection: "raycast".into(), ..p(2.0, 1.0, Refine::Exact, 10, columns) });
     }
     v
@@ -153,7 +161,8 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     cfg.render.projection = match spec.projection.as_str() {
         "cube" | "raycast" => crate::config::Projection::Cube,
         "cylinder" => crate::config::Projection::Cylinder,
-        other => return Err(Error::input("bench point", format!("unknown projection `{other}` (cube, cylinder, raycast)"))),
+        "beams" => crate::config::Projection::Beams,
+        other => return Err(Error::input("bench point", format!("unknown projection `{other}` (cube, cylinder, beams, raycast)"))),
     };
     cfg.render.oversample = spec.resolution;
     cfg.render.lod_max_error_mrad = spec.lod;
@@ -318,6 +327,10 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
         if !pts.is_empty() {
             series.push(Series { name: format!("cylinder, refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
         }
+    }
+    let beam_points: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.projection == "beams").map(|p| (p.ms_per_frame, err(p))).collect();
+    if !beam_points.is_empty() {
+        series.push(Series { name: "beam grid (exact)".into(), points: beam_points, colour: [148, 103, 189], line: false, marker: Marker::Triangle });
     }
     let rc_points: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.projection == "raycast").map(|p| (p.ms_per_frame, err(p))).collect();
     if !rc_points.is_empty() {

@@ -63,6 +63,12 @@ pub enum Projection {
     /// One cylindrical (equirectangular) panorama: 360 deg of azimuth x the sensor's band,
     /// beam directions on texel centres.
     Cylinder,
+    /// The beam grid itself, one texel per beam: the background's triangles are drawn as their
+    /// conservative beam-grid bounds and every beam is tested exactly in the fragment shader
+    /// (`src/backend/raster/beam_exact.rs`). Exact by construction, whatever `refine` says;
+    /// with `refine = "exact"` the people are drawn as proxies (as with the other views), else
+    /// the same way as the background.
+    Beams,
 }
 
 /// Which velocity definition is written.
@@ -191,7 +197,7 @@ pub struct SceneConfig {
 pub struct RenderConfig {
     /// Raster (default) or CPU ray cast.
     pub backend: BackendChoice,
-    /// Raster views: cube faces (default) or one cylindrical panorama.
+    /// Raster views: the beam grid (default, exact), cube faces, or one cylindrical panorama.
     pub projection: Projection,
     /// Texels per beam spacing: at a cube-face centre; for the cylinder, texels per column and
     /// per elevation gap, rounded to a whole number (at least 1) so beams sit on texel centres.
@@ -306,7 +312,7 @@ impl Default for RenderConfig {
     fn default() -> Self {
         RenderConfig {
             backend: BackendChoice::Auto,
-            projection: Projection::Cube,
+            projection: Projection::Beams,
             oversample: 2.0,
             refine: Refine::Exact,
             lod_max_error_mrad: 1.0,
@@ -483,7 +489,9 @@ mod tests {
     fn projection_is_a_render_key() {
         let c: Config = toml::from_str("[render]\nprojection = \"cylinder\"\n").unwrap();
         assert_eq!(c.render.projection, Projection::Cylinder);
-        assert_eq!(Config::default().render.projection, Projection::Cube);
+        assert_eq!(Config::default().render.projection, Projection::Beams);
+        let c: Config = toml::from_str("[render]\nprojection = \"beams\"\n").unwrap();
+        assert_eq!(c.render.projection, Projection::Beams);
         assert!(toml::from_str::<Config>("[render]\nprojection = \"sphere\"\n").is_err());
     }
 

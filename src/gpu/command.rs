@@ -156,6 +156,32 @@ impl<'a> CommandRecorder<'a> {
         unsafe { self.device().cmd_draw_indexed(self.cmd(), index_count, 1, first_index, 0, 0) };
     }
 
+    /// Binds `set` as descriptor set 0 of `layout` for graphics.
+    pub fn bind_storage_set(&mut self, layout: &'a PipelineLayout, set: &'a super::StorageSet) {
+        // SAFETY: recording state; layout and set are alive for 'a and the set's layout is
+        // set 0 of `layout` (the caller created them together).
+        unsafe {
+            self.device().cmd_bind_descriptor_sets(
+                self.cmd(),
+                vk::PipelineBindPoint::GRAPHICS,
+                layout.handle(),
+                0,
+                &[set.handle()],
+                &[],
+            )
+        };
+    }
+
+    /// `vkCmdDraw(vertices_per_instance, instance_count, 0, 0)` with the bound vertex buffer
+    /// holding per-instance data: the instances must lie within it.
+    pub fn draw_instanced(&mut self, vertices_per_instance: u32, instance_count: u32) {
+        assert!(self.in_pass, "draw outside a render pass");
+        assert!(instance_count as u64 <= self.vertex_count, "draw exceeds the bound instance buffer");
+        // SAFETY: inside a render pass with pipeline and instance buffer bound; the instance
+        // range is in bounds (checked); the vertex shader reads no per-vertex attribute.
+        unsafe { self.device().cmd_draw(self.cmd(), vertices_per_instance, instance_count, 0, 0) };
+    }
+
     /// `vkCmdDraw(vertex_count, 1, first_vertex, 0)`, bounds-checked against the bound vertex
     /// buffer.
     pub fn draw(&mut self, vertex_count: u32, first_vertex: u32) {

@@ -1,19 +1,21 @@
 //! The Vulkan back end: the only module with `unsafe` Vulkan calls. It owns every handle
 //! through small RAII types (one file per Vulkan concept): [`Context`] (instance, device,
 //! queue, allocator, validation messenger), [`Buffer`], [`Image`], render pass / pipelines /
-//! framebuffers ([`pipeline`]), command recording and fences ([`command`]). Everything that
+//! framebuffers ([`pipeline`]), a storage-buffer descriptor set ([`descriptor`]), command recording and fences ([`command`]). Everything that
 //! holds a device object keeps an `Arc<Context>`, so the context outlives it and its `Drop`
 //! (wait idle, allocator, device, messenger, instance) runs last.
 
 pub mod buffer;
 pub mod command;
 pub mod context;
+pub mod descriptor;
 pub mod image;
 pub mod pipeline;
 
 pub use buffer::{Buffer, BufferDesc};
 pub use command::{CommandRecorder, Commands};
 pub use context::{Context, ContextOptions, DeviceChoice};
+pub use descriptor::StorageSet;
 pub use image::{Image, ImageDesc};
 pub use pipeline::{Framebuffer, GraphicsPipeline, PipelineDesc, PipelineLayout, RenderPass};
 

@@ -96,7 +96,7 @@ impl Drop for RenderPass {
     }
 }
 
-/// A pipeline layout with one push-constant range and no descriptor sets.
+/// A pipeline layout with one push-constant range and, optionally, descriptor set layouts.
 pub struct PipelineLayout {
     ctx: Arc<Context>,
     handle: vk::PipelineLayout,
@@ -105,8 +105,18 @@ pub struct PipelineLayout {
 
 impl PipelineLayout {
     pub fn with_push_constants(ctx: &Arc<Context>, stages: vk::ShaderStageFlags, size: u32) -> Result<Self> {
+        Self::with_sets(ctx, &[], stages, size)
+    }
+
+    /// Set `k` of the layout is `sets[k]`; push constants as `with_push_constants`.
+    pub fn with_sets(
+        ctx: &Arc<Context>,
+        sets: &[vk::DescriptorSetLayout],
+        stages: vk::ShaderStageFlags,
+        size: u32,
+    ) -> Result<Self> {
         let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size }];
-        let info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
+        let info = vk::PipelineLayoutCreateInfo::default().set_layouts(sets).push_constant_ranges(&ranges);
         // SAFETY: the create info points at locals alive for the call.
         let handle =
             unsafe { ctx.device().create_pipeline_layout(&info, None) }.map_err(vk_err("vkCreatePipelineLayout"))?;
@@ -129,7 +139,7 @@ impl Drop for PipelineLayout {
 }
 
 /// Fixed-function choices of a triangle pipeline with one `vec3` vertex attribute (and,
-/// optionally, a `uint` after it).
+/// optionally, a `uint` after it), or with per-instance attributes only.
 #[derive(Clone, Debug)]
 pub struct PipelineDesc<'a> {
     pub vertex_spirv: &'a [u32],
@@ -138,6 +148,9 @@ pub struct PipelineDesc<'a> {
     pub vertex_stride: u32,
     /// Attribute 1 is `R32_UINT` at offset 12 (a per-vertex id).
     pub id_attribute: bool,
+    /// When set, binding 0 advances per instance (stride `vertex_stride`) and carries these
+    /// attributes instead of the position (and id) above.
+    pub instance_attributes: Option<&'a [vk::VertexInputAttributeDescription]>,
     pub color_attachments: u32,
     pub cull_mode: vk::CullModeFlags,
     pub front_face: vk::FrontFace,
@@ -189,13 +202,20 @@ impl GraphicsPipeline {
         let bindings = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: desc.vertex_stride,
-            input_rate: vk::VertexInputRate::VERTEX,
+            input_rate: if desc.instance_attributes.is_some() {
+                vk::VertexInputRate::INSTANCE
+            } else {
+                vk::VertexInputRate::VERTEX
+            },
         }];
         let all_attributes = [
             vk::VertexInputAttributeDescription { location: 0, binding: 0, format: vk::Format::R32G32B32_SFLOAT, offset: 0 },
             vk::VertexInputAttributeDescription { location: 1, binding: 0, format: vk::Format::R32_UINT, offset: 12 },
         ];
-        let attributes = &all_attributes[..if desc.id_attribute { 2 } else { 1 }];
+        let attributes = match desc.instance_attributes {
+            Some(a) => a,
+            None => &all_attributes[..if desc.id_attribute { 2 } else { 1 }],
+        };
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
             .vertex_binding_descriptions(&bindings)
             .vertex_attribute_descriptions(attributes);

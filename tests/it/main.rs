@@ -4,6 +4,7 @@
 mod common;
 
 mod beam_caster;
+mod beam_exact;
 mod crosscheck;
 mod exports;
 mod generate;

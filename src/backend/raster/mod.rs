@@ -8,10 +8,13 @@
 //! - `renderer`: the Vulkan pipelines and per-frame draw + read-back.
 //! - `resample`: views -> beam grid, with no refinement, the triangle's plane, or exact
 //!   re-intersection of the triangles around the texel (the default).
+//! - `beam_exact`: `projection = "beams"`: no views; the background's triangles drawn as
+//!   their beam-grid bounds into one texel per beam and tested exactly per beam on the device.
 //! - `people`: with exact refinement, the people are drawn as conservative proxies
 //!   ([`crate::human::proxy`]) at beam resolution and every beam a proxy covers is cast
 //!   exactly through the people's triangle clusters.
 
+pub mod beam_exact;
 pub mod clusters;
 pub mod panorama;
 pub mod people;
@@ -24,6 +27,7 @@ use crate::config::{BackendChoice, Projection, Refine, RenderConfig};
 use crate::error::Result;
 use crate::gpu::Context;
 use crate::human::HumanModel;
+use beam_exact::BeamExact;
 use people::PeopleRaster;
 use projection::{CubeFaces, Panorama};
 use crate::human::proxy::ModelProxies;
@@ -33,30 +37,41 @@ use resample::{resample, BeamLookup};
 use std::sync::atomic::AtomicUsize;
 use std::sync::Arc;
 
+/// How the background layer is drawn.
+enum Views {
+    /// Cube faces or the panorama, resampled to the beams and refined.
+    Resampled { lookup: BeamLookup, renderer: Renderer },
+    /// The beam grid, exact per beam (`projection = "beams"`).
+    Beams(BeamExact),
+}
+
 /// The Vulkan raster path as a [`Backend`].
 pub struct RasterBackend {
     refine: Refine,
-    lookup: BeamLookup,
-    renderer: Renderer,
+    views: Views,
+    beams: usize,
     /// With exact refinement: the people drawn as proxies at beam resolution and cast exactly.
     people: Option<PeopleRaster>,
     /// Per model, the proxies of its levels of detail (with `people`).
     proxies: Vec<ModelProxies>,
+    ctx: Arc<Context>,
 }
 
 impl RasterBackend {
     /// The views of `render.projection` at `render.oversample` for `sensor` on `ctx`; with
     /// exact refinement, the people's proxies (`render.proxy_max_error_m`) for `models`.
     pub fn new(ctx: Arc<Context>, sensor: &crate::sensor::Sensor, render: &RenderConfig, models: &[HumanModel]) -> Result<RasterBackend> {
-        let (lookup, renderer) = match render.projection {
+        let views = match render.projection {
             Projection::Cube => {
                 let cube = CubeFaces::new(sensor, render.oversample);
-                (BeamLookup::new(sensor, &cube), Renderer::new(&ctx, &cube)?)
+                Views::Resampled { lookup: BeamLookup::new(sensor, &cube), renderer: Renderer::new(&ctx, &cube)? }
             }
             Projection::Cylinder => {
                 let pano = Panorama::new(sensor, render.oversample);
-                (BeamLookup::new_panorama(sensor, &pano), Renderer::new_panorama(&ctx, &pano)?)
+                Views::Resampled { lookup: BeamLookup::new_panorama(sensor, &pano), renderer: Renderer::new_panorama(&ctx, &pano)? }
             }
+            // Exact by construction: `refine` only decides how the people are drawn.
+            Projection::Beams => Views::Beams(BeamExact::new(&ctx, sensor)?),
         };
         let (people, proxies) = if render.refine == Refine::Exact {
             let max_error = render.proxy_max_error_m as f32;
@@ -65,12 +80,13 @@ impl RasterBackend {
         } else {
             (None, Vec::new())
         };
-        Ok(RasterBackend { refine: render.refine, lookup, renderer, people, proxies })
+        let beams = sensor.rows() * sensor.columns;
+        Ok(RasterBackend { refine: render.refine, views, beams, people, proxies, ctx })
     }
 
     /// The Vulkan context it draws with.
     pub fn context(&self) -> &Arc<Context> {
-        self.renderer.context()
+        &self.ctx
     }
 }
 
@@ -93,21 +109,28 @@ impl Backend for RasterBackend {
             Layer::People { people, .. } => people,
         };
         if geom.meshes.is_empty() {
-            hits.clear_to(self.lookup.dirs.len());
+            hits.clear_to(self.beams);
             return Ok(());
         }
-        match (layer, self.people.as_mut()) {
-            (Layer::People { people, proxies }, Some(raster)) => raster.render(proxies, people, hits),
-            _ => {
-                let frame = self.renderer.render(geom)?;
-                resample(&self.lookup, frame, geom, self.refine, hits);
+        match (layer, self.people.as_mut(), &mut self.views) {
+            (Layer::People { people, proxies }, Some(raster), _) => raster.render(proxies, people, hits),
+            (_, _, Views::Beams(beams)) => beams.cast(geom, hits),
+            (_, _, Views::Resampled { lookup, renderer }) => {
+                let frame = renderer.render(geom)?;
+                resample(lookup, frame, geom, self.refine, hits);
                 Ok(())
             }
         }
     }
 
     fn near_seam(&self, texels: f64) -> Vec<bool> {
-        (0..self.lookup.dirs.len()).map(|b| self.lookup.seam_distance_texels(b) < texels).collect()
+        match &self.views {
+            Views::Resampled { lookup, .. } => {
+                (0..lookup.dirs.len()).map(|b| lookup.seam_distance_texels(b) < texels).collect()
+            }
+            // One texel per beam: no seams.
+            Views::Beams(_) => vec![false; self.beams],
+        }
     }
 
     fn validation_counter(&self) -> Option<Arc<AtomicUsize>> {

@@ -207,6 +207,7 @@ fn pipeline_pair(
         fragment_spirv: &frag,
         vertex_stride: if id_attribute { 16 } else { 12 },
         id_attribute,
+        instance_attributes: None,
         color_attachments: 2,
         cull_mode,
         front_face: FRONT_FACE,

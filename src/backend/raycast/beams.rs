@@ -74,6 +74,18 @@ pub(crate) fn atan2_fast(y: f32, x: f32) -> f32 {
     }
 }
 
+/// A triangle's conservative bound in the beam grid ([`BeamCaster::bounds`]): columns
+/// `c0..=c1` (they may run past the last column or below 0: wrap them with
+/// `rem_euclid(columns)`; at most one turn), rows `r0..r1` (end exclusive).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GridBound {
+    pub triangle: u32,
+    pub c0: i64,
+    pub c1: i64,
+    pub r0: u32,
+    pub r1: u32,
+}
+
 /// A beam grid (rows of constant elevation, columns of the sensor's azimuth convention) and
 /// the per-frame buffers of the binned cast (reused: no allocation in steady state).
 pub struct BeamCaster {
@@ -171,7 +183,58 @@ impl BeamCaster {
             out.resize(n, Hit::NONE);
             return;
         }
-        // Project the vertices.
+        self.project(geom);
+        let margin_u = azimuth_margin_columns(self.columns);
+        // Triangle jobs: (mesh, first triangle, end, row band), so each job has one cull
+        // flag. Few triangles (a room of large walls) are split by rows instead, so that
+        // every core gets work.
+        let chunks: usize = geom.meshes.iter().map(|m| (m.triangle_count as usize).div_ceil(JOB_TRIANGLES)).sum();
+        let bands = (MIN_JOBS / chunks.max(1)).clamp(1, self.rows.max(1));
+        let mut spans = std::mem::take(&mut self.spans);
+        spans.clear();
+        for (k, m) in geom.meshes.iter().enumerate() {
+            let end = m.first_triangle as usize + m.triangle_count as usize;
+            let mut s = m.first_triangle as usize;
+            while s < end {
+                let e = (s + JOB_TRIANGLES).min(end);
+                for b in 0..bands {
+                    spans.push((k, s, e, b * self.rows / bands, (b + 1) * self.rows / bands));
+                }
+                s = e;
+            }
+        }
+        let mut jobs = std::mem::take(&mut self.jobs);
+        if jobs.len() < spans.len() {
+            jobs.resize_with(spans.len(), Vec::new);
+        }
+        let grid = self.grid(margin_u, max_range_m);
+        jobs[..spans.len()].par_iter_mut().zip(spans.par_iter()).for_each(|(hits, &(k, s, e, r0, r1))| {
+            hits.clear();
+            let cull = !geom.meshes[k].double_sided;
+            for t in s..e {
+                if grid.quick_skip(geom, t) {
+                    continue;
+                }
+                grid.triangle(geom, t as u32, cull, (r0, r1), hits);
+            }
+        });
+        for hits in &jobs[..spans.len()] {
+            for &(b, t, tri) in hits {
+                let b = b as usize;
+                if better(t, tri, self.best_t[b], self.best_tri[b]) {
+                    self.best_t[b] = t;
+                    self.best_tri[b] = tri;
+                }
+            }
+        }
+        out.extend(self.best_t.iter().zip(&self.best_tri).map(|(&t, &tri)| Hit::from_best(t, tri)));
+        self.spans = spans;
+        self.jobs = jobs;
+    }
+
+    /// The projection pass: per vertex its column cell, row gap, `u` and `sin(elevation)`
+    /// (`cell`, `us`).
+    fn project(&mut self, geom: &FrameGeometry) {
         let w = self.columns as f32;
         let col_per_rad = w / (2.0 * PI32);
         let margin_u = azimuth_margin_columns(self.columns);
@@ -192,28 +255,62 @@ impl BeamCaster {
                     (*k, *us) = vertex_cells(*p, w, col_per_rad, margin_u, gaps);
                 }
             });
-        // Triangle jobs: (mesh, first triangle, end, row band), so each job has one cull
-        // flag. Few triangles (a room of large walls) are split by rows instead, so that
-        // every core gets work.
-        let chunks: usize = geom.meshes.iter().map(|m| (m.triangle_count as usize).div_ceil(JOB_TRIANGLES)).sum();
-        let bands = (MIN_JOBS / chunks.max(1)).clamp(1, self.rows.max(1));
-        let mut spans = std::mem::take(&mut self.spans);
-        spans.clear();
-        for (k, m) in geom.meshes.iter().enumerate() {
-            let end = m.first_triangle as usize + m.triangle_count as usize;
-            let mut s = m.first_triangle as usize;
-            while s < end {
-                let e = (s + JOB_TRIANGLES).min(end);
-                for b in 0..bands {
-                    spans.push((k, s, e, b * self.rows / bands, (b + 1) * self.rows / bands));
+    }
+
+    /// Every triangle of `geom` (sensor frame) that some beam may hit, with its conservative
+    /// bound in the grid (the bound [`BeamCaster::cast`] tests), in triangle order, into
+    /// `out`. A beam outside its triangle's bound cannot hit it; a triangle not listed is hit
+    /// by no beam. The raster backend draws these bounds and tests the beams on the device.
+    pub fn bounds(&mut self, geom: &FrameGeometry, out: &mut Vec<GridBound>) {
+        out.clear();
+        if geom.meshes.is_empty() {
+            return;
+        }
+        self.project(geom);
+        let margin_u = azimuth_margin_columns(self.columns);
+        let grid = self.grid(margin_u, f64::MAX);
+        let mut parts: Vec<Vec<GridBound>> = geom
+            .meshes
+            .par_iter()
+            .flat_map_iter(|m| {
+                let end = m.first_triangle as usize + m.triangle_count as usize;
+                (m.first_triangle as usize..end).step_by(JOB_TRIANGLES).map(move |s| (s, (s + JOB_TRIANGLES).min(end)))
+            })
+            .map(|(s, e)| {
+                let mut v = Vec::new();
+                for t in s..e {
+                    if grid.quick_skip(geom, t) {
+                        continue;
+                    }
+                    if let Some((c0, c1, r0, r1)) = grid.bound(geom, t as u32) {
+                        v.push(GridBound { triangle: t as u32, c0, c1, r0: r0 as u32, r1: r1 as u32 });
+                    }
                 }
-                s = e;
-            }
+                v
+            })
+            .collect();
+        for p in parts.iter_mut() {
+            out.append(p);
         }
-        if self.jobs.len() < spans.len() {
-            self.jobs.resize_with(spans.len(), Vec::new);
-        }
-        let grid = Grid {
+    }
+
+    /// The watertight ray constants of beam `b` (`None`: a degenerate direction).
+    pub(crate) fn ray_pre(&self, b: usize) -> Option<&RayPre> {
+        self.pre[b].as_ref()
+    }
+
+    /// Beam `b`'s direction in f32, as the conservative pre-test uses it.
+    pub fn dir32(&self, b: usize) -> [f32; 3] {
+        self.dir32[b]
+    }
+
+    /// Rows and columns of the grid.
+    pub fn shape(&self) -> (usize, usize) {
+        (self.rows, self.columns)
+    }
+
+    fn grid(&self, margin_u: f32, max_range_m: f64) -> Grid<'_> {
+        Grid {
             rows: self.rows,
             columns: self.columns,
             row_sin: &self.row_sin,
@@ -225,41 +322,7 @@ impl BeamCaster {
             us: &self.us,
             margin_u,
             max_range_m,
-        };
-        let cell = &self.cell;
-        self.jobs[..spans.len()].par_iter_mut().zip(spans.par_iter()).for_each(|(hits, &(k, s, e, r0, r1))| {
-            hits.clear();
-            let cull = !geom.meshes[k].double_sided;
-            for t in s..e {
-                let i = &geom.indices[3 * t..3 * t + 3];
-                let (k0, k1, k2) = (cell[i[0] as usize], cell[i[1] as usize], cell[i[2] as usize]);
-                // All three azimuths inside one column cell, clear of its edges: no beam
-                // can hit (an odd code marks a vertex near a cell edge, or without azimuth).
-                // Or all three in one row gap, in two neighbouring column cells (so the sides
-                // cannot bulge by more than the gap margin): no beam can hit. Evaluated
-                // without short circuits: one well-predicted branch per triangle.
-                let same_col = (k0[0] & 1 == 0) & (k0[0] == k1[0]) & (k0[0] == k2[0]);
-                let same_gap = (k0[1] != i32::MIN) & (k0[1] == k1[1]) & (k0[1] == k2[1]);
-                let lo = k0[0].min(k1[0]).min(k2[0]);
-                let hi = k0[0].max(k1[0]).max(k2[0]);
-                let neighbours = (lo != NO_CELL) & ((hi >> 1) - (lo >> 1) <= 1);
-                if same_col | (same_gap & neighbours) {
-                    continue;
-                }
-                grid.triangle(geom, t as u32, cull, (r0, r1), hits);
-            }
-        });
-        for hits in &self.jobs[..spans.len()] {
-            for &(b, t, tri) in hits {
-                let b = b as usize;
-                if better(t, tri, self.best_t[b], self.best_tri[b]) {
-                    self.best_t[b] = t;
-                    self.best_tri[b] = tri;
-                }
-            }
         }
-        out.extend(self.best_t.iter().zip(&self.best_tri).map(|(&t, &tri)| Hit::from_best(t, tri)));
-        self.spans = spans;
     }
 }
 
@@ -430,24 +493,36 @@ struct Grid<'a> {
 }
 
 impl Grid<'_> {
-    /// Bounds triangle `t` in the grid and tests the beams inside the bound.
+    /// True when triangle `t` is certainly hit by no beam, from its vertices' cells alone: all
+    /// three azimuths inside one column cell, clear of its edges (an odd code marks a vertex
+    /// near a cell edge, or without azimuth); or all three in one row gap, in two neighbouring
+    /// column cells (so the sides cannot bulge by more than the gap margin). Evaluated without
+    /// short circuits: one well-predicted branch per triangle.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn triangle(
-        &self,
-        geom: &FrameGeometry,
-        t: u32,
-        cull: bool,
-        band: (usize, usize),
-        hits: &mut Vec<(u32, f64, u32)>,
-    ) {
+    fn quick_skip(&self, geom: &FrameGeometry, t: usize) -> bool {
+        let cell = self.cell;
+        let i = &geom.indices[3 * t..3 * t + 3];
+        let (k0, k1, k2) = (cell[i[0] as usize], cell[i[1] as usize], cell[i[2] as usize]);
+        let same_col = (k0[0] & 1 == 0) & (k0[0] == k1[0]) & (k0[0] == k2[0]);
+        let same_gap = (k0[1] != i32::MIN) & (k0[1] == k1[1]) & (k0[1] == k2[1]);
+        let lo = k0[0].min(k1[0]).min(k2[0]);
+        let hi = k0[0].max(k1[0]).max(k2[0]);
+        let neighbours = (lo != NO_CELL) & ((hi >> 1) - (lo >> 1) <= 1);
+        same_col | (same_gap & neighbours)
+    }
+
+    /// The conservative bound of triangle `t` in the grid: columns `c0..=c1` (to be wrapped
+    /// with `rem_euclid(columns)`), rows `r0..r1`; `None` when no beam can hit it (or a vertex
+    /// is not finite: such a triangle never hits).
+    #[inline(always)]
+    fn bound(&self, geom: &FrameGeometry, t: u32) -> Option<(i64, i64, usize, usize)> {
         let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
         let w = self.columns as f32;
         let pos = &geom.positions;
         let p = [0, 1, 2].map(|k| pos[i[k] as usize]);
         // Non-finite vertices never hit.
         if !p.iter().all(|v| v.iter().all(|c| c.is_finite())) {
-            return;
+            return None;
         }
         // (u, sin el), u = NaN where the azimuth is undefined.
         let [a, b, c] = [0, 1, 2].map(|k| {
@@ -483,7 +558,7 @@ impl Grid<'_> {
                 let c0 = ceil_i(lo - self.margin_u);
                 let c1 = floor_i(hi + self.margin_u);
                 if c0 > c1 {
-                    return;
+                    return None;
                 }
                 (c0 as i64, c1 as i64)
             }
@@ -510,6 +585,22 @@ impl Grid<'_> {
             let r1 = self.row_sin.partition_point(|&s| s >= lo);
             (r0, r1)
         };
+        (r0 < r1).then_some((c0, c1, r0, r1))
+    }
+
+    /// Bounds triangle `t` in the grid and tests the beams inside the bound.
+    #[inline(always)]
+    fn triangle(
+        &self,
+        geom: &FrameGeometry,
+        t: u32,
+        cull: bool,
+        band: (usize, usize),
+        hits: &mut Vec<(u32, f64, u32)>,
+    ) {
+        let Some((c0, c1, r0, r1)) = self.bound(geom, t) else { return };
+        let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
+        let pos = &geom.positions;
         let (r0, r1) = (r0.max(band.0), r1.min(band.1));
         if r0 >= r1 {
             return;
@@ -678,7 +769,37 @@ mod tests {
         let mut again = Vec::new();
         caster.cast(geom, max_range, &mut again);
         assert_eq!(again, got);
+        check_bounds(&mut caster, sensor, geom);
         hits
+    }
+
+    /// Every beam that hits a triangle at all (not only the nearest hit) lies in the bound
+    /// `BeamCaster::bounds` lists for that triangle; the list is in triangle order.
+    fn check_bounds(caster: &mut BeamCaster, sensor: &Sensor, geom: &FrameGeometry) {
+        let dirs = sensor.beam_dirs();
+        let mut bounds = Vec::new();
+        caster.bounds(geom, &mut bounds);
+        assert!(bounds.windows(2).all(|w| w[0].triangle < w[1].triangle), "bounds in triangle order");
+        let n = sensor.columns as i64;
+        let mut checked = 0;
+        for m in &geom.meshes {
+            for t in m.first_triangle..m.first_triangle + m.triangle_count {
+                let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
+                let tri = [0, 1, 2].map(|k| DVec3::from(geom.positions[i[k] as usize].map(f64::from)));
+                let bound = bounds.iter().find(|g| g.triangle == t);
+                for (b, d) in dirs.iter().enumerate() {
+                    if crate::backend::triangle::intersect_triangle(*d, &tri, !m.double_sided).is_none() {
+                        continue;
+                    }
+                    checked += 1;
+                    let (row, col) = ((b / sensor.columns) as u32, (b % sensor.columns) as i64);
+                    let g = bound.unwrap_or_else(|| panic!("triangle {t} is hit by beam {b} but has no bound"));
+                    let inside = g.r0 <= row && row < g.r1 && (col - g.c0).rem_euclid(n) <= g.c1 - g.c0;
+                    assert!(inside, "beam {b} (row {row}, col {col}) hits triangle {t} outside its bound {g:?}");
+                }
+            }
+        }
+        assert!(checked > 0 || geom.meshes.is_empty() || bounds.is_empty());
     }
 
     fn small_sensor(columns: usize) -> Sensor {

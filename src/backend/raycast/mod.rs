@@ -50,7 +50,7 @@ pub(crate) mod test_support;
 mod traverse;
 
 pub use backend::RaycastBackend;
-pub use beams::BeamCaster;
+pub use beams::{BeamCaster, GridBound};
 pub use bvh::Bvh;
 pub use refit::{BvhCache, BvhCacheStats};
 pub use traverse::{cast, cast_brute_force, cast_frame, cast_with_filter};
