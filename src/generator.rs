@@ -159,6 +159,9 @@ struct Scratch {
     /// Per drawn person: joint matrices, placed joints and bounding sphere (in-place poses).
     person_scratch: Vec<PersonScratch>,
     env_sensor: Vec<[f32; 3]>,
+    /// `limb` velocities: per beam, the world velocity of the human surface point it hits,
+    /// sensor frame (see [`Generator::point_velocities`]).
+    point_velocity: Vec<DVec3>,
 }
 
 /// Per drawn person, reused across frames: joint matrices, placed joints, bounding sphere.
@@ -339,6 +342,11 @@ impl Generator {
     /// The frame [`Generator::pose_frame`] posed last.
     pub fn posed(&self) -> Posed<'_> {
         Posed { background: &self.scratch.background, people: &self.scratch.humans, proxies: &self.scratch.proxies }
+    }
+
+    /// The point velocities [`Generator::point_velocities`] computed last (per beam).
+    pub fn point_velocity(&self) -> &[DVec3] {
+        &self.scratch.point_velocity
     }
 
     /// The people layer's hits of the frame [`Generator::render_posed`] cast last.
@@ -564,7 +572,79 @@ impl Generator {
         backend.cast(layer_of(&self.scratch, kind), hits)
     }
 
-    /// Composites the rendered frame into `out`.
+    /// Per beam with a human hit: the world velocity of the surface point it hits, rotated
+    /// into the sensor frame (`R^T V`), into the scratch `post` reads for `velocity = "limb"`.
+    /// The point keeps its barycentric coordinates in the hit triangle, and the triangle's
+    /// vertices are skinned and placed as `pose_frame` does at `t - dt` and `t + dt` (the
+    /// walk's phase and the trajectory both move; the sensor's pose stays that of `t`):
+    /// `V = (p(t + dt) - p(t - dt)) / 2 dt`, dt = 1 ms, skinning in the model frame (f32,
+    /// ~1 m) and placing in f64, so rounding stays near 1e-4 m/s.
+    pub fn point_velocities(&mut self, plan: &SequencePlan, state: &FrameState) {
+        const DT_S: f64 = 1e-3;
+        let s = &mut self.scratch;
+        let n = self.dirs.len();
+        s.point_velocity.clear();
+        s.point_velocity.resize(n, DVec3::ZERO);
+        let geom = &s.humans;
+        let hits = &s.human_hits;
+        let mut seen = vec![false; geom.meshes.len()];
+        for &t in &hits.triangle {
+            if t != crate::backend::NO_TRIANGLE {
+                seen[geom.mesh_index_of_triangle(t)] = true;
+            }
+        }
+        let sensor_from_world = state.world_from_sensor.inverse();
+        let model_to_body = MODEL_TO_BODY.as_dmat4();
+        // Per person seen: (placed joints, sensor from model) at t - dt and t + dt.
+        type Motion = [(Vec<glam::Affine3A>, DMat4); 2];
+        let motions: Vec<Option<Motion>> = s
+            .layout
+            .par_iter()
+            .zip(seen.par_iter())
+            .map(|(&(instance, m, _), &seen)| {
+                if !seen {
+                    return None;
+                }
+                let h = &plan.humans[instance as usize - 1];
+                let model = &self.models[m];
+                let at = |dt: f64| {
+                    let st = h.at(state.t_s + dt);
+                    let world_from_body = DMat4::from_translation(st.position_m) * DMat4::from_rotation_z(st.heading_rad);
+                    let mut joints = Vec::new();
+                    model.joint_matrices((st.gait_phase as f32).rem_euclid(1.0), &mut joints);
+                    (joints.iter().map(|j| glam::Affine3A::from_mat4(*j)).collect(), sensor_from_world * world_from_body * model_to_body)
+                };
+                Some([at(-DT_S), at(DT_S)])
+            })
+            .collect();
+        let layout = &s.layout;
+        let models = &self.models;
+        let dirs = &self.dirs;
+        s.point_velocity.par_iter_mut().enumerate().for_each(|(b, v)| {
+            let t = hits.triangle[b];
+            if t == crate::backend::NO_TRIANGLE {
+                return;
+            }
+            let k = geom.mesh_index_of_triangle(t);
+            let (Some(motion), mesh) = (&motions[k], &geom.meshes[k]) else { return };
+            let (_, m, lod) = layout[k];
+            let lod = &models[m].lods[lod];
+            let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
+            let corner = |c: usize| DVec3::from(geom.positions[i[c] as usize].map(f64::from));
+            let lambda = barycentric(dirs[b] * hits.range_m[b] as f64, [corner(0), corner(1), corner(2)]);
+            let mut p = [DVec3::ZERO; 2];
+            for (side, (placed, sensor_from_model)) in motion.iter().enumerate() {
+                let q: DVec3 = (0..3)
+                    .map(|c| lambda[c] * crate::human::skin_vertex(lod, placed, (i[c] - mesh.first_vertex) as usize).as_dvec3())
+                    .sum();
+                p[side] = sensor_from_model.transform_point3(q);
+            }
+            *v = (p[1] - p[0]) / (2.0 * DT_S);
+        });
+    }
+
+    /// Composites the rendered frame into `out`; with `velocity = "limb"` call
+    /// [`Generator::point_velocities`] first.
     pub fn post(&self, state: &FrameState, out: &mut FrameOutput) {
         let rot = DMat3::from_mat4(state.world_from_sensor);
         let params = PostParams {
@@ -579,6 +659,7 @@ impl Generator {
             sensor_velocity_mps: state.sensor_velocity_mps,
             sensor_yaw_rate_rps: state.sensor_yaw_rate_rps,
             human_velocity_mps: &state.human_velocity_mps,
+            point_velocity_mps: &self.scratch.point_velocity,
         };
         composite(&params, &self.scratch.human_hits, &self.scratch.humans, &self.scratch.bg_hits.range_m, out);
         out.time_s = state.t_s;
@@ -596,6 +677,9 @@ impl Generator {
         let t1 = std::time::Instant::now();
         self.render_posed()?;
         let t2 = std::time::Instant::now();
+        if self.cfg.output.velocity == crate::config::VelocityModel::Limb && self.outputs().velocity {
+            self.point_velocities(plan, &state);
+        }
         self.post(&state, out);
         self.timings.pose_s += (t1 - t0).as_secs_f64();
         self.timings.post_s += t2.elapsed().as_secs_f64();
@@ -620,7 +704,7 @@ impl Generator {
             seed: self.cfg.seed,
             sensor: self.sensor.clone(),
             config_toml: self.cfg.to_recorded_toml(),
-            rigid_velocity: self.cfg.output.velocity == crate::config::VelocityModel::Rigid,
+            rigid_velocity: self.cfg.output.velocity != crate::config::VelocityModel::Paper,
             frames: plan.times_s.len(),
             humans: plan
                 .humans
@@ -760,4 +844,19 @@ impl Generator {
             Ok(WrittenSequence { files: done.files, class_points: done.class_points, people, frames })
         })
     }
+}
+
+/// Barycentric coordinates of `p` (on or near the triangle's plane) in triangle `t`, by
+/// projection onto the plane; a degenerate triangle gives its centroid.
+fn barycentric(p: DVec3, t: [DVec3; 3]) -> [f64; 3] {
+    let (e0, e1, e2) = (t[1] - t[0], t[2] - t[0], p - t[0]);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (e2.dot(e0), e2.dot(e1));
+    let denom = d00 * d11 - d01 * d01;
+    if !(denom.abs() > 1e-12 * d00 * d11) {
+        return [1.0 / 3.0; 3];
+    }
+    let l1 = (d11 * d20 - d01 * d21) / denom;
+    let l2 = (d00 * d21 - d01 * d20) / denom;
+    [1.0 - l1 - l2, l1, l2]
 }

@@ -6,7 +6,10 @@
 //! - `paper` (Kim et al. 2020, eq. 1): human beam `R^T (V_h - V_s)`, background `-R^T V_s`,
 //!   with R the sensor's world rotation and V_h, V_s world velocities from the trajectories;
 //! - `rigid`: the same minus `w x p`, the apparent motion caused by the sensor's yaw rate w
-//!   for a point p in the sensor frame (the person's own turning is not included).
+//!   for a point p in the sensor frame (the person's own turning is not included);
+//! - `limb`: as `rigid`, with a human beam's `V_h` replaced by the world velocity of the
+//!   surface point it hits (`PostParams::point_velocity_mps`, from the posed mesh's motion:
+//!   [`crate::generator::Generator::point_velocities`]).
 
 use crate::config::VelocityModel;
 use crate::geometry::FrameGeometry;
@@ -31,6 +34,9 @@ pub struct PostParams<'a> {
     pub sensor_yaw_rate_rps: f64,
     /// World velocity of each person (index = instance - 1).
     pub human_velocity_mps: &'a [DVec3],
+    /// `limb` only: per beam, the world velocity of the surface point the human hit names,
+    /// rotated into the sensor frame (`R^T V`); empty otherwise.
+    pub point_velocity_mps: &'a [DVec3],
 }
 
 /// Composites `human` hits over the `background` ranges into `out` (per-beam fields only).
@@ -50,6 +56,10 @@ pub fn composite(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, b
     let v_s = r_t * p.sensor_velocity_mps;
     let w = DVec3::new(0.0, 0.0, p.sensor_yaw_rate_rps);
     let v_h: Vec<DVec3> = p.human_velocity_mps.iter().map(|v| r_t * *v).collect();
+    assert!(
+        p.velocity_model != VelocityModel::Limb || !p.outputs.velocity || p.point_velocity_mps.len() == n,
+        "limb velocities need one point velocity per beam"
+    );
     let w_cols = p.columns;
 
     let xyz_on = p.outputs.xyz;
@@ -91,8 +101,12 @@ pub fn composite(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, b
                 v[col] = if !returned {
                     [0.0; 3]
                 } else {
-                    let mut vel = if inst > 0 { v_h[inst as usize - 1] - v_s } else { -v_s };
-                    if p.velocity_model == VelocityModel::Rigid {
+                    let mut vel = match (inst > 0, p.velocity_model) {
+                        (false, _) => -v_s,
+                        (true, VelocityModel::Limb) => p.point_velocity_mps[b] - v_s,
+                        (true, _) => v_h[inst as usize - 1] - v_s,
+                    };
+                    if p.velocity_model != VelocityModel::Paper {
                         vel -= w.cross(point);
                     }
                     vel.as_vec3().into()
@@ -119,6 +133,7 @@ mod tests {
             sensor_velocity_mps: DVec3::new(0.0, 1.0, 0.0),
             sensor_yaw_rate_rps: 0.5,
             human_velocity_mps: hv,
+            point_velocity_mps: &[],
         }
     }
 
@@ -150,5 +165,14 @@ mod tests {
         assert_eq!(out.range, vec![3.0, 6.0, 0.0, 0.0, 0.0], "keep_holes keeps the hole");
         // Rigid: minus w x p with w = 0.5 z and p = (6, 0, 0) -> -(0, 3, 0).
         assert!(close(out.velocity[1], -v_s - DVec3::new(0.0, 3.0, 0.0)), "{:?}", out.velocity[1]);
+
+        // Limb: the hit point's own velocity (sensor frame) instead of the person's, and the
+        // rigid term: beam 0 hits the person at p = (3, 0, 0), w x p = (0, 1.5, 0).
+        let point = vec![DVec3::new(0.5, 0.25, -1.0), DVec3::ZERO, DVec3::new(7.0, 0.0, 0.0), DVec3::ZERO, DVec3::ZERO];
+        let limb = PostParams { point_velocity_mps: &point, ..params(&dirs, &hv, false, VelocityModel::Limb) };
+        composite(&limb, &human, &geom, &bg, &mut out);
+        assert!(close(out.velocity[0], point[0] - v_s - DVec3::new(0.0, 1.5, 0.0)), "{:?}", out.velocity[0]);
+        assert!(close(out.velocity[1], -v_s - DVec3::new(0.0, 3.0, 0.0)), "background as rigid: {:?}", out.velocity[1]);
+        assert!(close(out.velocity[2], point[2] - v_s - DVec3::new(0.0, 2.0, 0.0)), "{:?}", out.velocity[2]);
     }
 }

@@ -202,6 +202,9 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
         let t1 = Instant::now();
         gen.render_posed()?;
         let t2 = Instant::now();
+        if base.output.velocity == crate::config::VelocityModel::Limb && gen.outputs().velocity {
+            gen.point_velocities(&plan, &state);
+        }
         gen.post(&state, &mut frame);
         let t3 = Instant::now();
         writer.write_frame(&frame)?;

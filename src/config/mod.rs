@@ -80,6 +80,10 @@ pub enum VelocityModel {
     /// Rigid-body motion relative to the rotating sensor: adds `-w x p` for the sensor's yaw
     /// rate w and the point p (sensor frame).
     Rigid,
+    /// As `rigid`, with a human beam's `V_h` replaced by the world velocity of the skinned
+    /// surface point the beam hits (a swinging leg and a planted foot differ), from the posed
+    /// mesh's motion (central difference over +-1 ms of the walk).
+    Limb,
 }
 
 /// How the ray-cast backend casts (`debug.caster`): the same hits either way.

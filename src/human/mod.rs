@@ -535,20 +535,29 @@ impl HumanModel {
         out.par_chunks_mut(2048).enumerate().for_each(|(c, chunk)| {
             let first = c * 2048;
             for (k, o) in chunk.iter_mut().enumerate() {
-                let i = first + k;
-                let p = Vec3A::from(l.positions[i]);
-                let j = l.joints[i];
-                let w = l.weights[i];
-                let mut acc = Vec3A::ZERO;
-                for k in 0..4 {
-                    if w[k] != 0.0 {
-                        acc += w[k] * placed[j[k] as usize].transform_point3a(p);
-                    }
-                }
-                *o = acc.into();
+                *o = skin_vertex(l, placed, first + k).into();
             }
         });
     }
+}
+
+/// Vertex `i` of `l` skinned with the placed joint matrices `placed` (linear blend); the bind
+/// pose where `placed` is empty (a model without a skin).
+#[inline(always)]
+pub fn skin_vertex(l: &Lod, placed: &[Affine3A], i: usize) -> Vec3A {
+    let p = Vec3A::from(l.positions[i]);
+    if placed.is_empty() {
+        return p;
+    }
+    let j = l.joints[i];
+    let w = l.weights[i];
+    let mut acc = Vec3A::ZERO;
+    for k in 0..4 {
+        if w[k] != 0.0 {
+            acc += w[k] * placed[j[k] as usize].transform_point3a(p);
+        }
+    }
+    acc
 }
 
 fn global_rest(nodes: &[NodeRest], i: usize) -> Mat4 {

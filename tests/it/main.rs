@@ -12,6 +12,7 @@ mod gpu_raster;
 mod hostile_inputs;
 mod hostile_models;
 mod humans;
+mod limb;
 mod output;
 mod production;
 mod proxy;
