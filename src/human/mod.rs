@@ -6,8 +6,11 @@
 //! pedscan's body frame (x forward, y left, z up, feet on z = 0) so a person with heading 0
 //! walks along world +x.
 //!
-//! Gait: the phase advances by distance walked / stride length; the stride length comes from
-//! Alexander's relation between relative stride and Froude number (see [`stride_length_m`]).
+//! Gait: the phase advances by distance walked / stride length. The stride is the model's own,
+//! the distance its animation covers in one cycle over a planted foot (`stride_length_m` in its
+//! metadata): the cycle is scaled to the walking speed, so the stance foot stays planted at any
+//! speed. A model without a recorded stride uses Alexander's relation between relative stride
+//! and Froude number (see [`stride_length_m`]), and its feet slide where that differs.
 
 pub(crate) mod checks;
 pub mod proxy;
@@ -857,6 +860,17 @@ fn spatially_ordered(positions: &[Vec3], indices: &[u32]) -> Vec<u32> {
 /// Hip (leg) height as a fraction of stature (Winter, Biomechanics and Motor Control of Human
 /// Movement, anthropometric segment lengths: greater trochanter at 0.530 H).
 pub const LEG_LENGTH_FRACTION: f64 = 0.530;
+
+impl HumanModel {
+    /// The stride the gait phase advances by (distance per cycle): the model's recorded stride
+    /// (feet planted at every speed), else Alexander's for its height at `speed_mps`.
+    pub fn gait_stride_m(&self, speed_mps: f64) -> f64 {
+        match self.stride_length_m {
+            Some(s) => s as f64,
+            None => stride_length_m(self.height_m as f64, speed_mps.max(0.1)),
+        }
+    }
+}
 
 /// Stride length (heel strike to heel strike of the same foot) of a person of `height_m`
 /// walking at `speed_mps`, from Alexander's relation between relative stride length and the

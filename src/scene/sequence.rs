@@ -4,7 +4,7 @@
 
 use crate::config::{Config, WalkMode};
 use crate::error::{Error, Result};
-use crate::human::{stride_length_m, HumanModel, MotionMode};
+use crate::human::{HumanModel, MotionMode};
 use crate::scene::planner::WalkPath;
 use crate::scene::{Trajectory, WalkableGrid};
 use crate::input::tracks::Track;
@@ -425,7 +425,7 @@ pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> 
                 model,
                 trajectory: path,
                 phase0: rng.random::<f64>(),
-                stride_m: stride_length_m(inp.models[model].height_m as f64, mean_speed.max(0.1)),
+                stride_m: inp.models[model].gait_stride_m(mean_speed),
                 motion: hc.motion,
             });
         }
@@ -534,7 +534,6 @@ fn sample_synthetic_people(
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     for k in 0..count {
         let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
-        let height = inp.models[model].height_m as f64;
         let mut placed = None;
         for _ in 0..TRIES {
             let mut u01 = || rng.random::<f64>();
@@ -568,7 +567,7 @@ fn sample_synthetic_people(
                 model,
                 trajectory: path,
                 phase0: rng.random::<f64>(),
-                stride_m: stride_length_m(height, speed.max(0.1)),
+                stride_m: inp.models[model].gait_stride_m(speed),
                 motion: hc.motion,
             };
             let ok = times_s.iter().all(|&t| {

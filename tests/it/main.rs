@@ -7,6 +7,7 @@ mod beam_caster;
 mod beam_exact;
 mod crosscheck;
 mod exports;
+mod gait;
 mod generate;
 mod gpu_raster;
 mod hostile_inputs;

@@ -1,0 +1,91 @@
+//! The walk on the posed meshes: planted feet do not slide at any walking speed real tracks
+//! give, for every bundled height.
+
+use glam::DVec3;
+use pedscan::config::{BackendChoice, Config};
+use pedscan::generator::Generator;
+
+/// Per person and instant seen: (walking speed, the median horizontal world speed of the
+/// vertices in ground contact (within 4 mm of the floor at t and t + 2 ms) over the walking
+/// speed, model name).
+fn slide_ratios(speed_mps: [f64; 2], seed: u64) -> Vec<(f64, f64, String)> {
+    let mut cfg = Config::default();
+    cfg.render.backend = BackendChoice::Raycast;
+    cfg.humans.count = [30, 30];
+    cfg.humans.speed_mps = speed_mps;
+    cfg.seed = seed;
+    let mut gen = Generator::new(cfg).expect("generator");
+    let plan = gen.plan(0).expect("plan");
+    let dt = 2e-3;
+    let mut out = Vec::new();
+    for k in [3, 13, 23] {
+        let state = gen.frame_state(&plan, k);
+        let world_from_sensor = state.world_from_sensor;
+        let mut posed = |dt: f64| {
+            let mut p = plan.clone();
+            p.times_s[k] += dt;
+            let mut st = gen.frame_state(&p, k);
+            st.world_from_sensor = world_from_sensor;
+            gen.pose_frame(&p, &st).unwrap();
+            gen.posed().people.clone()
+        };
+        let (a, b) = (posed(0.0), posed(dt));
+        assert_eq!(a.meshes.len(), b.meshes.len());
+        for (ma, mb) in a.meshes.iter().zip(&b.meshes) {
+            let h = &plan.humans[ma.instance as usize - 1];
+            let speed = h.at(state.t_s).velocity_mps.truncate().length();
+            if speed < 0.05 {
+                continue;
+            }
+            let world = |g: &pedscan::geometry::FrameGeometry, i: usize| world_from_sensor.transform_point3(DVec3::from(g.positions[i].map(f64::from)));
+            let mut slides: Vec<f64> = (0..ma.vertex_count as usize)
+                .filter_map(|v| {
+                    let (p, q) = (world(&a, ma.first_vertex as usize + v), world(&b, mb.first_vertex as usize + v));
+                    let floor = plan.floor_z_m;
+                    (p.z - floor < 0.004 && q.z - floor < 0.004).then(|| (q - p).truncate().length() / dt)
+                })
+                .collect();
+            if slides.len() < 3 {
+                continue;
+            }
+            slides.sort_by(f64::total_cmp);
+            let model = gen.models()[h.model].name.clone();
+            out.push((speed, slides[slides.len() / 2] / speed, model));
+        }
+    }
+    out
+}
+
+/// The median over the person-instants seen stays under 1 % of the walking speed in every
+/// speed band (0.2 to 2 m/s: what real tracks give) and for every bundled height; before the
+/// phase followed each model's own stride it was 149 % at 0.2-0.5 m/s and 41 % at 0.5-1 m/s.
+/// What remains is the sole's skinning deformation while it rolls over the heel and the
+/// forefoot (the builder measures ~3 % at its 95th percentile) and turning on an arc, which
+/// moves a planted foot beside the path: the 90th percentile is held under 5 %.
+#[test]
+fn planted_feet_do_not_slide_at_any_walking_speed() {
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mut all = Vec::new();
+    for (k, speeds) in [[0.2, 0.5], [0.5, 1.0], [1.0, 1.5], [1.5, 2.0]].into_iter().enumerate() {
+        let r = slide_ratios(speeds, 40 + k as u64);
+        let mut ratios: Vec<f64> = r.iter().map(|x| x.1).collect();
+        let m = median(&mut ratios);
+        let p90 = ratios[ratios.len() * 9 / 10];
+        eprintln!("speeds {speeds:?}: {} person-instants, slide / speed median {m:.4} p90 {p90:.4} max {:.4}", ratios.len(), ratios[ratios.len() - 1]);
+        assert!(ratios.len() >= 30, "{speeds:?}: too few people seen");
+        assert!(m < 0.01, "{speeds:?}: median slide {m} of the walking speed");
+        assert!(p90 < 0.05, "{speeds:?}: 90th percentile slide {p90} of the walking speed");
+        all.extend(r);
+    }
+    let heights: std::collections::BTreeSet<String> = all.iter().map(|x| x.2[..5].to_string()).collect();
+    assert_eq!(heights.len(), 5, "every bundled height walks: {heights:?}");
+    for h in &heights {
+        let mut r: Vec<f64> = all.iter().filter(|x| x.2.starts_with(h.as_str())).map(|x| x.1).collect();
+        let m = median(&mut r);
+        eprintln!("{h}: median {m:.4} over {}", r.len());
+        assert!(m < 0.01, "{h}: median slide {m} of the walking speed");
+    }
+}
