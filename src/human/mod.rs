@@ -196,6 +196,8 @@ struct Channel {
     times: Vec<f32>,
     /// xyz(w) values; for CUBICSPLINE three per key (in-tangent, value, out-tangent).
     values: Vec<Vec4>,
+    /// The value of the standing pose (see [`HumanModel::stand_pose`]), set once loaded.
+    stand: Vec4,
 }
 
 /// One level of detail: a compact skinned mesh (only the vertices its triangles use).
@@ -282,6 +284,7 @@ impl HumanModel {
         }
         let parents = checks::node_parents(path, doc)?;
         let mut nodes = Vec::with_capacity(parents.len());
+        let leg_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_leg_name)).collect();
         for (n, parent) in doc.nodes().zip(parents) {
             let (t, r, s) = n.transform().decomposed();
             let rest = NodeRest { parent, translation: Vec3::from(t), rotation: Quat::from_array(r).normalize(), scale: Vec3::from(s) };
@@ -383,7 +386,7 @@ impl HumanModel {
         }
         nodes.shrink_to_fit();
 
-        let model = HumanModel {
+        let mut model = HumanModel {
             name,
             path: path.to_path_buf(),
             height_m,
@@ -398,7 +401,43 @@ impl HumanModel {
             channels,
         };
         model.check_reach(path)?;
+        model.stand_pose(&leg_nodes);
         Ok(model)
+    }
+
+    /// The standing pose a person stops in (speed 0), per animated channel: legs (nodes named
+    /// like a leg, foot or toe bone), the root of the skeleton and anything translated take
+    /// their rest transform (straight legs, soles on the ground: the glTF contract of the
+    /// bundled people); every other rotation (spine, arms, head) the mean of its walk, which
+    /// brings the arms down beside the body with the walk's elbow flexion. A model whose
+    /// nodes have no such names averages every channel.
+    fn stand_pose(&mut self, leg_nodes: &[bool]) {
+        let root = self.joint_nodes.first().copied();
+        for ch in &mut self.channels {
+            let rest = &self.nodes[ch.node];
+            let rest_value = match ch.property {
+                Property::Translation => rest.translation.extend(0.0),
+                Property::Rotation => Vec4::from(rest.rotation),
+                Property::Scale => rest.scale.extend(0.0),
+            };
+            let at_rest = leg_nodes.get(ch.node).copied().unwrap_or(false) || Some(ch.node) == root || ch.property != Property::Rotation;
+            ch.stand = if at_rest && leg_nodes.iter().any(|&l| l) {
+                rest_value
+            } else {
+                // Mean over the cycle: quaternions aligned with the first sample, summed and
+                // normalised; other values averaged.
+                let end = ch.times.last().copied().unwrap_or(0.0);
+                let n = 48;
+                let samples: Vec<Vec4> = (0..n).map(|k| sample(ch, end * k as f32 / n as f32)).collect();
+                if ch.property == Property::Rotation {
+                    let first = samples[0];
+                    let sum: Vec4 = samples.iter().map(|&q| if q.dot(first) < 0.0 { -q } else { q }).sum();
+                    if sum.length() > 1e-6 { sum.normalize() } else { rest_value }
+                } else {
+                    samples.iter().copied().sum::<Vec4>() / n as f32
+                }
+            };
+        }
     }
 
     /// Checks that the mesh lies within [`MAX_REACH_M`] of the model's origin (where the
@@ -444,7 +483,7 @@ impl HumanModel {
         }
         let mut globals = Vec::new();
         for t in times {
-            self.joint_globals(t, &mut globals);
+            self.joint_globals(t, 1.0, &mut globals);
             check(&globals, &format!("at t = {t} s of the walk"))?;
         }
         Ok(())
@@ -468,14 +507,21 @@ impl HumanModel {
 
     /// Joint matrices (model frame) of the walk sampled at `phase` in [0, 1).
     pub fn joint_matrices(&self, phase: f32, out: &mut Vec<Mat4>) {
-        self.joint_globals(phase.rem_euclid(1.0) * self.cycle_s, out);
+        self.joint_matrices_walking(phase, 1.0, out);
+    }
+
+    /// Joint matrices of the walk at `phase` blended with the standing pose: `walk` = 1 is
+    /// the walk, 0 the standing pose (rotations slerped, translations interpolated).
+    pub fn joint_matrices_walking(&self, phase: f32, walk: f32, out: &mut Vec<Mat4>) {
+        self.joint_globals(phase.rem_euclid(1.0) * self.cycle_s, walk.clamp(0.0, 1.0), out);
         for (m, inverse_bind) in out.iter_mut().zip(&self.inverse_bind) {
             *m *= *inverse_bind;
         }
     }
 
-    /// Global transforms (model frame) of the joints at time `t` (s) of the walk.
-    fn joint_globals(&self, t: f32, out: &mut Vec<Mat4>) {
+    /// Global transforms (model frame) of the joints at time `t` (s) of the walk, blended
+    /// toward the standing pose by `1 - walk`.
+    fn joint_globals(&self, t: f32, walk: f32, out: &mut Vec<Mat4>) {
         out.clear();
         if self.joint_nodes.is_empty() {
             return;
@@ -483,7 +529,14 @@ impl HumanModel {
         let mut local: Vec<(Vec3, Quat, Vec3)> =
             self.nodes.iter().map(|n| (n.translation, n.rotation, n.scale)).collect();
         for ch in &self.channels {
-            let v = sample(ch, t);
+            let mut v = if walk > 0.0 { sample(ch, t) } else { ch.stand };
+            if walk > 0.0 && walk < 1.0 {
+                v = if ch.property == Property::Rotation {
+                    Vec4::from(Quat::from_vec4(ch.stand).normalize().slerp(Quat::from_vec4(v).normalize(), walk))
+                } else {
+                    ch.stand.lerp(v, walk)
+                };
+            }
             let l = &mut local[ch.node];
             match ch.property {
                 Property::Translation => l.0 = v.truncate(),
@@ -717,7 +770,7 @@ fn read_channels(path: &Path, anim: &gltf::Animation, buffers: &[gltf::buffer::D
                 return Err(gltf_err(path, format!("{what}: key {k} = {v} has length {}, too far from a unit quaternion", v.length())));
             }
         }
-        channels.push(Channel { node, property, interp, times, values });
+        channels.push(Channel { node, property, interp, times, values, stand: Vec4::ZERO });
     }
     Ok(channels)
 }
@@ -872,6 +925,13 @@ impl HumanModel {
     }
 }
 
+/// Whether a node name names a leg bone (the standing pose keeps those at rest): `leg`,
+/// `thigh`, `shin`, `calf`, `knee`, `foot`, `ankle`, `toe`, any case.
+fn is_leg_name(name: &str) -> bool {
+    let n = name.to_ascii_lowercase();
+    ["leg", "thigh", "shin", "calf", "knee", "foot", "ankle", "toe"].iter().any(|k| n.contains(k))
+}
+
 /// Stride length (heel strike to heel strike of the same foot) of a person of `height_m`
 /// walking at `speed_mps`, from Alexander's relation between relative stride length and the
 /// Froude number (R. McN. Alexander, "Estimates of speeds of dinosaurs", Nature 261:129-130,
@@ -945,6 +1005,7 @@ mod tests {
                     Vec4::from(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
                     Vec4::from(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
                 ],
+                stand: Vec4::from(Quat::IDENTITY),
             }],
         };
         let mut joints = Vec::new();
@@ -967,6 +1028,7 @@ mod tests {
             interp: Interp::Linear,
             times: vec![0.0, 2.0],
             values: vec![Vec4::from(Quat::IDENTITY), Vec4::from(Quat::from_rotation_x(1.0))],
+            stand: Vec4::from(Quat::IDENTITY),
         };
         let q = Quat::from_vec4(sample(&ch, 1.0));
         assert!(q.angle_between(Quat::from_rotation_x(0.5)) < 1e-5);

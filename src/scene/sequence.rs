@@ -297,7 +297,13 @@ pub struct HumanAt {
     pub heading_rad: f64,
     pub velocity_mps: DVec3,
     pub gait_phase: f64,
+    /// 1 = the walk at `gait_phase`, 0 = the standing pose; in between below
+    /// [`STAND_BELOW_MPS`] (a walking person who stops comes to stand; `in-place` walks on).
+    pub walking: f64,
 }
+
+/// Below this speed a walking person blends toward the standing pose (linearly, standing at 0).
+pub const STAND_BELOW_MPS: f64 = 0.1;
 
 impl HumanPlan {
     /// State at time `t_s` according to the motion mode (the paper's Table 5 ablations).
@@ -310,12 +316,13 @@ impl HumanPlan {
         } else {
             self.phase0
         };
-        HumanAt {
-            position_m: tr.position(tm),
-            heading_rad: tr.heading_rad(tm),
-            velocity_mps: if moves { tr.velocity(t_s) } else { DVec3::ZERO },
-            gait_phase: phase,
-        }
+        let velocity_mps = if moves { tr.velocity(t_s) } else { DVec3::ZERO };
+        let walking = if moves && self.motion.animates() {
+            (velocity_mps.truncate().length() / STAND_BELOW_MPS).min(1.0)
+        } else {
+            1.0
+        };
+        HumanAt { position_m: tr.position(tm), heading_rad: tr.heading_rad(tm), velocity_mps, gait_phase: phase, walking }
     }
 }
 

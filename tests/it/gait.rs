@@ -89,3 +89,49 @@ fn planted_feet_do_not_slide_at_any_walking_speed() {
         assert!(m < 0.01, "{h}: median slide {m} of the walking speed");
     }
 }
+
+/// A person who does not move stands: straight legs, soles on the ground, arms down, the same
+/// pose whatever the phase it stopped at; a walking person does not; `in-place` walks on.
+#[test]
+fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
+    use glam::{DVec2, Mat4};
+    use pedscan::human::{HumanModel, MotionMode};
+    use pedscan::scene::sequence::HumanPlan;
+    use pedscan::scene::Trajectory;
+    let plan = |speed: f64, motion| HumanPlan {
+        model: 0,
+        trajectory: Trajectory { start_m: DVec2::ZERO, z_m: 0.0, heading0_rad: 0.0, speed_mps: speed, yaw_rate_rps: 0.0 }.into(),
+        phase0: 0.3,
+        stride_m: 1.3,
+        motion,
+    };
+    assert_eq!(plan(0.0, MotionMode::Full).at(2.0).walking, 0.0);
+    assert_eq!(plan(0.05, MotionMode::Full).at(2.0).walking, 0.5);
+    assert_eq!(plan(1.2, MotionMode::Full).at(2.0).walking, 1.0);
+    assert_eq!(plan(0.0, MotionMode::InPlace).at(2.0).walking, 1.0, "in-place walks on the spot");
+    for path in crate::common::bundled_humans() {
+        let m = HumanModel::load(&path, true).unwrap();
+        let pose = |phase: f32, walking: f32| {
+            let mut joints = Vec::new();
+            m.joint_matrices_walking(phase, walking, &mut joints);
+            let mut v = Vec::new();
+            m.skin_into(0, &joints, &Mat4::IDENTITY, &mut v);
+            v
+        };
+        let (a, b) = (pose(0.1, 0.0), pose(0.65, 0.0));
+        assert!(a == b, "{}: the standing pose does not depend on the phase", m.name);
+        // Model frame: y up, soles on y = 0, +x the person's left.
+        let min_y = a.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min);
+        assert!(min_y.abs() < 0.01, "{}: soles at {min_y} m", m.name);
+        let width = |v: &[[f32; 3]]| v.iter().map(|p| p[0]).fold(f32::NEG_INFINITY, f32::max) - v.iter().map(|p| p[0]).fold(f32::INFINITY, f32::min);
+        let depth = |v: &[[f32; 3]]| v.iter().map(|p| p[2]).fold(f32::NEG_INFINITY, f32::max) - v.iter().map(|p| p[2]).fold(f32::INFINITY, f32::min);
+        // Arms down beside the body (the bind pose holds them 45 deg out), feet together.
+        assert!(width(&a) < 0.36 * m.height_m, "{}: {} m wide", m.name, width(&a));
+        let walk = pose(0.1, 1.0);
+        assert!(depth(&a) < 0.75 * depth(&walk), "{}: standing {} m deep, mid-stride {} m", m.name, depth(&a), depth(&walk));
+        // Both soles on the ground: vertices within 1 cm of the floor on each side.
+        let left = a.iter().any(|p| p[1] < 0.01 && p[0] > 0.03);
+        let right = a.iter().any(|p| p[1] < 0.01 && p[0] < -0.03);
+        assert!(left && right, "{}: both feet on the ground", m.name);
+    }
+}
