@@ -13,7 +13,7 @@ use crate::input::Recording;
 use crate::config::{CompressionChoice, Config, Format};
 use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, FrameGeometry};
-use crate::human::{model_files, HumanModel, MODEL_TO_BODY};
+use crate::human::{model_files, GaitStyle, HumanModel, MODEL_TO_BODY};
 use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter, WriterOptions};
 use crate::post::{composite, PostParams};
 use crate::scene::{Environment, WalkableGrid, WALKABLE_CELL_M};
@@ -155,7 +155,7 @@ struct Scratch {
     /// and this frame's placements (sensor from model, gait phase).
     layout: Vec<(u32, usize, usize)>,
     layout_next: Vec<(u32, usize, usize)>,
-    placements: Vec<(Mat4, f32, f32)>,
+    placements: Vec<(Mat4, f32, GaitStyle)>,
     /// Per drawn person: joint matrices, placed joints and bounding sphere (in-place poses).
     person_scratch: Vec<PersonScratch>,
     env_sensor: Vec<[f32; 3]>,
@@ -182,8 +182,8 @@ pub struct FrameState {
     pub sensor_yaw_rate_rps: f64,
     pub humans: Vec<HumanState>,
     pub human_velocity_mps: Vec<DVec3>,
-    /// Per person: 1 walking, 0 standing (`HumanAt::walking`).
-    pub human_walking: Vec<f32>,
+    /// Per person: how it walks (standing blend, arm swing).
+    pub human_style: Vec<GaitStyle>,
     /// Index of the recorded background frame shown at this frame.
     pub recorded_frame: Option<usize>,
 }
@@ -407,7 +407,7 @@ impl Generator {
         let t = plan.times_s[k];
         let mut humans = Vec::with_capacity(plan.humans.len());
         let mut vel = Vec::with_capacity(plan.humans.len());
-        let mut walking = Vec::with_capacity(plan.humans.len());
+        let mut style = Vec::with_capacity(plan.humans.len());
         for h in &plan.humans {
             let s = h.at(t);
             humans.push(HumanState {
@@ -418,7 +418,7 @@ impl Generator {
                 gait_phase: (s.gait_phase as f32).rem_euclid(1.0),
             });
             vel.push(s.velocity_mps);
-            walking.push(s.walking as f32);
+            style.push(GaitStyle { walking: s.walking as f32, arm_swing: s.arm_swing as f32 });
         }
         FrameState {
             t_s: t,
@@ -427,7 +427,7 @@ impl Generator {
             sensor_yaw_rate_rps: plan.sensor.yaw_rate_rps(t),
             humans,
             human_velocity_mps: vel,
-            human_walking: walking,
+            human_style: style,
             recorded_frame: plan.recording_start.map(|s| s + k),
         }
     }
@@ -479,7 +479,7 @@ impl Generator {
             let near = (dist - r).max(0.1);
             let lod = model.lod_for_error((lod_rad * near) as f32);
             s.layout_next.push((k as u32 + 1, h.model, lod));
-            s.placements.push(((sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4(), st.gait_phase, state.human_walking[k]));
+            s.placements.push(((sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4(), st.gait_phase, state.human_style[k]));
         }
         // The same people at the same levels of detail as last frame: the triangles stay and
         // only the vertices move. Otherwise the meshes are laid out anew (sizes from the
@@ -500,9 +500,9 @@ impl Generator {
             .into_par_iter()
             .zip(s.person_scratch.par_iter_mut())
             .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
-            .for_each(|(((first, out, indices), p), (&(_, m, lod), &(transform, phase, walking)))| {
+            .for_each(|(((first, out, indices), p), (&(_, m, lod), &(transform, phase, style)))| {
                 let model = &models[m];
-                model.joint_matrices_walking(phase, walking, &mut p.joints);
+                model.joint_matrices_styled(phase, style, &mut p.joints);
                 model.skin_into_slice(lod, &p.joints, &transform, &mut p.placed, out);
                 if !in_place {
                     for (d, &i) in indices.iter_mut().zip(&model.lods[lod].indices) {
@@ -616,7 +616,8 @@ impl Generator {
                     let st = h.at(state.t_s + dt);
                     let world_from_body = DMat4::from_translation(st.position_m) * DMat4::from_rotation_z(st.heading_rad);
                     let mut joints = Vec::new();
-                    model.joint_matrices_walking((st.gait_phase as f32).rem_euclid(1.0), st.walking as f32, &mut joints);
+                    let style = GaitStyle { walking: st.walking as f32, arm_swing: st.arm_swing as f32 };
+                    model.joint_matrices_styled((st.gait_phase as f32).rem_euclid(1.0), style, &mut joints);
                     (joints.iter().map(|j| glam::Affine3A::from_mat4(*j)).collect(), sensor_from_world * world_from_body * model_to_body)
                 };
                 Some([at(-DT_S), at(DT_S)])

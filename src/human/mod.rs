@@ -198,6 +198,22 @@ struct Channel {
     values: Vec<Vec4>,
     /// The value of the standing pose (see [`HumanModel::stand_pose`]), set once loaded.
     stand: Vec4,
+    /// An arm bone's rotation: scaled by [`GaitStyle::arm_swing`] about `stand`.
+    arm: bool,
+}
+
+/// How a person walks, beside the phase: 1 / 1 is the model's own walk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GaitStyle {
+    /// 1 = walking, 0 = the standing pose (blended in between).
+    pub walking: f32,
+    /// The arms' swing about their standing pose: 1 = the animation's, 0 = none.
+    pub arm_swing: f32,
+}
+
+impl GaitStyle {
+    /// The model's own walk.
+    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0 };
 }
 
 /// One level of detail: a compact skinned mesh (only the vertices its triangles use).
@@ -285,6 +301,7 @@ impl HumanModel {
         let parents = checks::node_parents(path, doc)?;
         let mut nodes = Vec::with_capacity(parents.len());
         let leg_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_leg_name)).collect();
+        let arm_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_arm_name)).collect();
         for (n, parent) in doc.nodes().zip(parents) {
             let (t, r, s) = n.transform().decomposed();
             let rest = NodeRest { parent, translation: Vec3::from(t), rotation: Quat::from_array(r).normalize(), scale: Vec3::from(s) };
@@ -402,6 +419,9 @@ impl HumanModel {
         };
         model.check_reach(path)?;
         model.stand_pose(&leg_nodes);
+        for ch in &mut model.channels {
+            ch.arm = ch.property == Property::Rotation && arm_nodes.get(ch.node).copied().unwrap_or(false);
+        }
         Ok(model)
     }
 
@@ -483,7 +503,7 @@ impl HumanModel {
         }
         let mut globals = Vec::new();
         for t in times {
-            self.joint_globals(t, 1.0, &mut globals);
+            self.joint_globals(t, GaitStyle::WALK, &mut globals);
             check(&globals, &format!("at t = {t} s of the walk"))?;
         }
         Ok(())
@@ -507,21 +527,23 @@ impl HumanModel {
 
     /// Joint matrices (model frame) of the walk sampled at `phase` in [0, 1).
     pub fn joint_matrices(&self, phase: f32, out: &mut Vec<Mat4>) {
-        self.joint_matrices_walking(phase, 1.0, out);
+        self.joint_matrices_styled(phase, GaitStyle::WALK, out);
     }
 
-    /// Joint matrices of the walk at `phase` blended with the standing pose: `walk` = 1 is
-    /// the walk, 0 the standing pose (rotations slerped, translations interpolated).
-    pub fn joint_matrices_walking(&self, phase: f32, walk: f32, out: &mut Vec<Mat4>) {
-        self.joint_globals(phase.rem_euclid(1.0) * self.cycle_s, walk.clamp(0.0, 1.0), out);
+    /// Joint matrices of the walk at `phase` in `style`: the arm bones' rotations scaled
+    /// about their standing pose by `arm_swing`, then everything blended with the standing
+    /// pose by `walking` (1 = the walk, 0 = standing; rotations slerped, translations
+    /// interpolated).
+    pub fn joint_matrices_styled(&self, phase: f32, style: GaitStyle, out: &mut Vec<Mat4>) {
+        self.joint_globals(phase.rem_euclid(1.0) * self.cycle_s, style, out);
         for (m, inverse_bind) in out.iter_mut().zip(&self.inverse_bind) {
             *m *= *inverse_bind;
         }
     }
 
-    /// Global transforms (model frame) of the joints at time `t` (s) of the walk, blended
-    /// toward the standing pose by `1 - walk`.
-    fn joint_globals(&self, t: f32, walk: f32, out: &mut Vec<Mat4>) {
+    /// Global transforms (model frame) of the joints at time `t` (s) of the walk in `style`.
+    fn joint_globals(&self, t: f32, style: GaitStyle, out: &mut Vec<Mat4>) {
+        let walk = style.walking.clamp(0.0, 1.0);
         out.clear();
         if self.joint_nodes.is_empty() {
             return;
@@ -530,6 +552,12 @@ impl HumanModel {
             self.nodes.iter().map(|n| (n.translation, n.rotation, n.scale)).collect();
         for ch in &self.channels {
             let mut v = if walk > 0.0 { sample(ch, t) } else { ch.stand };
+            if ch.arm && walk > 0.0 && style.arm_swing != 1.0 {
+                // stand * (stand^-1 v)^a: the swing's angle scaled, its axis kept.
+                let stand = Quat::from_vec4(ch.stand).normalize();
+                let swing = (stand.inverse() * Quat::from_vec4(v).normalize()).normalize();
+                v = Vec4::from(stand * Quat::from_scaled_axis(swing.to_scaled_axis() * style.arm_swing));
+            }
             if walk > 0.0 && walk < 1.0 {
                 v = if ch.property == Property::Rotation {
                     Vec4::from(Quat::from_vec4(ch.stand).normalize().slerp(Quat::from_vec4(v).normalize(), walk))
@@ -770,7 +798,7 @@ fn read_channels(path: &Path, anim: &gltf::Animation, buffers: &[gltf::buffer::D
                 return Err(gltf_err(path, format!("{what}: key {k} = {v} has length {}, too far from a unit quaternion", v.length())));
             }
         }
-        channels.push(Channel { node, property, interp, times, values, stand: Vec4::ZERO });
+        channels.push(Channel { node, property, interp, times, values, stand: Vec4::ZERO, arm: false });
     }
     Ok(channels)
 }
@@ -932,6 +960,14 @@ fn is_leg_name(name: &str) -> bool {
     ["leg", "thigh", "shin", "calf", "knee", "foot", "ankle", "toe"].iter().any(|k| n.contains(k))
 }
 
+/// Whether a node name names an arm bone (its swing scales with the person's arm swing):
+/// `arm`, `shoulder`, `clavicle`, `elbow`, `hand`, `wrist`, any case (not `armature`, the
+/// usual name of an exported skeleton's root).
+fn is_arm_name(name: &str) -> bool {
+    let n = name.to_ascii_lowercase().replace("armature", "");
+    ["arm", "shoulder", "clavicle", "elbow", "hand", "wrist"].iter().any(|k| n.contains(k))
+}
+
 /// Stride length (heel strike to heel strike of the same foot) of a person of `height_m`
 /// walking at `speed_mps`, from Alexander's relation between relative stride length and the
 /// Froude number (R. McN. Alexander, "Estimates of speeds of dinosaurs", Nature 261:129-130,
@@ -1006,6 +1042,7 @@ mod tests {
                     Vec4::from(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
                 ],
                 stand: Vec4::from(Quat::IDENTITY),
+                arm: false,
             }],
         };
         let mut joints = Vec::new();
@@ -1029,6 +1066,7 @@ mod tests {
             times: vec![0.0, 2.0],
             values: vec![Vec4::from(Quat::IDENTITY), Vec4::from(Quat::from_rotation_x(1.0))],
             stand: Vec4::from(Quat::IDENTITY),
+            arm: false,
         };
         let q = Quat::from_vec4(sample(&ch, 1.0));
         assert!(q.angle_between(Quat::from_rotation_x(0.5)) < 1e-5);

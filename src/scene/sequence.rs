@@ -288,6 +288,9 @@ pub struct HumanPlan {
     /// Stride length used to advance the gait, m.
     pub stride_m: f64,
     pub motion: MotionMode,
+    /// Arm swing of this person's walk: 1 = the model's own, 0 = arms still (see
+    /// `humans.arm_swing`).
+    pub arm_swing: f64,
 }
 
 /// A person's state at one instant (world frame).
@@ -297,6 +300,8 @@ pub struct HumanAt {
     pub heading_rad: f64,
     pub velocity_mps: DVec3,
     pub gait_phase: f64,
+    /// The person's arm swing ([`HumanPlan::arm_swing`]).
+    pub arm_swing: f64,
     /// 1 = the walk at `gait_phase`, 0 = the standing pose; in between below
     /// [`STAND_BELOW_MPS`] (a walking person who stops comes to stand; `in-place` walks on).
     pub walking: f64,
@@ -322,7 +327,14 @@ impl HumanPlan {
         } else {
             1.0
         };
-        HumanAt { position_m: tr.position(tm), heading_rad: tr.heading_rad(tm), velocity_mps, gait_phase: phase, walking }
+        HumanAt {
+            position_m: tr.position(tm),
+            heading_rad: tr.heading_rad(tm),
+            velocity_mps,
+            gait_phase: phase,
+            arm_swing: self.arm_swing,
+            walking,
+        }
     }
 }
 
@@ -361,6 +373,17 @@ const TRACK_WINDOW_TRIES: usize = 200;
 
 /// Samples the sensor trajectory and the people of one sequence.
 pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Result<SequencePlan> {
+    let mut plan = sample_paths(rng, cfg, inp)?;
+    // Each person's style, drawn after the paths so that they do not depend on it.
+    let [lo, hi] = cfg.humans.arm_swing;
+    for h in &mut plan.humans {
+        h.arm_swing = lo + (hi - lo) * rng.random::<f64>();
+    }
+    Ok(plan)
+}
+
+/// The sensor path, the people and their paths of a sequence (see [`sample_plan`]).
+fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Result<SequencePlan> {
     let times_s: Vec<f64> = match &inp.sensor {
         Some(p) => p.times_s.clone(),
         None => (0..cfg.frames).map(|k| k as f64 / inp.rate_hz).collect(),
@@ -434,6 +457,7 @@ pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> 
                 phase0: rng.random::<f64>(),
                 stride_m: inp.models[model].gait_stride_m(mean_speed),
                 motion: hc.motion,
+                arm_swing: 1.0,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -576,6 +600,7 @@ fn sample_synthetic_people(
                 phase0: rng.random::<f64>(),
                 stride_m: inp.models[model].gait_stride_m(speed),
                 motion: hc.motion,
+                arm_swing: 1.0,
             };
             let ok = times_s.iter().all(|&t| {
                 let p = plan.at(t).position_m.truncate();
@@ -621,6 +646,7 @@ mod tests {
             phase0: 0.25,
             stride_m: 1.2,
             motion,
+            arm_swing: 1.0,
         }
     }
 

@@ -104,6 +104,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         phase0: 0.3,
         stride_m: 1.3,
         motion,
+        arm_swing: 1.0,
     };
     assert_eq!(plan(0.0, MotionMode::Full).at(2.0).walking, 0.0);
     assert_eq!(plan(0.05, MotionMode::Full).at(2.0).walking, 0.5);
@@ -113,7 +114,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         let m = HumanModel::load(&path, true).unwrap();
         let pose = |phase: f32, walking: f32| {
             let mut joints = Vec::new();
-            m.joint_matrices_walking(phase, walking, &mut joints);
+            m.joint_matrices_styled(phase, pedscan::human::GaitStyle { walking, arm_swing: 1.0 }, &mut joints);
             let mut v = Vec::new();
             m.skin_into(0, &joints, &Mat4::IDENTITY, &mut v);
             v
@@ -134,4 +135,46 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         let right = a.iter().any(|p| p[1] < 0.01 && p[0] < -0.03);
         assert!(left && right, "{}: both feet on the ground", m.name);
     }
+}
+
+/// Each person swings the arms by their own amount (`humans.arm_swing`, seeded): the hand's
+/// fore-and-aft travel over a cycle grows with it, the legs do not change.
+#[test]
+fn arm_swing_varies_per_person_and_moves_only_the_arms() {
+    use glam::Mat4;
+    use pedscan::human::{GaitStyle, HumanModel};
+    let path = crate::common::bundled_humans().into_iter().find(|p| p.ends_with("h1700_w60.glb")).unwrap();
+    let m = HumanModel::load(&path, true).unwrap();
+    let rest = &m.lods[0].positions;
+    // The fingertip (widest point of the bind pose's A) and a sole vertex.
+    let hand = (0..rest.len()).max_by(|&a, &b| rest[a].x.total_cmp(&rest[b].x)).unwrap();
+    let sole = (0..rest.len()).min_by(|&a, &b| rest[a].y.total_cmp(&rest[b].y)).unwrap();
+    let pose = |phase: f32, arm_swing: f32| {
+        let mut joints = Vec::new();
+        m.joint_matrices_styled(phase, GaitStyle { walking: 1.0, arm_swing }, &mut joints);
+        let mut v = Vec::new();
+        m.skin_into(0, &joints, &Mat4::IDENTITY, &mut v);
+        v
+    };
+    let travel = |a: f32| {
+        let z: Vec<f32> = (0..48).map(|k| pose(k as f32 / 48.0, a)[hand][2]).collect();
+        z.iter().cloned().fold(f32::NEG_INFINITY, f32::max) - z.iter().cloned().fold(f32::INFINITY, f32::min)
+    };
+    let (small, own, large) = (travel(0.5), travel(1.0), travel(1.5));
+    eprintln!("hand travel: {small:.3} / {own:.3} / {large:.3} m at arm swing 0.5 / 1 / 1.5");
+    assert!(small < own && own < large);
+    assert!((2.0..4.0).contains(&(large / small)), "{}", large / small);
+    for phase in [0.1, 0.6] {
+        assert_eq!(pose(phase, 0.5)[sole], pose(phase, 1.5)[sole], "the legs do not change");
+    }
+
+    // Drawn per person within the configured range, the same for the same seed.
+    let mut cfg = pedscan::config::Config::default();
+    cfg.render.backend = pedscan::config::BackendChoice::Raycast;
+    cfg.humans.count = [10, 10];
+    let gen = pedscan::generator::Generator::new(cfg).unwrap();
+    let swings: Vec<f64> = gen.plan(0).unwrap().humans.iter().map(|h| h.arm_swing).collect();
+    assert!(swings.iter().all(|&a| (0.6..=1.4).contains(&a)), "{swings:?}");
+    assert!(swings.iter().any(|&a| (a - swings[0]).abs() > 0.05), "{swings:?}");
+    assert_eq!(swings, gen.plan(0).unwrap().humans.iter().map(|h| h.arm_swing).collect::<Vec<_>>());
 }
