@@ -418,7 +418,7 @@ impl Generator {
                 gait_phase: (s.gait_phase as f32).rem_euclid(1.0),
             });
             vel.push(s.velocity_mps);
-            style.push(GaitStyle { walking: s.walking as f32, arm_swing: s.arm_swing as f32 });
+            style.push(GaitStyle { walking: s.walking as f32, arm_swing: s.arm_swing as f32, stride: s.stride_scale as f32 });
         }
         FrameState {
             t_s: t,
@@ -616,7 +616,7 @@ impl Generator {
                     let st = h.at(state.t_s + dt);
                     let world_from_body = DMat4::from_translation(st.position_m) * DMat4::from_rotation_z(st.heading_rad);
                     let mut joints = Vec::new();
-                    let style = GaitStyle { walking: st.walking as f32, arm_swing: st.arm_swing as f32 };
+                    let style = GaitStyle { walking: st.walking as f32, arm_swing: st.arm_swing as f32, stride: st.stride_scale as f32 };
                     model.joint_matrices_styled((st.gait_phase as f32).rem_euclid(1.0), style, &mut joints);
                     (joints.iter().map(|j| glam::Affine3A::from_mat4(*j)).collect(), sensor_from_world * world_from_body * model_to_body)
                 };

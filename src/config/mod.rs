@@ -160,6 +160,10 @@ pub struct HumansConfig {
     /// their standing pose, 1 = the model's own (+-16 deg shoulder flexion for the bundled
     /// people).
     pub arm_swing: [f64; 2],
+    /// Stride per person over the natural stride for its mean speed (Alexander's relation),
+    /// uniform in [min, max]; the legs are re-solved for it within 0.6-1.2 times the model's
+    /// own stride (models named like the bundled ones; others walk their own stride).
+    pub stride_variation: [f64; 2],
     /// People start within this distance of the sensor's start, m.
     pub spawn_radius_m: f64,
     /// People keep at least this distance from each other and from the sensor, m.
@@ -290,6 +294,7 @@ impl Default for HumansConfig {
             motion: MotionMode::Full,
             speed_mps: [0.8, 1.6],
             arm_swing: [0.6, 1.4],
+            stride_variation: [0.9, 1.1],
             yaw_rate_rps: [-0.3, 0.3],
             spawn_radius_m: 12.0,
             min_separation_m: 0.7,
@@ -414,6 +419,7 @@ impl Config {
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
         range_ok("humans.yaw_rate_rps", self.humans.yaw_rate_rps, -10.0, 10.0)?;
         range_ok("humans.arm_swing", self.humans.arm_swing, 0.0, 2.0)?;
+        range_ok("humans.stride_variation", self.humans.stride_variation, 0.5, 1.5)?;
         range_ok("scene.sensor_speed_mps", self.scene.sensor_speed_mps, 0.0, 100.0)?;
         range_ok("scene.sensor_yaw_rate_rps", self.scene.sensor_yaw_rate_rps, -10.0, 10.0)?;
         positive("humans.spawn_radius_m", self.humans.spawn_radius_m)?;

@@ -209,11 +209,24 @@ pub struct GaitStyle {
     pub walking: f32,
     /// The arms' swing about their standing pose: 1 = the animation's, 0 = none.
     pub arm_swing: f32,
+    /// Stride over the model's own ([`HumanModel::stride_scale_range`]): the ankles' fore-and-aft
+    /// travel relative to the hips is scaled by it and the legs re-solved (two-bone IK), so the
+    /// walk covers this times the model's stride per cycle with the feet still planted.
+    pub stride: f32,
 }
 
 impl GaitStyle {
     /// The model's own walk.
-    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0 };
+    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0 };
+}
+
+/// The nodes of one leg the stride scaling re-solves: hip (thigh bone), knee (shank bone),
+/// ankle (foot bone).
+#[derive(Clone, Copy, Debug)]
+struct Leg {
+    thigh: usize,
+    shank: usize,
+    foot: usize,
 }
 
 /// One level of detail: a compact skinned mesh (only the vertices its triangles use).
@@ -263,6 +276,10 @@ pub struct HumanModel {
     joint_nodes: Vec<usize>,
     inverse_bind: Vec<Mat4>,
     channels: Vec<Channel>,
+    /// Both legs and the node that carries the pelvis, when the skeleton names them like the
+    /// bundled people's (`upperleg01`, `lowerleg01`, `foot`, `.L` / `.R`): the stride can be
+    /// scaled. Otherwise the model walks its own stride.
+    legs: Option<([Leg; 2], usize)>,
 }
 
 fn gltf_err(path: &Path, msg: impl std::fmt::Display) -> Error {
@@ -301,6 +318,14 @@ impl HumanModel {
         let parents = checks::node_parents(path, doc)?;
         let mut nodes = Vec::with_capacity(parents.len());
         let leg_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_leg_name)).collect();
+        let node_named = |name: &str| doc.nodes().position(|n| n.name() == Some(name));
+        let leg = |side: &str| -> Option<Leg> {
+            Some(Leg {
+                thigh: node_named(&format!("upperleg01.{side}"))?,
+                shank: node_named(&format!("lowerleg01.{side}"))?,
+                foot: node_named(&format!("foot.{side}"))?,
+            })
+        };
         let arm_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_arm_name)).collect();
         for (n, parent) in doc.nodes().zip(parents) {
             let (t, r, s) = n.transform().decomposed();
@@ -416,7 +441,11 @@ impl HumanModel {
             joint_nodes,
             inverse_bind,
             channels,
+            legs: None,
         };
+        if let (Some(l), Some(r), Some(&root)) = (leg("L"), leg("R"), model.joint_nodes.first()) {
+            model.legs = Some(([l, r], root));
+        }
         model.check_reach(path)?;
         model.stand_pose(&leg_nodes);
         for ch in &mut model.channels {
@@ -572,8 +601,119 @@ impl HumanModel {
                 Property::Scale => l.2 = v.truncate(),
             }
         }
+        if style.stride != 1.0 && walk > 0.0 {
+            if let Some((legs, root)) = self.legs {
+                let phase = if self.cycle_s > 0.0 { t / self.cycle_s } else { 0.0 };
+                self.scale_stride(&mut local, legs, root, phase, 1.0 + walk * (style.stride - 1.0));
+            }
+        }
         let mut global: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
         out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
+    }
+
+    /// The stride scales a model's own stride takes without strain: its walk re-solved for
+    /// 0.6 to 1.2 times the recorded stride.
+    pub fn stride_scale_range(&self) -> (f32, f32) {
+        if self.legs.is_some() && self.stride_length_m.is_some() {
+            (0.75, 1.2)
+        } else {
+            (1.0, 1.0)
+        }
+    }
+
+    /// Re-solves both legs of the pose `local` at `phase` for `k` times the stride. Model
+    /// frame: y up, the person faces +z. Each foot moves fore or aft, rigidly (its animated
+    /// orientation kept, so the heel and forefoot rockers are unchanged), by `(k - 1) c(phase)`
+    /// with `c` a line of slope `-stride` per cycle over the foot's stance (zero where the
+    /// ankle passes under the hip) that returns over the swing: every point of a planted foot,
+    /// moving backwards at `stride / cycle` in the animation, moves at `k` times that, which the
+    /// phase (advanced per `k` strides) matches, so it stays planted. The gait events are the
+    /// bundled people's contract (`tools/humans/README.md`): left heel strike at phase 0, right
+    /// at 0.5, toe-off 0.62 of the cycle after, ankle under the hip 0.25 after. The pelvis moves
+    /// up or down so that the more stretched leg is exactly as stretched as in the animation at
+    /// this phase (a shorter stride stands taller), then each leg is a two-bone chain (hip ->
+    /// knee -> ankle) bent in the plane of its animated knee.
+    fn scale_stride(&self, local: &mut [(Vec3, Quat, Vec3)], legs: [Leg; 2], root: usize, phase: f32, k: f32) {
+        const TOE_OFF: f32 = 0.62;
+        const UNDER_HIP: f32 = 0.25;
+        let stride = self.stride_length_m.unwrap_or(0.0);
+        // The planted line of each foot (left strikes at 0, right at 0.5).
+        let shift = |strike: f32| {
+            let u = (phase - strike).rem_euclid(1.0);
+            let c = if u < TOE_OFF {
+                -stride * (u - UNDER_HIP)
+            } else {
+                let back = -stride * (TOE_OFF - UNDER_HIP);
+                let front = stride * UNDER_HIP;
+                back + (front - back) * (u - TOE_OFF) / (1.0 - TOE_OFF)
+            };
+            (k - 1.0) * c
+        };
+        let shifts = [shift(0.0), shift(0.5)];
+        let pos = |m: Mat4| m.w_axis.truncate();
+        // Animated hips, knees, ankles and foot orientations; the targets.
+        let g = |local: &[(Vec3, Quat, Vec3)], i: usize| {
+            let mut cache: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
+            global_of(&self.nodes, local, &mut cache, i)
+        };
+        let anim: Vec<(Vec3, Vec3, Vec3, Quat)> = legs
+            .iter()
+            .map(|l| {
+                let f = g(local, l.foot);
+                (pos(g(local, l.thigh)), pos(g(local, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
+            })
+            .collect();
+        let reach: Vec<f32> = anim.iter().map(|&(h, _, a, _)| (a - h).length()).collect();
+        let stretch = reach.iter().cloned().fold(0.0f32, f32::max);
+        let targets: Vec<Vec3> = anim.iter().zip(shifts).map(|(&(_, _, a, _), dz)| a + Vec3::Z * dz).collect();
+        // Pelvis height: the highest at which no leg reaches further than `stretch`.
+        let lift = anim
+            .iter()
+            .zip(&targets)
+            .map(|(&(h, _, _, _), &t)| {
+                let flat = Vec3::new(t.x - h.x, 0.0, t.z - h.z).length_squared();
+                (stretch * stretch - flat).max(0.0).sqrt() - (h.y - t.y)
+            })
+            .fold(f32::INFINITY, f32::min);
+        if lift.is_finite() {
+            local[root].0.y += lift;
+        }
+        for (leg, (&(_, knee0, _, foot_rot), &target)) in legs.iter().zip(anim.iter().zip(&targets)) {
+            let (hip_m, knee_m, ankle_m) = (g(local, leg.thigh), g(local, leg.shank), g(local, leg.foot));
+            let (hip, knee, ankle) = (pos(hip_m), pos(knee_m), pos(ankle_m));
+            let (l1, l2) = ((knee - hip).length(), (ankle - knee).length());
+            let to = target - hip;
+            let d = to.length().clamp((l1 - l2).abs() + 1e-4, (l1 + l2) * 0.9999);
+            let dir = to.normalize_or_zero();
+            // The knee stays in the plane of the hip, the target and the animated knee.
+            let pole = knee0 - hip - dir * (knee0 - hip).dot(dir);
+            let side = pole.normalize_or_zero();
+            let cos_a = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d)).clamp(-1.0, 1.0);
+            let new_knee = hip + l1 * (cos_a * dir + (1.0 - cos_a * cos_a).sqrt() * side);
+            // Thigh: turn the hip->knee direction onto the new one.
+            let turn1 = Quat::from_rotation_arc((knee - hip).normalize(), (new_knee - hip).normalize());
+            self.set_global_rotation(local, leg.thigh, turn1 * Quat::from_mat4(&hip_m).normalize());
+            // Shank: with the thigh turned, turn the knee->ankle direction onto the target.
+            let (knee_m, ankle_now) = (g(local, leg.shank), pos(g(local, leg.foot)));
+            let knee_now = pos(knee_m);
+            let turn2 = Quat::from_rotation_arc((ankle_now - knee_now).normalize(), (target - knee_now).normalize());
+            self.set_global_rotation(local, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
+            // Foot: its animated orientation.
+            self.set_global_rotation(local, leg.foot, foot_rot);
+        }
+    }
+
+    /// Sets node `i`'s local rotation so that its global rotation is `rotation` (its parent's
+    /// global transform as `local` has it; scales are 1 in a walking skeleton).
+    fn set_global_rotation(&self, local: &mut [(Vec3, Quat, Vec3)], i: usize, rotation: Quat) {
+        let parent = match self.nodes[i].parent {
+            Some(p) => {
+                let mut cache: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
+                Quat::from_mat4(&global_of(&self.nodes, local, &mut cache, p)).normalize()
+            }
+            None => Quat::IDENTITY,
+        };
+        local[i].1 = (parent.inverse() * rotation).normalize();
     }
 
     /// Skins LOD `lod` with `joints` and maps it through `transform` (model -> target frame),

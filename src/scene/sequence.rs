@@ -4,7 +4,7 @@
 
 use crate::config::{Config, WalkMode};
 use crate::error::{Error, Result};
-use crate::human::{HumanModel, MotionMode};
+use crate::human::{stride_length_m, HumanModel, MotionMode};
 use crate::scene::planner::WalkPath;
 use crate::scene::{Trajectory, WalkableGrid};
 use crate::input::tracks::Track;
@@ -291,6 +291,9 @@ pub struct HumanPlan {
     /// Arm swing of this person's walk: 1 = the model's own, 0 = arms still (see
     /// `humans.arm_swing`).
     pub arm_swing: f64,
+    /// Stride over the model's own (the legs re-solved for it; `stride_m` is this times the
+    /// model's stride), 1 = the animation as built.
+    pub stride_scale: f64,
 }
 
 /// A person's state at one instant (world frame).
@@ -302,6 +305,8 @@ pub struct HumanAt {
     pub gait_phase: f64,
     /// The person's arm swing ([`HumanPlan::arm_swing`]).
     pub arm_swing: f64,
+    /// The person's stride over its model's ([`HumanPlan::stride_scale`]).
+    pub stride_scale: f64,
     /// 1 = the walk at `gait_phase`, 0 = the standing pose; in between below
     /// [`STAND_BELOW_MPS`] (a walking person who stops comes to stand; `in-place` walks on).
     pub walking: f64,
@@ -333,6 +338,7 @@ impl HumanPlan {
             velocity_mps,
             gait_phase: phase,
             arm_swing: self.arm_swing,
+            stride_scale: self.stride_scale,
             walking,
         }
     }
@@ -374,10 +380,24 @@ const TRACK_WINDOW_TRIES: usize = 200;
 /// Samples the sensor trajectory and the people of one sequence.
 pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Result<SequencePlan> {
     let mut plan = sample_paths(rng, cfg, inp)?;
-    // Each person's style, drawn after the paths so that they do not depend on it.
+    // Each person's style, drawn after the paths so that they do not depend on it: arm swing,
+    // and a stride near the natural one for the person's mean speed (Alexander's relation,
+    // times a personal factor), within what the model's legs can be re-solved for. The phase
+    // then advances per that stride, and the legs cover it.
     let [lo, hi] = cfg.humans.arm_swing;
+    let [s_lo, s_hi] = cfg.humans.stride_variation;
+    let duration = plan.times_s.last().copied().unwrap_or(0.0);
     for h in &mut plan.humans {
         h.arm_swing = lo + (hi - lo) * rng.random::<f64>();
+        let personal = s_lo + (s_hi - s_lo) * rng.random::<f64>();
+        let model = &inp.models[h.model];
+        let (k_lo, k_hi) = model.stride_scale_range();
+        if let (Some(own), true) = (model.stride_length_m, k_lo < k_hi && h.motion.animates()) {
+            let speed = if duration > 0.0 { h.trajectory.distance(duration) / duration } else { 0.0 };
+            let natural = stride_length_m(model.height_m as f64, speed.max(0.1)) * personal;
+            h.stride_scale = (natural / own as f64).clamp(k_lo as f64, k_hi as f64);
+            h.stride_m = h.stride_scale * own as f64;
+        }
     }
     Ok(plan)
 }
@@ -458,6 +478,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
                 stride_m: inp.models[model].gait_stride_m(mean_speed),
                 motion: hc.motion,
                 arm_swing: 1.0,
+                stride_scale: 1.0,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -601,6 +622,7 @@ fn sample_synthetic_people(
                 stride_m: inp.models[model].gait_stride_m(speed),
                 motion: hc.motion,
                 arm_swing: 1.0,
+                stride_scale: 1.0,
             };
             let ok = times_s.iter().all(|&t| {
                 let p = plan.at(t).position_m.truncate();
@@ -647,6 +669,7 @@ mod tests {
             stride_m: 1.2,
             motion,
             arm_swing: 1.0,
+            stride_scale: 1.0,
         }
     }
 

@@ -105,6 +105,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         stride_m: 1.3,
         motion,
         arm_swing: 1.0,
+        stride_scale: 1.0,
     };
     assert_eq!(plan(0.0, MotionMode::Full).at(2.0).walking, 0.0);
     assert_eq!(plan(0.05, MotionMode::Full).at(2.0).walking, 0.5);
@@ -114,7 +115,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         let m = HumanModel::load(&path, true).unwrap();
         let pose = |phase: f32, walking: f32| {
             let mut joints = Vec::new();
-            m.joint_matrices_styled(phase, pedscan::human::GaitStyle { walking, arm_swing: 1.0 }, &mut joints);
+            m.joint_matrices_styled(phase, pedscan::human::GaitStyle { walking, arm_swing: 1.0, stride: 1.0 }, &mut joints);
             let mut v = Vec::new();
             m.skin_into(0, &joints, &Mat4::IDENTITY, &mut v);
             v
@@ -151,7 +152,7 @@ fn arm_swing_varies_per_person_and_moves_only_the_arms() {
     let sole = (0..rest.len()).min_by(|&a, &b| rest[a].y.total_cmp(&rest[b].y)).unwrap();
     let pose = |phase: f32, arm_swing: f32| {
         let mut joints = Vec::new();
-        m.joint_matrices_styled(phase, GaitStyle { walking: 1.0, arm_swing }, &mut joints);
+        m.joint_matrices_styled(phase, GaitStyle { walking: 1.0, arm_swing, stride: 1.0 }, &mut joints);
         let mut v = Vec::new();
         m.skin_into(0, &joints, &Mat4::IDENTITY, &mut v);
         v

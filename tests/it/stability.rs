@@ -218,6 +218,7 @@ fn far_plan(origin: DVec2) -> SequencePlan {
         stride_m: 1.3,
         motion: MotionMode::Static,
         arm_swing: 1.0,
+        stride_scale: 1.0,
     };
     SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0 }
 }
@@ -757,6 +758,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
                 stride_m: stride,
                 motion,
                 arm_swing: 1.0,
+                stride_scale: 1.0,
             };
             for k in (0..=10_000usize).step_by(7).chain([9_999, 10_000]) {
                 let t = k as f64 / 10.0;
@@ -783,6 +785,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
         stride_m: stride0,
         motion: MotionMode::Full,
         arm_swing: 1.0,
+        stride_scale: 1.0,
     };
     let s = plan.at(T_LONG);
     assert_eq!(s.velocity_mps, DVec3::ZERO, "zero speed: zero velocity");
