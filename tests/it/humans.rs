@@ -174,6 +174,46 @@ fn the_walk_moves_the_legs_and_keeps_the_height() {
     }
 }
 
+/// Whole-body density (with the air in the lungs) the builder fits the bodies to, kg/m³
+/// (tools/humans/README.md, "Body mass").
+const BODY_DENSITY: f64 = 1010.0;
+
+/// The mass a bundled body is built to: its weight label, except where that weight is below
+/// the lowest plausible BMI for the age (documented in tools/humans/README.md): the 1.2 m child
+/// is built at BMI 12.0 (17.3 kg, not 15 kg), the 1.4 m child at BMI 12.6 (24.7 kg, not 20 kg).
+fn built_mass_kg(height_m: f64, weight_kg: f64) -> f64 {
+    let floor_bmi = match (height_m * 1000.0).round() as u32 {
+        1200 => 12.0,
+        1400 => 12.6,
+        _ => 0.0,
+    };
+    weight_kg.max(floor_bmi * height_m * height_m)
+}
+
+/// Volume enclosed by the full-detail mesh in the bind pose: sum of the signed tetrahedra
+/// (origin, a, b, c) over the LOD 0 triangles.
+fn closed_volume_m3(m: &HumanModel) -> f64 {
+    let lod = &m.lods[0];
+    let p = |i: u32| lod.positions[i as usize].as_dvec3();
+    lod.indices.chunks_exact(3).map(|t| p(t[0]).dot(p(t[1]).cross(p(t[2]))) / 6.0).sum()
+}
+
+#[test]
+fn every_body_weighs_its_label_at_body_density() {
+    let mut failures = Vec::new();
+    for f in bundled() {
+        let m = HumanModel::load(&f, true).unwrap();
+        let (h, w) = label(&m.name);
+        let target = built_mass_kg(f64::from(h), f64::from(w));
+        let mass = closed_volume_m3(&m) * BODY_DENSITY;
+        let err = (mass - target) / target;
+        if err.abs() > 0.05 {
+            failures.push(format!("{}: {mass:.1} kg from the volume, built for {target:.1} kg ({:+.1} %)", m.name, 100.0 * err));
+        }
+    }
+    assert!(failures.is_empty(), "mass from volume x {BODY_DENSITY} kg/m³ not within 5 %:\n{}", failures.join("\n"));
+}
+
 /// A minimal glTF: one 1.7 m tall box, no skin, no animation.
 fn write_rigid_box(path: &Path) {
     write_rigid_box_under_chain(path, 0);

@@ -110,6 +110,15 @@ def load_target(src, name):
 # ----------------------------------------------------------------------------- body shape
 
 ADULT_BMI_REF = 22.0
+# Whole-body density with the air in the lungs (kg/m^3): fat-free tissue ~1100, fat ~900, so
+# tissue of 15-25 % fat is ~1040-1060; the ~3-4 % of the body volume taken by air at normal
+# breathing (functional residual capacity) brings the whole body to ~1000-1020 (people
+# barely float on a full breath). The mesh volume includes the chest cavity, hence this value.
+BODY_DENSITY = 1010.0
+# Lowest plausible BMI of the children: WHO 2007 growth reference, BMI-for-age -3 SD (the
+# severe-thinness line, sexes averaged, rounded) at 7 and 10 years. The paper's 1.2 m / 15 kg
+# (BMI 10.4) and 1.4 m / 20 kg (BMI 10.2) lie far below it and are built at this floor.
+CHILD_BMI_FLOOR = {7.0: 12.0, 10.0: 12.6}
 
 
 def macro_params(height_mm, weight_kg):
@@ -134,7 +143,10 @@ def macro_params(height_mm, weight_kg):
     else:
         age = 0.5 + 0.5 * (years - 25.0) / 65.0
     weight = float(np.clip(bmi / bmi_ref - 0.5, 0.0, 1.0))
-    return dict(gender=gender, age=age, muscle=0.5, weight=weight, bmi=bmi, bmi_ref=bmi_ref, years=years)
+    # body mass the mesh volume is fitted to: the paper weight, raised to the BMI floor
+    mass = max(float(weight_kg), CHILD_BMI_FLOOR.get(years, 0.0) * h * h)
+    return dict(gender=gender, age=age, muscle=0.5, weight=weight, bmi=bmi, bmi_ref=bmi_ref, years=years,
+                mass_kg=mass)
 
 
 def _two_sided(v, lo_name, mid_name, hi_name):
@@ -182,6 +194,72 @@ def morph(src, base, m):
     return v
 
 
+# ----------------------------------------------------------------------------- girth
+# The macro morphs alone barely change the volume (the child morphs hardly at all), so after
+# the morph every body vertex is moved away from (factor > 1) or towards (< 1) the axes of the
+# bones it is skinned to: v += (f - 1) * sum_k w_k * share_k * perp_k(v), perp_k = component of
+# v - head_k perpendicular to the line head_k -> tail_k. Displacements are perpendicular to the
+# bone axes, so bone lengths, joints and the standing height stay; head, hands and feet are
+# rigid (share 0) so the soles, the ground contact and the face stay as MakeHuman made them.
+# f is solved per variant (bisection) so that volume x BODY_DENSITY = the target mass.
+GIRTH_SHARE = {
+    "root": 1.0, "pelvis.L": 1.0, "pelvis.R": 1.0, "breast.L": 1.0, "breast.R": 1.0,
+    "spine01": 1.0, "spine02": 1.0, "spine03": 1.0, "spine04": 1.0, "spine05": 1.0,
+    "neck01": 0.6, "neck02": 0.4, "neck03": 0.2,
+    "clavicle.L": 0.7, "clavicle.R": 0.7, "shoulder01.L": 1.0, "shoulder01.R": 1.0,
+    "upperarm01.L": 1.0, "upperarm01.R": 1.0, "upperarm02.L": 1.0, "upperarm02.R": 1.0,
+    "lowerarm01.L": 1.0, "lowerarm01.R": 1.0, "lowerarm02.L": 0.7, "lowerarm02.R": 0.7,
+    "wrist.L": 0.2, "wrist.R": 0.2,
+    "upperleg01.L": 1.0, "upperleg01.R": 1.0, "upperleg02.L": 1.0, "upperleg02.R": 1.0,
+    "lowerleg01.L": 1.0, "lowerleg01.R": 1.0, "lowerleg02.L": 0.7, "lowerleg02.R": 0.7,
+}
+# bones whose own axis does not run along the body part they skin: the pelvis bones point
+# sideways to the hip joints, root forwards, the breast bones forwards; they use the trunk axis
+GIRTH_AXIS = {"root": "spine05", "pelvis.L": "spine05", "pelvis.R": "spine05",
+              "breast.L": "spine02", "breast.R": "spine02"}
+
+
+def closed_volume(P, tris):
+    """volume enclosed by a closed, outward-oriented triangle mesh (signed tetrahedra)"""
+    a, b, c = P[tris[:, 0]], P[tris[:, 1]], P[tris[:, 2]]
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def girth_direction(rig, groups, order, V, J, W):
+    """per body vertex: sum_k w_k * share_k * perp_k (see GIRTH_SHARE)"""
+    P = V[:len(J)]
+    D = np.zeros_like(P)
+    for j, b in enumerate(order):
+        share = GIRTH_SHARE.get(b, 0.0)
+        w = (W.astype(np.float64) * (J == j)).sum(1)
+        sel = w > 0
+        if share == 0.0 or not sel.any():
+            continue
+        ax = rig[GIRTH_AXIS.get(b, b)]
+        head, tail = locate(ax["head"], groups, V), locate(ax["tail"], groups, V)
+        u = unit(tail - head)
+        r = P[sel] - head
+        r -= np.outer(r @ u, u)
+        D[sel] += (share * w[sel])[:, None] * r
+    return D
+
+
+def fit_girth(P, D, tris, height_m, mass_kg):
+    """girth factor f (bisection) such that the body P + (f - 1) D, scaled to height_m, has
+    volume x BODY_DENSITY = mass_kg; returns (f, mass at f)"""
+    def mass(f):
+        Q = P + (f - 1.0) * D
+        sc = height_m / np.ptp(Q[:, 1])
+        return closed_volume(Q, tris) * sc ** 3 * BODY_DENSITY
+    lo, hi = 0.5, 1.6
+    assert mass(lo) < mass_kg < mass(hi), "target mass outside the girth range"
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mass(mid) < mass_kg else (lo, mid)
+    f = 0.5 * (lo + hi)
+    return f, mass(f)
+
+
 # ----------------------------------------------------------------------------- rig
 
 
@@ -192,19 +270,19 @@ def group_ranges(groups, name):
     return np.array(out)
 
 
+def locate(spec, groups, V):
+    """position of a bone head or tail from its MPFB placement strategy"""
+    if spec["strategy"] == "CUBE":
+        return V[group_ranges(groups, spec["cube_name"])].mean(0)
+    if spec["strategy"] == "VERTEX":
+        return V[spec["vertex_index"]].copy()
+    if spec["strategy"] == "MEAN":
+        return V[spec["vertex_indices"]].mean(0)
+    raise ValueError(spec["strategy"])
+
+
 def bone_heads(rig, groups, V):
-    heads = {}
-    for name, b in rig.items():
-        h = b["head"]
-        if h["strategy"] == "CUBE":
-            heads[name] = V[group_ranges(groups, h["cube_name"])].mean(0)
-        elif h["strategy"] == "VERTEX":
-            heads[name] = V[h["vertex_index"]]
-        elif h["strategy"] == "MEAN":
-            heads[name] = V[h["vertex_indices"]].mean(0)
-        else:
-            raise ValueError(h["strategy"])
-    return heads
+    return {name: locate(b["head"], groups, V) for name, b in rig.items()}
 
 
 def bone_order(rig):
@@ -624,10 +702,10 @@ def hausdorff(P, full, lod):
 # ----------------------------------------------------------------------------- measurements
 
 
-def waist(P, tris, J, yw):
-    """horizontal section at height yw through the torso (triangles whose vertices are all
-    mainly skinned to non-arm bones): returns (tape circumference = convex hull perimeter,
-    width x, depth z)."""
+def section(P, tris, J, yw):
+    """horizontal section at height yw through the triangles whose vertices are all selected
+    by the mask J (e.g. mainly skinned to non-arm bones): returns (tape circumference = convex
+    hull perimeter, width x, depth z)."""
     from scipy.spatial import ConvexHull
     ys = P[tris][:, :, 1]
     cross = (ys.min(1) < yw) & (ys.max(1) > yw) & J[tris].all(1)
@@ -703,8 +781,21 @@ def build_variant(src, base, faces, rig, groups, wjson, height_mm, weight_kg, lo
     V = morph(src, base, m) * 0.1  # decimetres -> metres, all vertices (helpers included)
     order = bone_order(rig)
     heads = bone_heads(rig, groups, V)
-    body = V[:N_BODY]
     height_m = height_mm / 1000.0
+    tris = []
+    for f in faces:
+        if len(f) == 4:
+            tris += [[f[0], f[1], f[2]], [f[0], f[2], f[3]]]
+        else:
+            tris += [f[0:3]]
+    tris = np.array(tris)
+    assert tris.max() < N_BODY
+    # girth: body vertices only (the joints above come from the morphed helpers and stay)
+    Jall, Wall = skin_weights(wjson, order, N_BODY)
+    D = girth_direction(rig, groups, order, V, Jall, Wall)
+    girth_f, _ = fit_girth(V[:N_BODY], D, tris, height_m, m["mass_kg"])
+    V[:N_BODY] += (girth_f - 1.0) * D
+    body = V[:N_BODY]
     sc = height_m / (body[:, 1].max() - body[:, 1].min())
     ymin = body[:, 1].min()
     ank = 0.5 * (heads["foot.L"] + heads["foot.R"])
@@ -717,14 +808,7 @@ def build_variant(src, base, faces, rig, groups, wjson, height_mm, weight_kg, lo
     remap = -np.ones(len(V), np.int64)
     remap[used] = np.arange(len(used))
     P = V[used]
-    tris = []
-    for f in faces:
-        if len(f) == 4:
-            tris += [[f[0], f[1], f[2]], [f[0], f[2], f[3]]]
-        else:
-            tris += [f[0:3]]
-    tris = remap[np.array(tris)].astype(np.uint32)
-    Jall, Wall = skin_weights(wjson, order, N_BODY)
+    tris = remap[tris].astype(np.uint32)
     Jv, Wv = Jall[used], Wall[used]
     nb = len(order)
     parents = [order.index(rig[b]["parent"]) if rig[b]["parent"] else -1 for b in order]
@@ -822,12 +906,24 @@ def build_variant(src, base, faces, rig, groups, wjson, height_mm, weight_kg, lo
     bspeeds = np.concatenate(bspeeds)
     stride_measured = float(np.median(bspeeds) * gait.T)
 
-    # waist at the navel level (height of the spine03 joint)
+    # girths (convex hull of the horizontal section, arms excluded): waist at the navel level
+    # (height of the spine03 joint), chest at the nipples (tail vertex of the breast bones), hip
+    # at the hip joint centres (upperleg01 heads), thigh (left leg alone) halfway between the hip
+    # and knee joints (upperleg01 and lowerleg01 heads)
     yw = float(heads["spine03"][1])
     arm_j = np.array([("arm" in b or "wrist" in b or "finger" in b or "metacarpal" in b or
                        "shoulder" in b or "clavicle" in b) for b in order])
-    torso_v = ~arm_j[Jv[:, 0].astype(np.int64)]
-    circ, width, depth = waist(P, tris, torso_v, yw)
+    dom = Jv[:, 0].astype(np.int64)
+    torso_v = ~arm_j[dom]
+    circ, width, depth = section(P, tris, torso_v, yw)
+    y_chest = float(P[remap[rig["breast.L"]["tail"]["vertex_index"]], 1])
+    y_hip = float(heads["upperleg01.L"][1])
+    y_thigh = float(0.5 * (heads["upperleg01.L"][1] + heads["lowerleg01.L"][1]))
+    leg_l = np.isin(dom, [order.index(b) for b in ("upperleg01.L", "upperleg02.L", "lowerleg01.L")])
+    girths = {"chest": (section(P, tris, torso_v, y_chest)[0], y_chest),
+              "hip": (section(P, tris, torso_v, y_hip)[0], y_hip),
+              "thigh": (section(P, tris, leg_l, y_thigh)[0], y_thigh)}
+    mass_kg = closed_volume(P, tris) * BODY_DENSITY
 
     # ---- glTF
     gw = GlbWriter()
@@ -900,6 +996,10 @@ def build_variant(src, base, faces, rig, groups, wjson, height_mm, weight_kg, lo
     stats = dict(variant="h%d_w%d" % (height_mm, weight_kg), macro=m,
                  height=float(P[:, 1].max() - P[:, 1].min()), ymin=float(P[:, 1].min()),
                  waist_circ=circ, waist_w=width, waist_d=depth, waist_y=yw,
+                 chest_circ=girths["chest"][0], chest_y=girths["chest"][1],
+                 hip_circ=girths["hip"][0], hip_y=girths["hip"][1],
+                 thigh_circ=girths["thigh"][0], thigh_y=girths["thigh"][1],
+                 girth_factor=girth_f, density=BODY_DENSITY, mass_kg=mass_kg,
                  lod_tris=[int(len(t)) for t in lods], lod_err=lod_err, lod_err_recorded=lod_rec,
                  stride_param=gait.S, stride=stride_measured, cycle=float(times[-1]),
                  slide_mean=float(slides.mean()), slide_p95=float(np.percentile(slides, 95)),
@@ -965,9 +1065,9 @@ def _job(job):
     data, st = build_variant(src, base, faces, rig, groups, wjson, h, w, print)
     with open(os.path.join(out, name + ".glb"), "wb") as f:
         f.write(data)
-    line = ("%s: %d bytes sha256 %s height %.4f waist %.3f lods %s err %s stride %.3f slide p95 %.4f m/s "
+    line = ("%s: %d bytes sha256 %s height %.4f mass %.2f kg (girth x%.3f) waist %.3f lods %s err %s stride %.3f slide p95 %.4f m/s "
             "knee %.0f..%.0f pen %.4f" % (name, len(data), hashlib.sha256(data).hexdigest()[:12], st["height"],
-                                          st["waist_circ"], st["lod_tris"], ["%.4f" % e for e in st["lod_err"]],
+                                          st["mass_kg"], st["girth_factor"], st["waist_circ"], st["lod_tris"], ["%.4f" % e for e in st["lod_err"]],
                                           st["stride"], st["slide_p95"], st["knee_min"], st["knee_max"],
                                           st["penetration"]))
     print(line, flush=True)
