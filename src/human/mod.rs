@@ -1184,6 +1184,7 @@ mod tests {
                 stand: Vec4::from(Quat::IDENTITY),
                 arm: false,
             }],
+            legs: None,
         };
         let mut joints = Vec::new();
         model.joint_matrices(0.25, &mut joints);
@@ -1256,6 +1257,7 @@ pub(crate) mod tests_support {
             joint_nodes: vec![0],
             inverse_bind: vec![Mat4::IDENTITY],
             channels: Vec::new(),
+            legs: None,
         }
     }
 }
