@@ -140,8 +140,17 @@ impl BeamExact {
     /// The raster for `sensor`'s beam grid on `ctx`.
     pub fn new(ctx: &Arc<Context>, sensor: &Sensor) -> Result<BeamExact> {
         let (rows, columns) = (sensor.rows(), sensor.columns);
-        if rows >= MAX_GRID_SIDE || columns >= MAX_GRID_SIDE {
-            return Err(Error::Internal(format!("a {rows} x {columns} beam grid is too large for the beam raster")));
+        let limits = ctx.limits();
+        let side = (limits.max_image_dimension2_d.min(limits.max_framebuffer_width).min(limits.max_framebuffer_height) as usize)
+            .min(MAX_GRID_SIDE);
+        if rows > side || columns > side {
+            return Err(Error::input(
+                "sensor",
+                format!(
+                    "a {rows} x {columns} beam grid is larger than {} draws ({side} texels a side); use --backend raycast",
+                    ctx.device_name()
+                ),
+            ));
         }
         let dirs = sensor.beam_dirs();
         let caster = BeamCaster::new(&dirs, rows, columns);
