@@ -691,12 +691,12 @@ impl HumanModel {
             let cos_a = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d)).clamp(-1.0, 1.0);
             let new_knee = hip + l1 * (cos_a * dir + (1.0 - cos_a * cos_a).sqrt() * side);
             // Thigh: turn the hip->knee direction onto the new one.
-            let turn1 = Quat::from_rotation_arc((knee - hip).normalize(), (new_knee - hip).normalize());
+            let turn1 = arc((knee - hip).normalize_or_zero(), (new_knee - hip).normalize_or_zero());
             self.set_global_rotation(local, leg.thigh, turn1 * Quat::from_mat4(&hip_m).normalize());
             // Shank: with the thigh turned, turn the knee->ankle direction onto the target.
             let (knee_m, ankle_now) = (g(local, leg.shank), pos(g(local, leg.foot)));
             let knee_now = pos(knee_m);
-            let turn2 = Quat::from_rotation_arc((ankle_now - knee_now).normalize(), (target - knee_now).normalize());
+            let turn2 = arc((ankle_now - knee_now).normalize_or_zero(), (target - knee_now).normalize_or_zero());
             self.set_global_rotation(local, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
             // Foot: its animated orientation.
             self.set_global_rotation(local, leg.foot, foot_rot);
@@ -1090,6 +1090,16 @@ impl HumanModel {
             Some(s) => s as f64,
             None => stride_length_m(self.height_m as f64, speed_mps.max(0.1)),
         }
+    }
+}
+
+/// The rotation taking unit `from` onto unit `to`; none where either is zero (a degenerate
+/// chain keeps its pose rather than turning into NaN).
+fn arc(from: Vec3, to: Vec3) -> Quat {
+    if from == Vec3::ZERO || to == Vec3::ZERO {
+        Quat::IDENTITY
+    } else {
+        Quat::from_rotation_arc(from, to)
     }
 }
 
