@@ -110,6 +110,8 @@ pub struct BeamCaster {
     gap_table: Vec<i32>,
     /// Per triangle job: the hits it found (beam, range, triangle).
     jobs: Vec<Vec<(u32, f64, u32)>>,
+    /// Per triangle job of [`BeamCaster::bounds`]: the bounds it found.
+    bound_jobs: Vec<Vec<GridBound>>,
     /// The jobs: (mesh, first triangle, end triangle, first row, end row).
     spans: Vec<(usize, usize, usize, usize, usize)>,
     /// Per beam: its direction in f32, for the conservative pre-test.
@@ -152,6 +154,7 @@ impl BeamCaster {
             us: Vec::new(),
             gap_table,
             jobs: Vec::new(),
+            bound_jobs: Vec::new(),
             spans: Vec::new(),
             dir32: dirs.iter().map(|d| d.as_vec3().to_array()).collect(),
             blocks: beam_blocks(dirs, rows, columns),
@@ -268,30 +271,34 @@ impl BeamCaster {
         }
         self.project(geom);
         let margin_u = azimuth_margin_columns(self.columns);
-        let grid = self.grid(margin_u, f64::MAX);
-        let mut parts: Vec<Vec<GridBound>> = geom
-            .meshes
-            .par_iter()
-            .flat_map_iter(|m| {
-                let end = m.first_triangle as usize + m.triangle_count as usize;
-                (m.first_triangle as usize..end).step_by(JOB_TRIANGLES).map(move |s| (s, (s + JOB_TRIANGLES).min(end)))
-            })
-            .map(|(s, e)| {
-                let mut v = Vec::new();
-                for t in s..e {
-                    if grid.quick_skip(geom, t) {
-                        continue;
-                    }
-                    if let Some((c0, c1, r0, r1)) = grid.bound(geom, t as u32) {
-                        v.push(GridBound { triangle: t as u32, c0, c1, r0: r0 as u32, r1: r1 as u32 });
-                    }
-                }
-                v
-            })
-            .collect();
-        for p in parts.iter_mut() {
-            out.append(p);
+        // Jobs of JOB_TRIANGLES triangles of one mesh, each into its own reused list.
+        let mut spans = std::mem::take(&mut self.spans);
+        spans.clear();
+        for (k, m) in geom.meshes.iter().enumerate() {
+            let end = m.first_triangle as usize + m.triangle_count as usize;
+            spans.extend((m.first_triangle as usize..end).step_by(JOB_TRIANGLES).map(|s| (k, s, (s + JOB_TRIANGLES).min(end), 0, 0)));
         }
+        let mut parts = std::mem::take(&mut self.bound_jobs);
+        if parts.len() < spans.len() {
+            parts.resize_with(spans.len(), Vec::new);
+        }
+        let grid = self.grid(margin_u, f64::MAX);
+        parts[..spans.len()].par_iter_mut().zip(spans.par_iter()).for_each(|(v, &(_, s, e, _, _))| {
+            v.clear();
+            for t in s..e {
+                if grid.quick_skip(geom, t) {
+                    continue;
+                }
+                if let Some((c0, c1, r0, r1)) = grid.bound(geom, t as u32) {
+                    v.push(GridBound { triangle: t as u32, c0, c1, r0: r0 as u32, r1: r1 as u32 });
+                }
+            }
+        });
+        for p in &parts[..spans.len()] {
+            out.extend_from_slice(p);
+        }
+        self.bound_jobs = parts;
+        self.spans = spans;
     }
 
     /// The watertight ray constants of beam `b` (`None`: a degenerate direction).
