@@ -154,11 +154,7 @@ impl Ros2BagWriter {
     /// `dirs`: the sensor's unit beam directions.
     pub fn create(out_dir: &Path, meta: &SequenceMeta, dirs: Arc<[DVec3]>) -> Result<Ros2BagWriter> {
         let fin = bag_dir(out_dir, meta.index);
-        let tmp = super::writer::tmp_name(&fin);
-        if tmp.exists() {
-            std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        }
-        std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let tmp = super::writer::fresh_tmp_dir(&fin)?;
         let mcap_name = format!("{}.mcap", super::sequence_stem(meta.index));
         let path = tmp.join(&mcap_name);
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;

@@ -95,10 +95,7 @@ impl SemanticKittiWriter {
     /// `dirs`: the sensor's unit beam directions.
     pub fn create(out_dir: &Path, meta: &SequenceMeta, dirs: Arc<[DVec3]>) -> Result<SemanticKittiWriter> {
         let fin = sequence_dir(out_dir, meta.index);
-        let tmp = super::writer::tmp_name(&fin);
-        if tmp.exists() {
-            std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        }
+        let tmp = super::writer::fresh_tmp_dir(&fin)?;
         create_dir(&tmp.join("velodyne"))?;
         create_dir(&tmp.join("labels"))?;
         if meta.outputs.velocity {

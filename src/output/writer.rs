@@ -88,6 +88,17 @@ pub(crate) fn tmp_name(p: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
+/// The empty temporary directory of the final directory `fin` (`tmp_name`), created anew: a
+/// leftover of an earlier, interrupted run is removed first.
+pub(crate) fn fresh_tmp_dir(fin: &Path) -> Result<PathBuf> {
+    let tmp = tmp_name(fin);
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    Ok(tmp)
+}
+
 impl SequenceWriter {
     /// Creates the temporary files of sequence `meta.index` in `out_dir` (created if missing).
     pub fn create(

@@ -711,20 +711,7 @@ mod tests {
         assert!((AZIMUTH_MARGIN_RAD as f64) > 3.0 * worst);
     }
 
-    /// SplitMix64.
-    struct Rng(u64);
-    impl Rng {
-        fn f(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.f()
-        }
-    }
+    use crate::backend::raycast::test_support::Rng;
 
     fn f32v(v: DVec3) -> [f32; 3] {
         [v.x as f32, v.y as f32, v.z as f32]
