@@ -418,7 +418,7 @@ impl Generator {
                 gait_phase: (s.gait_phase as f32).rem_euclid(1.0),
             });
             vel.push(s.velocity_mps);
-            style.push(GaitStyle { walking: s.walking as f32, arm_swing: s.arm_swing as f32, stride: s.stride_scale as f32 });
+            style.push(s.style());
         }
         FrameState {
             t_s: t,
@@ -616,8 +616,7 @@ impl Generator {
                     let st = h.at(state.t_s + dt);
                     let world_from_body = DMat4::from_translation(st.position_m) * DMat4::from_rotation_z(st.heading_rad);
                     let mut joints = Vec::new();
-                    let style = GaitStyle { walking: st.walking as f32, arm_swing: st.arm_swing as f32, stride: st.stride_scale as f32 };
-                    model.joint_matrices_styled((st.gait_phase as f32).rem_euclid(1.0), style, &mut joints);
+                    model.joint_matrices_styled((st.gait_phase as f32).rem_euclid(1.0), st.style(), &mut joints);
                     (joints.iter().map(|j| glam::Affine3A::from_mat4(*j)).collect(), sensor_from_world * world_from_body * model_to_body)
                 };
                 Some([at(-DT_S), at(DT_S)])
@@ -636,8 +635,7 @@ impl Generator {
             let (_, m, lod) = layout[k];
             let lod = &models[m].lods[lod];
             let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
-            let corner = |c: usize| DVec3::from(geom.positions[i[c] as usize].map(f64::from));
-            let lambda = barycentric(dirs[b] * hits.range_m[b] as f64, [corner(0), corner(1), corner(2)]);
+            let lambda = barycentric(dirs[b] * hits.range_m[b] as f64, geom.triangle_f64(t));
             let mut p = [DVec3::ZERO; 2];
             for (side, (placed, sensor_from_model)) in motion.iter().enumerate() {
                 let q: DVec3 = (0..3)

@@ -601,13 +601,13 @@ impl HumanModel {
                 Property::Scale => l.2 = v.truncate(),
             }
         }
+        let mut global: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
         if style.stride != 1.0 && walk > 0.0 {
             if let Some((legs, root)) = self.legs {
                 let phase = if self.cycle_s > 0.0 { t / self.cycle_s } else { 0.0 };
-                self.scale_stride(&mut local, legs, root, phase, 1.0 + walk * (style.stride - 1.0));
+                self.scale_stride(&mut local, &mut global, legs, root, phase, 1.0 + walk * (style.stride - 1.0));
             }
         }
-        let mut global: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
         out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
     }
 
@@ -633,7 +633,16 @@ impl HumanModel {
     /// up or down so that the more stretched leg is exactly as stretched as in the animation at
     /// this phase (a shorter stride stands taller), then each leg is a two-bone chain (hip ->
     /// knee -> ankle) bent in the plane of its animated knee.
-    fn scale_stride(&self, local: &mut [(Vec3, Quat, Vec3)], legs: [Leg; 2], root: usize, phase: f32, k: f32) {
+    /// `cache` holds the globals of `local` (or `None`s) and is left consistent with the result.
+    fn scale_stride(
+        &self,
+        local: &mut [(Vec3, Quat, Vec3)],
+        cache: &mut [Option<Mat4>],
+        legs: [Leg; 2],
+        root: usize,
+        phase: f32,
+        k: f32,
+    ) {
         const TOE_OFF: f32 = 0.62;
         const UNDER_HIP: f32 = 0.25;
         let stride = self.stride_length_m.unwrap_or(0.0);
@@ -651,21 +660,14 @@ impl HumanModel {
         };
         let shifts = [shift(0.0), shift(0.5)];
         let pos = |m: Mat4| m.w_axis.truncate();
+        let nodes = &self.nodes;
         // Animated hips, knees, ankles and foot orientations; the targets.
-        let g = |local: &[(Vec3, Quat, Vec3)], i: usize| {
-            let mut cache: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
-            global_of(&self.nodes, local, &mut cache, i)
-        };
-        let anim: Vec<(Vec3, Vec3, Vec3, Quat)> = legs
-            .iter()
-            .map(|l| {
-                let f = g(local, l.foot);
-                (pos(g(local, l.thigh)), pos(g(local, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
-            })
-            .collect();
-        let reach: Vec<f32> = anim.iter().map(|&(h, _, a, _)| (a - h).length()).collect();
-        let stretch = reach.iter().cloned().fold(0.0f32, f32::max);
-        let targets: Vec<Vec3> = anim.iter().zip(shifts).map(|(&(_, _, a, _), dz)| a + Vec3::Z * dz).collect();
+        let anim: [(Vec3, Vec3, Vec3, Quat); 2] = legs.map(|l| {
+            let f = global_of(nodes, local, cache, l.foot);
+            (pos(global_of(nodes, local, cache, l.thigh)), pos(global_of(nodes, local, cache, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
+        });
+        let stretch = anim.iter().map(|&(h, _, a, _)| (a - h).length()).fold(0.0f32, f32::max);
+        let targets: [Vec3; 2] = [0, 1].map(|i| anim[i].2 + Vec3::Z * shifts[i]);
         // Pelvis height: the highest at which no leg reaches further than `stretch`.
         let lift = anim
             .iter()
@@ -677,9 +679,11 @@ impl HumanModel {
             .fold(f32::INFINITY, f32::min);
         if lift.is_finite() {
             local[root].0.y += lift;
+            cache.fill(None);
         }
         for (leg, (&(_, knee0, _, foot_rot), &target)) in legs.iter().zip(anim.iter().zip(&targets)) {
-            let (hip_m, knee_m, ankle_m) = (g(local, leg.thigh), g(local, leg.shank), g(local, leg.foot));
+            let (hip_m, knee_m, ankle_m) =
+                (global_of(nodes, local, cache, leg.thigh), global_of(nodes, local, cache, leg.shank), global_of(nodes, local, cache, leg.foot));
             let (hip, knee, ankle) = (pos(hip_m), pos(knee_m), pos(ankle_m));
             let (l1, l2) = ((knee - hip).length(), (ankle - knee).length());
             let to = target - hip;
@@ -692,28 +696,27 @@ impl HumanModel {
             let new_knee = hip + l1 * (cos_a * dir + (1.0 - cos_a * cos_a).sqrt() * side);
             // Thigh: turn the hip->knee direction onto the new one.
             let turn1 = arc((knee - hip).normalize_or_zero(), (new_knee - hip).normalize_or_zero());
-            self.set_global_rotation(local, leg.thigh, turn1 * Quat::from_mat4(&hip_m).normalize());
+            self.set_global_rotation(local, cache, leg.thigh, turn1 * Quat::from_mat4(&hip_m).normalize());
             // Shank: with the thigh turned, turn the knee->ankle direction onto the target.
-            let (knee_m, ankle_now) = (g(local, leg.shank), pos(g(local, leg.foot)));
-            let knee_now = pos(knee_m);
+            let knee_m = global_of(nodes, local, cache, leg.shank);
+            let (knee_now, ankle_now) = (pos(knee_m), pos(global_of(nodes, local, cache, leg.foot)));
             let turn2 = arc((ankle_now - knee_now).normalize_or_zero(), (target - knee_now).normalize_or_zero());
-            self.set_global_rotation(local, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
+            self.set_global_rotation(local, cache, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
             // Foot: its animated orientation.
-            self.set_global_rotation(local, leg.foot, foot_rot);
+            self.set_global_rotation(local, cache, leg.foot, foot_rot);
         }
     }
 
     /// Sets node `i`'s local rotation so that its global rotation is `rotation` (its parent's
-    /// global transform as `local` has it; scales are 1 in a walking skeleton).
-    fn set_global_rotation(&self, local: &mut [(Vec3, Quat, Vec3)], i: usize, rotation: Quat) {
+    /// global transform as `local` has it; scales are 1 in a walking skeleton); `cache` holds
+    /// the globals of `local` before and after.
+    fn set_global_rotation(&self, local: &mut [(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], i: usize, rotation: Quat) {
         let parent = match self.nodes[i].parent {
-            Some(p) => {
-                let mut cache: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
-                Quat::from_mat4(&global_of(&self.nodes, local, &mut cache, p)).normalize()
-            }
+            Some(p) => Quat::from_mat4(&global_of(&self.nodes, local, cache, p)).normalize(),
             None => Quat::IDENTITY,
         };
         local[i].1 = (parent.inverse() * rotation).normalize();
+        cache.fill(None);
     }
 
     /// Skins LOD `lod` with `joints` and maps it through `transform` (model -> target frame),

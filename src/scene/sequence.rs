@@ -4,7 +4,7 @@
 
 use crate::config::{Config, WalkMode};
 use crate::error::{Error, Result};
-use crate::human::{stride_length_m, HumanModel, MotionMode};
+use crate::human::{stride_length_m, GaitStyle, HumanModel, MotionMode};
 use crate::scene::planner::WalkPath;
 use crate::scene::{Trajectory, WalkableGrid};
 use crate::input::tracks::Track;
@@ -310,6 +310,13 @@ pub struct HumanAt {
     /// 1 = the walk at `gait_phase`, 0 = the standing pose; in between below
     /// [`STAND_BELOW_MPS`] (a walking person who stops comes to stand; `in-place` walks on).
     pub walking: f64,
+}
+
+impl HumanAt {
+    /// How the person walks at this instant (for posing its model).
+    pub fn style(&self) -> GaitStyle {
+        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32 }
+    }
 }
 
 /// Below this speed a walking person blends toward the standing pose (linearly, standing at 0).

@@ -42,10 +42,7 @@ fn limb_velocity_is_the_motion_of_the_hit_point_on_the_posed_mesh() {
             if t == NO_TRIANGLE {
                 continue;
             }
-            let corners = |g: &pedscan::geometry::FrameGeometry| {
-                let i = &g.indices[3 * t as usize..3 * t as usize + 3];
-                [0, 1, 2].map(|c| DVec3::from(g.positions[i[c] as usize].map(f64::from)))
-            };
+            let corners = |g: &pedscan::geometry::FrameGeometry| g.triangle_f64(t);
             // Barycentric coordinates of the hit in the triangle at t.
             let [a, bb, c] = corners(&people);
             let p = dirs[b] * hits.range_m[b] as f64;

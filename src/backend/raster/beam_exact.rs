@@ -265,8 +265,7 @@ impl BeamExact {
                 mesh += 1;
             }
             let cull = !geom.meshes[mesh].double_sided;
-            let i = &geom.indices[3 * g.triangle as usize..3 * g.triangle as usize + 3];
-            let [a, b, c] = [0, 1, 2].map(|k| DVec3::from(geom.positions[i[k] as usize].map(f64::from)));
+            let [a, b, c] = geom.triangle_f64(g.triangle);
             let normal = (b - a).cross(c - a);
             let unit = normal.normalize_or_zero();
             let f = |v: DVec3| v.as_vec3().to_array();
@@ -405,7 +404,7 @@ impl BeamExact {
                     let t = id - 1;
                     let confirmed = caster.ray_pre(b).and_then(|pre| {
                         let k = geom.mesh_index_of_triangle(t);
-                        intersect_pre(pre, &triangle(geom, t), !geom.meshes[k].double_sided)
+                        intersect_pre(pre, &geom.triangle_f64(t), !geom.meshes[k].double_sided)
                     });
                     let hit = match confirmed {
                         Some(r) => Some((r, t)),
@@ -446,12 +445,6 @@ fn tiles(caster: &BeamCaster, rows: usize, columns: usize) -> Vec<[f32; 4]> {
     v
 }
 
-/// Triangle `t` of `geom` in f64.
-fn triangle(geom: &FrameGeometry, t: u32) -> [DVec3; 3] {
-    let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
-    [0, 1, 2].map(|k| DVec3::from(geom.positions[i[k] as usize].map(f64::from)))
-}
-
 /// The nearest hit of the beam at (`row`, `col`) (ray constants `pre`) over the triangles
 /// whose bound holds it: every triangle it can hit (the reference's test and tie rule).
 fn cast_bounded(geom: &FrameGeometry, bounds: &[GridBound], pre: &RayPre, (row, col): (u32, i64), columns: i64) -> Option<(f64, u32)> {
@@ -464,7 +457,7 @@ fn cast_bounded(geom: &FrameGeometry, bounds: &[GridBound], pre: &RayPre, (row, 
         while geom.meshes[mesh].first_triangle + geom.meshes[mesh].triangle_count <= g.triangle {
             mesh += 1;
         }
-        if let Some(r) = intersect_pre(pre, &triangle(geom, g.triangle), !geom.meshes[mesh].double_sided) {
+        if let Some(r) = intersect_pre(pre, &geom.triangle_f64(g.triangle), !geom.meshes[mesh].double_sided) {
             if best.map_or(true, |(br, bt)| better(r, g.triangle, br, bt)) {
                 best = Some((r, g.triangle));
             }

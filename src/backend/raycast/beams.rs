@@ -778,8 +778,7 @@ mod tests {
         let mut checked = 0;
         for m in &geom.meshes {
             for t in m.first_triangle..m.first_triangle + m.triangle_count {
-                let i = &geom.indices[3 * t as usize..3 * t as usize + 3];
-                let tri = [0, 1, 2].map(|k| DVec3::from(geom.positions[i[k] as usize].map(f64::from)));
+                let tri = geom.triangle_f64(t);
                 let bound = bounds.iter().find(|g| g.triangle == t);
                 for (b, d) in dirs.iter().enumerate() {
                     if crate::backend::triangle::intersect_triangle(*d, &tri, !m.double_sided).is_none() {
