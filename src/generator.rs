@@ -15,7 +15,9 @@ use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, FrameGeometry};
 use crate::human::{model_files, GaitStyle, HumanModel, MODEL_TO_BODY};
 use crate::output::{Compression, FrameOutput, HumanMeta, HumanState, OutputSet, SequenceMeta, SequenceWriter, WriterOptions};
-use crate::post::{composite, PostParams};
+use crate::post::{derive, select, ColumnMotion, PostParams};
+use crate::sensor_model::shutter::Sweep;
+use crate::sensor_model::{FootprintScene, SequenceDraws, Surface};
 use crate::scene::{Environment, WalkableGrid, WALKABLE_CELL_M};
 use crate::sensor::Sensor;
 use crate::scene::sequence::{sample_plan, PlanInputs, PoseTrack, SequencePlan};
@@ -25,6 +27,16 @@ use rand::SeedableRng;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// One beam of [`Generator::reference_rolling_hits`]: (beam, nearest person's (range,
+/// instance), environment's range or 0).
+pub type ReferenceHit = (usize, Option<(f64, u16)>, f64);
+
+/// Rolling shutter: a person is posed at key times at most this far apart over the columns
+/// it spans, and each vertex interpolated between the two around its own time (see
+/// [`Sweep::warp_keys`]); 8 ms keeps the interpolation's error near 0.1 mm at walking
+/// accelerations.
+const KEY_STEP_S: f64 = 0.008;
 
 /// Bounding-sphere radius of a person as a fraction of height (arms and legs mid-swing).
 const BODY_RADIUS_PER_HEIGHT: f64 = 0.75;
@@ -68,6 +80,12 @@ pub struct Generator {
     export_geometry: Option<PathBuf>,
     /// Seconds spent per stage so far (see `--timings`).
     timings: StageTimes,
+    /// Per model, per level of detail, per triangle: its body region (`crate::sensor_model`).
+    regions: Vec<Vec<Vec<u8>>>,
+    /// Per environment mesh (as `env_meshes`): its reflectance.
+    env_reflectance: Vec<f32>,
+    /// Intensity units (`sensor_model.intensity_scale`, resolved).
+    intensity_scale: f64,
 }
 
 /// One posed frame as the backends see it (see [`Generator::posed`]).
@@ -162,12 +180,37 @@ struct Scratch {
     /// `limb` velocities: per beam, the world velocity of the human surface point it hits,
     /// sensor frame (see [`Generator::point_velocities`]).
     point_velocity: Vec<DVec3>,
+    /// The sweep of the frame posed last, and per drawn person (as `layout`) the span of
+    /// times its vertices were posed over: `(ta, tb, u_centre)` (rolling shutter).
+    sweep: Option<Sweep>,
+    spans: Vec<(f64, f64, f64)>,
+    /// Rolling shutter, per drawn person: its placements at the later key times of its span
+    /// (the first is in `placements`).
+    placements_b: Vec<Vec<(Mat4, f32, GaitStyle)>>,
+    /// The sensor's motion per column of the frame posed last (one entry without rolling
+    /// shutter), and each person's world velocity and time at the columns that see it.
+    column_motion: Vec<ColumnMotion>,
+    person_velocity: Vec<DVec3>,
+    person_time: Vec<f64>,
+    /// Rolling shutter with a moving sensor and an environment: `world_from_sensor` per
+    /// column (the background's hits are refined against it); empty otherwise.
+    column_pose: Vec<DMat4>,
+    /// The sensor model's per-sequence draws, for sequence `draws_for`.
+    draws: SequenceDraws,
+    draws_for: Option<(usize, usize)>,
+    /// The clean surface per beam and the model's result.
+    clean: Vec<Option<Surface>>,
+    beams_out: Vec<crate::sensor_model::BeamOut>,
 }
 
 /// Per drawn person, reused across frames: joint matrices, placed joints, bounding sphere.
 #[derive(Default)]
 struct PersonScratch {
     joints: Vec<Mat4>,
+    /// Rolling shutter: the joints at the later key times of the person's span, and its
+    /// vertices (or its proxy's) posed there.
+    joints_b: Vec<Vec<Mat4>>,
+    b: Vec<Vec<[f32; 3]>>,
     placed: Vec<glam::Affine3A>,
     bounds: ([f32; 3], f32),
     proxy_bounds: ([f32; 3], f32),
@@ -176,6 +219,8 @@ struct PersonScratch {
 /// The sensor and people at one frame (world frame).
 #[derive(Clone, Debug)]
 pub struct FrameState {
+    /// Frame index within the sequence.
+    pub frame: usize,
     pub t_s: f64,
     pub world_from_sensor: DMat4,
     pub sensor_velocity_mps: DVec3,
@@ -288,6 +333,12 @@ impl Generator {
                 .collect()
         });
         let backend = backend::create(&cfg, &sensor, &models, gpu)?;
+        let regions = models.iter().map(body_regions).collect::<Result<Vec<_>>>()?;
+        let env_reflectance = environment.as_ref().map_or_else(Vec::new, |env| {
+            env.meshes.iter().filter(|m| !m.indices.is_empty()).map(|m| m.reflectance).collect()
+        });
+        let pcap = bg.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"));
+        let intensity_scale = cfg.sensor_model.intensity_scale.unwrap_or(if recording.is_some() && pcap { 100.0 } else { 1.0 });
         Ok(Generator {
             dirs: sensor.beam_dirs(),
             cfg,
@@ -303,6 +354,9 @@ impl Generator {
             env_meshes,
             export_geometry: None,
             timings: StageTimes::default(),
+            regions,
+            env_reflectance,
+            intensity_scale,
         })
     }
 
@@ -399,12 +453,21 @@ impl Generator {
 
     /// Which outputs are computed.
     pub fn outputs(&self) -> OutputSet {
-        OutputSet { xyz: self.cfg.output.xyz, velocity: self.cfg.output.velocity_field, background: self.cfg.output.background }
+        OutputSet {
+            xyz: self.cfg.output.xyz,
+            velocity: self.cfg.output.velocity_field,
+            background: self.cfg.output.background,
+            clean: self.cfg.sensor_model.enabled,
+        }
     }
 
     /// Sensor and people at frame `k` of a plan.
     pub fn frame_state(&self, plan: &SequencePlan, k: usize) -> FrameState {
-        let t = plan.times_s[k];
+        self.frame_state_at(plan, k, plan.times_s[k])
+    }
+
+    /// Sensor and people of frame `k` of a plan, as they are at time `t` (s).
+    pub fn frame_state_at(&self, plan: &SequencePlan, k: usize, t: f64) -> FrameState {
         let mut humans = Vec::with_capacity(plan.humans.len());
         let mut vel = Vec::with_capacity(plan.humans.len());
         let mut style = Vec::with_capacity(plan.humans.len());
@@ -421,6 +484,7 @@ impl Generator {
             style.push(s.style());
         }
         FrameState {
+            frame: k,
             t_s: t,
             world_from_sensor: plan.sensor.pose(t),
             sensor_velocity_mps: plan.sensor.velocity(t),
@@ -434,27 +498,67 @@ impl Generator {
 
     /// Poses the background and the people of a frame into the sensor frame (f64 -> f32),
     /// skipping people no beam can reach. Fills `scratch.background` and `scratch.humans`, and
-    /// `scratch.recorded` with the recorded background frame, if any.
+    /// `scratch.recorded` with the recorded background frame, if any. With the rolling
+    /// shutter on, every vertex is placed at the time its column is fired
+    /// ([`crate::sensor_model::shutter`]).
     pub fn pose_frame(&mut self, plan: &SequencePlan, state: &FrameState) -> Result<()> {
-        self.pose_frame_at(plan, state, self.cfg.render.lod_max_error_mrad)
+        self.pose_frame_at(plan, state, self.cfg.render.lod_max_error_mrad, self.rolls())
     }
 
     /// [`Generator::pose_frame`] with every person at full detail (the reference of `bench`).
     pub fn pose_frame_full_detail(&mut self, plan: &SequencePlan, state: &FrameState) -> Result<()> {
-        self.pose_frame_at(plan, state, 0.0)
+        self.pose_frame_at(plan, state, 0.0, self.rolls())
     }
 
-    fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64) -> Result<()> {
+    /// Whether frames are taken column by column over the sweep (`sensor_model`).
+    pub fn rolls(&self) -> bool {
+        self.cfg.sensor_model.enabled && self.cfg.sensor_model.rolling_shutter
+    }
+
+    /// The sweep of a frame at `t_s`.
+    fn sweep(&self, t_s: f64, rolling: bool) -> Sweep {
+        Sweep { t0_s: t_s, period_s: if rolling { 1.0 / self.sensor.rate_hz } else { 0.0 }, columns: self.sensor.columns }
+    }
+
+    fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64, rolling: bool) -> Result<()> {
         let sensor_from_world = state.world_from_sensor.inverse();
+        let sweep = self.sweep(state.t_s, rolling);
         let s = &mut self.scratch;
+        s.sweep = Some(sweep);
+        // The sensor's motion per column (one entry when every column is the frame's instant).
+        s.column_motion.clear();
+        let motion_at = |t: f64| ColumnMotion {
+            rot: DMat3::from_mat4(plan.sensor.pose(t)),
+            velocity_mps: plan.sensor.velocity(t),
+            yaw_rate_rps: plan.sensor.yaw_rate_rps(t),
+        };
+        if rolling {
+            s.column_motion.extend((0..sweep.columns).map(|c| motion_at(sweep.column_time(c))));
+        } else {
+            s.column_motion.push(ColumnMotion {
+                rot: DMat3::from_mat4(state.world_from_sensor),
+                velocity_mps: state.sensor_velocity_mps,
+                yaw_rate_rps: state.sensor_yaw_rate_rps,
+            });
+        }
         match (&self.recording, state.recorded_frame) {
             (Some(rec), Some(k)) => rec.frame_ranges(k, s.recorded.get_or_insert_with(Vec::new))?,
             _ => s.recorded = None,
         }
         s.background.clear();
         if let Some(env) = &self.environment {
-            s.env_sensor.clear();
-            s.env_sensor.extend(env.positions.iter().map(|p| sensor_from_world.transform_point3(*p).as_vec3().to_array()));
+            // A sensor that moves during the sweep sees each vertex from where it is when the
+            // vertex's column is fired; a still one from one place.
+            let end = plan.sensor.pose(sweep.time_at(sweep.columns as f64));
+            let moves = rolling && end != state.world_from_sensor;
+            s.column_pose.clear();
+            if moves {
+                sweep.place_static(&env.positions, |t| plan.sensor.pose(t).inverse(), &mut s.env_sensor);
+                s.column_pose.extend((0..sweep.columns).map(|c| plan.sensor.pose(sweep.column_time(c))));
+            } else {
+                s.env_sensor.clear();
+                s.env_sensor.extend(env.positions.iter().map(|p| sensor_from_world.transform_point3(*p).as_vec3().to_array()));
+            }
             for m in &self.env_meshes {
                 let verts = &s.env_sensor[m.first_vertex..m.first_vertex + m.vertex_count];
                 s.background.push_mesh_with_adjacency(verts, &m.local_indices, 0, m.double_sided, Some(m.adjacency.clone()));
@@ -464,13 +568,32 @@ impl Generator {
         let lod_rad = lod_max_error_mrad * 1e-3;
         s.layout_next.clear();
         s.placements.clear();
+        s.placements_b.clear();
+        s.spans.clear();
+        s.person_velocity.clear();
+        s.person_velocity.extend(state.human_velocity_mps.iter().copied());
+        s.person_time.clear();
+        s.person_time.resize(plan.humans.len(), state.t_s);
+        let place = |h: &crate::scene::sequence::HumanPlan, t: f64, sensor_from_world: DMat4| {
+            let st = h.at(t);
+            let world_from_body = DMat4::from_translation(st.position_m) * DMat4::from_rotation_z(st.heading_rad);
+            let m = (sensor_from_world * world_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4();
+            ((m, (st.gait_phase as f32).rem_euclid(1.0), st.style()), st.velocity_mps)
+        };
         for (k, h) in plan.humans.iter().enumerate() {
             let model = &self.models[h.model];
             let st = &state.humans[k];
             let world_from_body = DMat4::from_translation(DVec3::from(st.position_m)) * DMat4::from_rotation_z(st.heading_rad as f64);
             let sensor_from_body = sensor_from_world * world_from_body;
             let height = model.height_m as f64;
-            let r = BODY_RADIUS_PER_HEIGHT * height;
+            // Over a rolling sweep the person and the sensor move: a margin for both.
+            let sweep_margin = if rolling {
+                (state.human_velocity_mps[k].length() + state.sensor_velocity_mps.length()) * sweep.period_s
+                    + state.sensor_yaw_rate_rps.abs() * sweep.period_s * (sensor_from_body.w_axis.truncate().length())
+            } else {
+                0.0
+            };
+            let r = BODY_RADIUS_PER_HEIGHT * height + sweep_margin;
             let centre = sensor_from_body.transform_point3(DVec3::new(0.0, 0.0, 0.5 * height));
             let dist = centre.length();
             if !self.sensor.may_see_sphere(centre, r) {
@@ -479,7 +602,32 @@ impl Generator {
             let near = (dist - r).max(0.1);
             let lod = model.lod_for_error((lod_rad * near) as f32);
             s.layout_next.push((k as u32 + 1, h.model, lod));
-            s.placements.push(((sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4(), st.gait_phase, state.human_style[k]));
+            if rolling {
+                // The person's own column time: where its centre is when its column is fired
+                // (two fixed-point steps from the frame's start: the person and the sensor
+                // move over the sweep by several columns).
+                let mut t_c = sweep.time_at(sweep.u_of(centre.x, centre.y));
+                for _ in 0..2 {
+                    let st = h.at(t_c);
+                    let c = plan.sensor.pose(t_c).inverse().transform_point3(st.position_m + DVec3::new(0.0, 0.0, 0.5 * height));
+                    t_c = sweep.time_at(sweep.unwrap_near(sweep.u_of(c.x, c.y), sweep.u_of(centre.x, centre.y)));
+                }
+                let st = h.at(t_c);
+                let centre = plan.sensor.pose(t_c).inverse().transform_point3(st.position_m + DVec3::new(0.0, 0.0, 0.5 * height));
+                let (ta, tb, u_c) = sweep.span_of_sphere(centre, BODY_RADIUS_PER_HEIGHT * height);
+                // Key times at most KEY_STEP_S apart: a near person spans much of the sweep.
+                let keys = ((tb - ta) / KEY_STEP_S).ceil().clamp(1.0, 64.0) as usize;
+                let key_time = |j: usize| ta + (tb - ta) * j as f64 / keys as f64;
+                let (a, _) = place(h, ta, plan.sensor.pose(ta).inverse());
+                s.placements.push(a);
+                s.placements_b.push((1..=keys).map(|j| place(h, key_time(j), plan.sensor.pose(key_time(j)).inverse()).0).collect());
+                s.spans.push((ta, tb, u_c));
+                let t_c = sweep.time_at(u_c);
+                s.person_time[k] = t_c;
+                s.person_velocity[k] = h.at(t_c).velocity_mps;
+            } else {
+                s.placements.push(((sensor_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4(), st.gait_phase, state.human_style[k]));
+            }
         }
         // The same people at the same levels of detail as last frame: the triangles stay and
         // only the vertices move. Otherwise the meshes are laid out anew (sizes from the
@@ -493,17 +641,32 @@ impl Generator {
             }));
         }
         // One person per task: joint matrices, skinning into its own vertices, its indices
-        // when laid out anew, its bounding sphere.
+        // when laid out anew, its bounding sphere. Rolling: skinned at both ends of its span
+        // and each vertex moved to its own time.
         s.person_scratch.resize_with(s.layout_next.len(), Default::default);
+        let (placements_b, spans) = (&s.placements_b, &s.spans);
         s.humans
             .mesh_slices_mut()
             .into_par_iter()
             .zip(s.person_scratch.par_iter_mut())
             .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
-            .for_each(|(((first, out, indices), p), (&(_, m, lod), &(transform, phase, style)))| {
+            .enumerate()
+            .for_each(|(i, (((first, out, indices), p), (&(_, m, lod), &(transform, phase, style))))| {
                 let model = &models[m];
                 model.joint_matrices_styled(phase, style, &mut p.joints);
                 model.skin_into_slice(lod, &p.joints, &transform, &mut p.placed, out);
+                if rolling {
+                    let keys = &placements_b[i];
+                    let (ta, tb, u_c) = spans[i];
+                    p.joints_b.resize_with(keys.len(), Vec::new);
+                    p.b.resize_with(keys.len(), Vec::new);
+                    for (j, &(transform_b, phase_b, style_b)) in keys.iter().enumerate() {
+                        model.joint_matrices_styled(phase_b, style_b, &mut p.joints_b[j]);
+                        p.b[j].resize(out.len(), [0.0; 3]);
+                        model.skin_into_slice(lod, &p.joints_b[j], &transform_b, &mut p.placed, &mut p.b[j]);
+                    }
+                    sweep.warp_keys(out, &p.b, ta, tb, u_c);
+                }
                 if !in_place {
                     for (d, &i) in indices.iter_mut().zip(&model.lods[lod].indices) {
                         *d = i + first;
@@ -527,9 +690,18 @@ impl Generator {
                 .into_par_iter()
                 .zip(s.person_scratch.par_iter_mut())
                 .zip(s.layout_next.par_iter().zip(s.placements.par_iter()))
-                .for_each(|(((first, out, indices), p), (&(_, m, lod), &(transform, _, _)))| {
+                .enumerate()
+                .for_each(|(i, (((first, out, indices), p), (&(_, m, lod), &(transform, _, _))))| {
                     let proxy = &proxies[m].lods[lod];
                     models[m].skin_lod_into_slice(proxy, &p.joints, &transform, &mut p.placed, out);
+                    if rolling {
+                        let (ta, tb, u_c) = spans[i];
+                        for (j, key) in placements_b[i].iter().enumerate() {
+                            p.b[j].resize(out.len(), [0.0; 3]);
+                            models[m].skin_lod_into_slice(proxy, &p.joints_b[j], &key.0, &mut p.placed, &mut p.b[j]);
+                        }
+                        sweep.warp_keys(out, &p.b, ta, tb, u_c);
+                    }
                     if !in_place {
                         for (d, &i) in indices.iter_mut().zip(&proxy.indices) {
                             *d = i + first;
@@ -543,6 +715,51 @@ impl Generator {
         }
         std::mem::swap(&mut s.layout, &mut s.layout_next);
         Ok(())
+    }
+
+    /// The rolling shutter's reference for frame `k` of a plan: for each of `columns`, the
+    /// whole frame posed at that column's time (every vertex at one instant) and the column's
+    /// beams cast exactly (watertight f64, nearest hit) through the people and the
+    /// environment. Returns, per beam of those columns, `(beam, people, background)`: the
+    /// nearest person's (range, instance) and the environment's range (0 = none). Slow by
+    /// design: a pose per column.
+    pub fn reference_rolling_hits(
+        &mut self,
+        plan: &SequencePlan,
+        k: usize,
+        columns: impl Iterator<Item = usize>,
+    ) -> Result<Vec<ReferenceHit>> {
+        let sweep = self.sweep(plan.times_s[k], true);
+        let w = self.sensor.columns;
+        let mut out = Vec::new();
+        let mut people = crate::backend::raster::clusters::MeshClusters::default();
+        let mut background = crate::backend::raster::clusters::MeshClusters::default();
+        let mut scratch = Vec::new();
+        for c in columns {
+            let state = self.frame_state_at(plan, k, sweep.column_time(c));
+            self.pose_frame_at(plan, &state, self.cfg.render.lod_max_error_mrad, false)?;
+            let s = &self.scratch;
+            people.reset(&s.humans);
+            background.reset(&s.background);
+            for row in 0..self.sensor.rows() {
+                let b = row * w + c;
+                let dir = self.dirs[b];
+                let h = people.cast(&s.humans, dir, &mut scratch).map(|(r, t)| (r, s.humans.mesh_of_triangle(t).instance as u16));
+                let bg = background.cast(&s.background, dir, &mut scratch).map_or(0.0, |(r, _)| r);
+                out.push((b, h, bg));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The people and background layers' hits of the frame cast last (see
+    /// [`Generator::render_posed`]): per beam, the nearest person's (range, instance) and the
+    /// background's range (0 = none).
+    pub fn layer_hits(&self, b: usize) -> (Option<(f64, u16)>, f64) {
+        let s = &self.scratch;
+        let t = s.human_hits.triangle[b];
+        let h = (t != crate::backend::NO_TRIANGLE).then(|| (s.human_hits.range_m[b] as f64, s.humans.mesh_of_triangle(t).instance as u16));
+        (h, s.bg_hits.range_m[b] as f64)
     }
 
     /// Finds the nearest surface per beam of the posed frame, layer by layer, into
@@ -563,7 +780,47 @@ impl Generator {
         if let Some(r) = &s.recorded {
             s.bg_hits.range_m.clone_from(r);
         }
+        let t0 = std::time::Instant::now();
+        self.refine_rolling_background();
+        self.timings.background_s += t0.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// Rolling shutter with a moving sensor: each placed environment vertex is exact at its own
+    /// column's time, but a large triangle's interior is interpolated between vertices taken
+    /// at different times (centimetres off across a wall). Each beam's hit is therefore
+    /// recomputed in the world: the beam from the sensor's pose at its column's time, through
+    /// the triangle the cast found and that triangle's one-ring (watertight f64, nearest).
+    fn refine_rolling_background(&mut self) {
+        let s = &mut self.scratch;
+        let (Some(env), false) = (&self.environment, s.column_pose.is_empty()) else { return };
+        let w = self.sensor.columns;
+        let (background, poses, dirs, env_meshes) = (&s.background, &s.column_pose, &self.dirs, &self.env_meshes);
+        s.bg_hits.range_m.par_iter_mut().zip(s.bg_hits.triangle.par_iter_mut()).enumerate().with_min_len(512).for_each(|(b, (r, t))| {
+            if *t == crate::backend::NO_TRIANGLE {
+                return;
+            }
+            let pose = poses[b % w];
+            let origin = pose.w_axis.truncate();
+            let dir = DMat3::from_mat4(pose) * dirs[b];
+            let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return };
+            let mut best = (f64::INFINITY, u32::MAX);
+            for cand in std::iter::once(*t).chain(background.neighbours(*t)) {
+                let k = background.mesh_index_of_triangle(cand);
+                let mesh = &background.meshes[k];
+                let first = env_meshes[k].first_vertex as u32;
+                let idx = &background.indices[3 * cand as usize..3 * cand as usize + 3];
+                let tri = [0, 1, 2].map(|c| env.positions[(first + idx[c] - mesh.first_vertex) as usize] - origin);
+                if let Some(h) = crate::backend::triangle::intersect_pre(&ray, &tri, !mesh.double_sided) {
+                    if crate::backend::triangle::better(h, cand, best.0, best.1) {
+                        best = (h, cand);
+                    }
+                }
+            }
+            if best.1 != u32::MAX {
+                (*r, *t) = (best.0 as f32, best.1);
+            }
+        });
     }
 
     /// One layer of the posed frame through the generator's backend, into `hits`.
@@ -598,7 +855,8 @@ impl Generator {
                 seen[geom.mesh_index_of_triangle(t)] = true;
             }
         }
-        let sensor_from_world = state.world_from_sensor.inverse();
+        let rolling = s.sweep.is_some_and(|w| w.rolls());
+        let person_time = &s.person_time;
         let model_to_body = MODEL_TO_BODY.as_dmat4();
         // Per person seen: (placed joints, sensor from model) at t - dt and t + dt.
         type Motion = [(Vec<glam::Affine3A>, DMat4); 2];
@@ -612,8 +870,11 @@ impl Generator {
                 }
                 let h = &plan.humans[instance as usize - 1];
                 let model = &self.models[m];
+                // The person's time: that of the columns that see it (rolling shutter).
+                let t = person_time.get(instance as usize - 1).copied().unwrap_or(state.t_s);
+                let sensor_from_world = if rolling { plan.sensor.pose(t).inverse() } else { state.world_from_sensor.inverse() };
                 let at = |dt: f64| {
-                    let st = h.at(state.t_s + dt);
+                    let st = h.at(t + dt);
                     let world_from_body = DMat4::from_translation(st.position_m) * DMat4::from_rotation_z(st.heading_rad);
                     let mut joints = Vec::new();
                     model.joint_matrices_styled((st.gait_phase as f32).rem_euclid(1.0), st.style(), &mut joints);
@@ -647,11 +908,21 @@ impl Generator {
         });
     }
 
-    /// Composites the rendered frame into `out`; with `velocity = "limb"` call
-    /// [`Generator::point_velocities`] first.
-    pub fn post(&self, state: &FrameState, out: &mut FrameOutput) {
-        let rot = DMat3::from_mat4(state.world_from_sensor);
-        let params = PostParams {
+    /// Sets the sequence the next frames belong to (the sensor model's per-sequence draws:
+    /// laser biases, the people's reflectances). [`Generator::write_sequence`] calls it; a
+    /// caller driving [`Generator::frame`] itself may (else sequence 0's draws are used).
+    pub fn begin_sequence(&mut self, index: usize, plan: &SequencePlan) {
+        let key = (index, plan.humans.len());
+        if self.scratch.draws_for != Some(key) {
+            let m = &self.cfg.sensor_model;
+            self.scratch.draws = SequenceDraws::draw(m, self.cfg.seed, index, self.sensor.rows(), plan.humans.len());
+            self.scratch.draws_for = Some(key);
+        }
+    }
+
+    fn post_params<'a>(&'a self, state: &'a FrameState) -> PostParams<'a> {
+        let s = &self.scratch;
+        PostParams {
             dirs: &self.dirs,
             columns: self.sensor.columns,
             min_range_m: self.sensor.min_range_m,
@@ -659,18 +930,96 @@ impl Generator {
             keep_holes: self.cfg.render.keep_holes,
             velocity_model: self.cfg.output.velocity,
             outputs: self.outputs(),
-            world_from_sensor_rot: rot,
-            sensor_velocity_mps: state.sensor_velocity_mps,
-            sensor_yaw_rate_rps: state.sensor_yaw_rate_rps,
-            human_velocity_mps: &state.human_velocity_mps,
-            point_velocity_mps: &self.scratch.point_velocity,
-        };
-        composite(&params, &self.scratch.human_hits, &self.scratch.humans, &self.scratch.bg_hits.range_m, out);
+            column_motion: &s.column_motion,
+            human_velocity_mps: if s.person_velocity.len() == state.human_velocity_mps.len() { &s.person_velocity } else { &state.human_velocity_mps },
+            point_velocity_mps: &s.point_velocity,
+        }
+    }
+
+    /// Composites the rendered frame into `out` and applies the sensor model; with
+    /// `velocity = "limb"` call [`Generator::point_velocities`] first.
+    pub fn post(&mut self, state: &FrameState, out: &mut FrameOutput) {
+        {
+            let s = &self.scratch;
+            select(&self.post_params(state), &s.human_hits, &s.humans, &s.bg_hits.range_m, out);
+        }
+        self.apply_sensor_model(state, out);
+        {
+            let s = &self.scratch;
+            derive(&self.post_params(state), &s.human_hits, &s.humans, out);
+        }
+        let sweep = self.scratch.sweep.unwrap_or(self.sweep(state.t_s, false));
+        out.column_time_s.clear();
+        out.column_time_s.extend((0..self.sensor.columns).map(|c| sweep.column_time(c)));
         out.time_s = state.t_s;
         out.world_from_sensor = state.world_from_sensor.transpose().to_cols_array_2d();
         out.sensor_velocity_mps = state.sensor_velocity_mps.to_array();
         out.sensor_yaw_rate_rps = state.sensor_yaw_rate_rps;
         out.humans.clone_from(&state.humans);
+    }
+
+    /// The clean surface per beam of the composited `out` (its reflectance and incidence),
+    /// then the sensor model: `out`'s range, label and instance become the returned ones,
+    /// `/clean/*` keeps the others, and `/intensity` is filled.
+    fn apply_sensor_model(&mut self, state: &FrameState, out: &mut FrameOutput) {
+        let s = &mut self.scratch;
+        if s.draws_for.is_none() || s.draws.reflectance.len() != state.humans.len() {
+            s.draws = SequenceDraws::draw(&self.cfg.sensor_model, self.cfg.seed, 0, self.sensor.rows(), state.humans.len());
+            s.draws_for = Some((0, state.humans.len()));
+        }
+        let scene = SceneSurfaces {
+            humans: &s.humans,
+            human_hits: &s.human_hits,
+            background: &s.background,
+            bg_hits: &s.bg_hits,
+            recorded: s.recorded.as_deref(),
+            columns: self.sensor.columns,
+            layout: &s.layout,
+            regions: &self.regions,
+            env_reflectance: &self.env_reflectance,
+            reflectance: &s.draws.reflectance,
+            dirs: &self.dirs,
+        };
+        let n = self.dirs.len();
+        s.clean.clear();
+        s.clean.extend((0..n).map(|b| scene.clean(b, out.range[b], out.instance[b])));
+        let elevation_rad: Vec<f64> = self.sensor.elevation_deg.iter().map(|e| e.to_radians()).collect();
+        let azimuth_rad: Vec<f64> = (0..self.sensor.columns).map(|c| self.sensor.azimuth_rad(c)).collect();
+        let frame = crate::sensor_model::FrameIn {
+            cfg: &self.cfg.sensor_model,
+            dirs: &self.dirs,
+            columns: self.sensor.columns,
+            elevation_rad: &elevation_rad,
+            azimuth_rad: &azimuth_rad,
+            min_range_m: self.sensor.min_range_m,
+            max_range_m: self.sensor.max_range_m,
+            clean: &s.clean,
+            draws: &s.draws,
+            intensity_scale: self.intensity_scale,
+            recorded_intensity: None,
+            seed: self.cfg.seed,
+            sequence: s.draws_for.map_or(0, |k| k.0),
+            frame: state.frame,
+        };
+        let mut beams = std::mem::take(&mut s.beams_out);
+        crate::sensor_model::apply(&frame, &scene, &mut beams);
+        if self.cfg.sensor_model.enabled {
+            out.clean_range.clone_from(&out.range);
+            out.clean_label.clone_from(&out.label);
+            out.clean_instance.clone_from(&out.instance);
+        } else {
+            out.clean_range.clear();
+            out.clean_label.clear();
+            out.clean_instance.clear();
+        }
+        out.intensity.clear();
+        out.intensity.extend(beams.iter().map(|b| b.intensity));
+        for (b, o) in beams.iter().enumerate() {
+            out.range[b] = o.range_m;
+            out.instance[b] = o.instance;
+            out.label[b] = (o.instance > 0) as u8;
+        }
+        s.beams_out = beams;
     }
 
     /// Everything of one frame: pose, render, resample, composite.
@@ -769,6 +1118,7 @@ impl Generator {
         let plan = self.plan(index)?;
         self.timings.plan_s += t0.elapsed().as_secs_f64();
         let meta = self.meta(index, &plan);
+        self.begin_sequence(index, &plan);
         let (people, frames) = (meta.humans.len(), meta.frames);
         let opts = WriterOptions {
             png: self.cfg.png,
@@ -800,6 +1150,8 @@ impl Generator {
         // between the threads (no per-frame allocation). The writer finishes the files only
         // on `Done`; if this thread fails first, the channel closes, the writer is dropped
         // and removes its temporary files.
+        // A frame's buffers are a few hundred bytes of Vec headers, moved once per frame.
+        #[allow(clippy::large_enum_variant)]
         enum Msg {
             Frame(FrameOutput),
             Done,
@@ -848,6 +1200,174 @@ impl Generator {
             Ok(WrittenSequence { files: done.files, class_points: done.class_points, people, frames })
         })
     }
+}
+
+/// The surfaces of a posed and cast frame, as the sensor model sees them.
+struct SceneSurfaces<'a> {
+    humans: &'a FrameGeometry,
+    human_hits: &'a BeamHits,
+    background: &'a FrameGeometry,
+    bg_hits: &'a BeamHits,
+    recorded: Option<&'a [f32]>,
+    columns: usize,
+    layout: &'a [(u32, usize, usize)],
+    regions: &'a [Vec<Vec<u8>>],
+    env_reflectance: &'a [f32],
+    reflectance: &'a [[f32; 4]],
+    dirs: &'a [DVec3],
+}
+
+/// |cos| of the angle between `dir` and the normal of triangle `t` (1 for a degenerate one),
+/// and the unit normal (zero for a degenerate one).
+fn cos_incidence(geom: &FrameGeometry, t: u32, dir: DVec3) -> (f32, glam::Vec3) {
+    let [a, b, c] = geom.triangle_f64(t);
+    let n = (b - a).cross(c - a);
+    let len = n.length();
+    if len > 0.0 && len.is_finite() { ((n.dot(dir).abs() / len) as f32, (n / len).as_vec3()) } else { (1.0, glam::Vec3::ZERO) }
+}
+
+/// Reflectance of a recorded return whose intensity is unknown (for the footprint's power).
+const RECORDED_REFLECTANCE: f32 = 0.3;
+
+impl SceneSurfaces<'_> {
+    fn human_surface(&self, t: u32, range_m: f64, dir: DVec3) -> Surface {
+        let k = self.humans.mesh_index_of_triangle(t);
+        let mesh = &self.humans.meshes[k];
+        let (instance, m, lod) = self.layout[k];
+        let region = self.regions[m][lod].get((t - mesh.first_triangle) as usize).copied().unwrap_or(crate::sensor_model::UPPER);
+        let reflectance = self.reflectance.get(instance as usize - 1).map_or(0.3, |r| r[region as usize]);
+        let (cos_incidence, normal) = cos_incidence(self.humans, t, dir);
+        Surface { range_m, instance: instance as u16, reflectance, cos_incidence, rendered: true, normal }
+    }
+
+    fn background_surface(&self, b: usize, t: u32, range_m: f64, dir: DVec3) -> Surface {
+        if self.recorded.is_some() {
+            return Surface { range_m, instance: 0, reflectance: RECORDED_REFLECTANCE, cos_incidence: 1.0, rendered: false, normal: glam::Vec3::ZERO };
+        }
+        let _ = b;
+        let (reflectance, (cos, normal)) = if t == crate::backend::NO_TRIANGLE || t >= self.background.triangle_count() {
+            (0.5, (1.0, glam::Vec3::ZERO))
+        } else {
+            let k = self.background.mesh_index_of_triangle(t);
+            (self.env_reflectance.get(k).copied().unwrap_or(0.5), cos_incidence(self.background, t, dir))
+        };
+        Surface { range_m, instance: 0, reflectance, cos_incidence: cos, rendered: true, normal }
+    }
+
+    /// The composited beam `b` (range, instance) as a surface.
+    fn clean(&self, b: usize, range_m: f32, instance: u16) -> Option<Surface> {
+        if range_m <= 0.0 {
+            return None;
+        }
+        let dir = self.dirs[b];
+        Some(if instance > 0 {
+            self.human_surface(self.human_hits.triangle[b], range_m as f64, dir)
+        } else {
+            self.background_surface(b, self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE), range_m as f64, dir)
+        })
+    }
+}
+
+impl SceneSurfaces<'_> {
+    /// The background behind the people along `dir`, near beam `b`: the plane of the
+    /// background triangle beam `b` meets (its footprint is millimetres across), or its
+    /// recorded return.
+    fn background_near(&self, b: usize, dir: DVec3) -> Option<(f64, u32)> {
+        if let Some(r) = self.recorded {
+            return (r[b] > 0.0).then(|| (r[b] as f64, crate::backend::NO_TRIANGLE));
+        }
+        let t = self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+        let r = self.bg_hits.range_m.get(b).copied().unwrap_or(0.0) as f64;
+        if t == crate::backend::NO_TRIANGLE || r <= 0.0 {
+            return None;
+        }
+        let [a, _, _] = self.background.triangle_f64(t);
+        let (_, n) = cos_incidence(self.background, t, self.dirs[b]);
+        let n = n.as_dvec3();
+        let denom = n.dot(dir);
+        let along = if denom.abs() > 1e-12 { n.dot(a) / denom } else { r };
+        Some((if along > 0.0 { along } else { r }, t))
+    }
+}
+
+/// The footprint's people are searched among the triangles the beam and its eight grid
+/// neighbours hit, and those triangles' one-rings (watertight test, as the casters): the
+/// footprint (a few millimetres to centimetres across) lies between those beams, so its people
+/// surface is there but for a limb thinner than the beam spacing that no neighbour hits.
+impl FootprintScene for SceneSurfaces<'_> {
+    fn cast_footprint(&self, b: usize, dirs: &[DVec3; crate::sensor_model::FOOTPRINT_RAYS], out: &mut [Option<Surface>; crate::sensor_model::FOOTPRINT_RAYS]) {
+        let w = self.columns;
+        let (row, col) = ((b / w) as i64, (b % w) as i64);
+        let rows = (self.dirs.len() / w) as i64;
+        let mut candidates: Vec<u32> = Vec::with_capacity(64);
+        for dr in -1..=1 {
+            for dc in -1..=1 {
+                let r = row + dr;
+                if r < 0 || r >= rows {
+                    continue;
+                }
+                let nb = (r as usize) * w + (col + dc).rem_euclid(w as i64) as usize;
+                let t = self.human_hits.triangle[nb];
+                if t != crate::backend::NO_TRIANGLE {
+                    candidates.push(t);
+                    candidates.extend(self.humans.neighbours(t));
+                }
+            }
+        }
+        candidates.sort_unstable();
+        candidates.dedup();
+        let triangles: Vec<(u32, [DVec3; 3], bool)> =
+            candidates.iter().map(|&t| (t, self.humans.triangle_f64(t), !self.humans.mesh_of_triangle(t).double_sided)).collect();
+        for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
+            let mut best = (f64::INFINITY, u32::MAX);
+            if let Some(ray) = crate::backend::triangle::RayPre::new(dir) {
+                for &(t, ref tri, cull) in &triangles {
+                    if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
+                        if crate::backend::triangle::better(h, t, best.0, best.1) {
+                            best = (h, t);
+                        }
+                    }
+                }
+            }
+            let human = (best.1 != u32::MAX).then_some(best);
+            *o = match (human, self.background_near(b, dir)) {
+                (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
+                (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
+                _ => None,
+            };
+        }
+    }
+}
+
+/// Per level of detail, per triangle: the body region of a model's triangles (the region of
+/// the joint that weighs most on the majority of its corners), from the skin's joint names.
+fn body_regions(model: &HumanModel) -> Result<Vec<Vec<u8>>> {
+    let names: Vec<String> = if model.lods.iter().all(|l| l.joints.is_empty()) {
+        Vec::new()
+    } else {
+        let doc = gltf::Gltf::open(&model.path).map_err(|e| Error::input(model.path.display(), e))?;
+        doc.skins().next().map_or_else(Vec::new, |s| s.joints().map(|n| n.name().unwrap_or("").to_string()).collect())
+    };
+    let joint_region: Vec<u8> = names.iter().map(|n| crate::sensor_model::region_of_joint(n)).collect();
+    Ok(model
+        .lods
+        .iter()
+        .map(|l| {
+            let vertex = |i: u32| -> u8 {
+                let i = i as usize;
+                let (Some(j), Some(w)) = (l.joints.get(i), l.weights.get(i)) else { return crate::sensor_model::UPPER };
+                let k = (0..4).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
+                joint_region.get(j[k] as usize).copied().unwrap_or(crate::sensor_model::UPPER)
+            };
+            l.indices
+                .chunks_exact(3)
+                .map(|t| {
+                    let (a, b, c) = (vertex(t[0]), vertex(t[1]), vertex(t[2]));
+                    if b == c { b } else { a }
+                })
+                .collect()
+        })
+        .collect())
 }
 
 /// Barycentric coordinates of `p` (on or near the triangle's plane) in triangle `t`, by

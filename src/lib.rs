@@ -26,6 +26,7 @@ pub mod geometry;
 pub mod backend;
 pub mod gpu;
 pub mod post;
+pub mod sensor_model;
 pub mod output;
 pub mod generator;
 pub mod commands;

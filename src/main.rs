@@ -58,6 +58,18 @@ enum Command {
         #[arg(long = "strip-png")]
         strip_png: Option<PathBuf>,
     },
+    /// Hold the rolling shutter's default (people posed over their column span) against
+    /// posing the whole frame at every column's time, beam by beam.
+    ShutterCheck {
+        #[command(flatten)]
+        args: Flags,
+        /// Compare every N-th column (the reference poses the frame once per column).
+        #[arg(long, default_value_t = 1)]
+        column_stride: usize,
+        /// Write the report as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Time against error: sweep resolution, level of detail, refinement, people and columns;
     /// then the triangle rate of the raster renderer against the ray caster (in `bench.md`).
     Bench {
@@ -155,6 +167,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             args.sequences = args.sequences.or(Some(4));
             let opts = pedscan::commands::crosscheck::CrosscheckOptions { json, png: strip_png, export_geometry: args.export_geometry.clone() };
             let report = pedscan::commands::crosscheck::crosscheck(args.config()?, &opts)?;
+            println!("{report}");
+        }
+        Command::ShutterCheck { args, column_stride, json } => {
+            let report = pedscan::commands::shutter::shutter_check(args.config()?, column_stride)?;
+            if let Some(p) = json {
+                let text = serde_json::to_string_pretty(&report).context("report as JSON")?;
+                std::fs::write(&p, text).with_context(|| p.display().to_string())?;
+            }
             println!("{report}");
         }
         Command::Bench { quick, config, json, markdown, plot, point, from_json } => {

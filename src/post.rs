@@ -18,6 +18,17 @@ use crate::backend::{BeamHits, NO_TRIANGLE};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
+/// The sensor's motion while one column is fired (world frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColumnMotion {
+    /// Rotation part of `world_from_sensor`.
+    pub rot: DMat3,
+    /// Sensor velocity, m/s.
+    pub velocity_mps: DVec3,
+    /// Yaw rate about world z, rad/s.
+    pub yaw_rate_rps: f64,
+}
+
 /// What the post-pass needs besides the two hit grids.
 pub struct PostParams<'a> {
     pub dirs: &'a [DVec3],
@@ -27,98 +38,121 @@ pub struct PostParams<'a> {
     pub keep_holes: bool,
     pub velocity_model: VelocityModel,
     pub outputs: OutputSet,
-    /// Rotation part of `world_from_sensor`.
-    pub world_from_sensor_rot: DMat3,
-    /// Sensor velocity (world) and yaw rate (rad/s, about z).
-    pub sensor_velocity_mps: DVec3,
-    pub sensor_yaw_rate_rps: f64,
-    /// World velocity of each person (index = instance - 1).
+    /// The sensor's motion per column (rolling shutter: one entry per column), or one entry
+    /// for every column.
+    pub column_motion: &'a [ColumnMotion],
+    /// World velocity of each person (index = instance - 1), at the time its columns were
+    /// fired.
     pub human_velocity_mps: &'a [DVec3],
     /// `limb` only: per beam, the world velocity of the surface point the human hit names,
     /// rotated into the sensor frame (`R^T V`); empty otherwise.
     pub point_velocity_mps: &'a [DVec3],
 }
 
-/// Composites `human` hits over the `background` ranges into `out` (per-beam fields only).
+/// Composites `human` hits over the `background` ranges into `out` (per-beam fields only):
+/// [`select`], then [`derive`].
 pub fn composite(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, background: &[f32], out: &mut FrameOutput) {
+    select(p, human, human_geom, background, out);
+    derive(p, human, human_geom, out);
+}
+
+/// The nearer of person and background per beam: range, label, instance (and the
+/// background's own range), within the sensor's range limits.
+pub fn select(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, background: &[f32], out: &mut FrameOutput) {
     let n = p.dirs.len();
     out.range.resize(n, 0.0);
     out.label.resize(n, 0);
     out.instance.resize(n, 0);
-    out.xyz.resize(if p.outputs.xyz { n } else { 0 }, [0.0; 3]);
-    out.velocity.resize(if p.outputs.velocity { n } else { 0 }, [0.0; 3]);
     out.background_range.clear();
     let in_limits = |r: f64| r >= p.min_range_m && r <= p.max_range_m;
     if p.outputs.background {
         out.background_range.extend(background.iter().map(|&r| if r > 0.0 && in_limits(r as f64) { r } else { 0.0 }));
     }
-    let r_t = p.world_from_sensor_rot.transpose();
-    let v_s = r_t * p.sensor_velocity_mps;
-    let w = DVec3::new(0.0, 0.0, p.sensor_yaw_rate_rps);
-    let v_h: Vec<DVec3> = p.human_velocity_mps.iter().map(|v| r_t * *v).collect();
-    assert!(
-        p.velocity_model != VelocityModel::Limb || !p.outputs.velocity || p.point_velocity_mps.len() == n,
-        "limb velocities need one point velocity per beam"
-    );
-    let w_cols = p.columns;
-
-    let xyz_on = p.outputs.xyz;
-    let vel_on = p.outputs.velocity;
-    let mut xyz_chunks: Vec<&mut [[f32; 3]]> = if xyz_on { out.xyz.chunks_mut(w_cols).collect() } else { Vec::new() };
-    let mut vel_chunks: Vec<&mut [[f32; 3]]> = if vel_on { out.velocity.chunks_mut(w_cols).collect() } else { Vec::new() };
-    let rows: Vec<_> = out
-        .range
-        .chunks_mut(w_cols)
-        .zip(out.label.chunks_mut(w_cols))
-        .zip(out.instance.chunks_mut(w_cols))
-        .enumerate()
-        .map(|(row, ((r, l), i))| (row, r, l, i, xyz_chunks.get_mut(row).map(std::mem::take), vel_chunks.get_mut(row).map(std::mem::take)))
-        .collect();
-    rows.into_par_iter().for_each(|(row, ranges, labels, insts, mut xyz, mut vel)| {
-        for col in 0..w_cols {
-            let b = row * w_cols + col;
+    out.range.par_iter_mut().zip(out.label.par_iter_mut()).zip(out.instance.par_iter_mut()).enumerate().with_min_len(1024).for_each(
+        |(b, ((range, label), instance))| {
             let bg = background[b] as f64;
             let h = human.range_m[b] as f64;
             let ht = human.triangle[b];
             let human_first = ht != NO_TRIANGLE && h > 0.0 && if bg > 0.0 { h < bg } else { !p.keep_holes };
-            let (range, inst) = if human_first {
+            let (r, inst) = if human_first {
                 (h, human_geom.mesh_of_triangle(ht).instance)
             } else if bg > 0.0 {
                 (bg, 0)
             } else {
                 (0.0, 0)
             };
-            let returned = range > 0.0 && in_limits(range);
-            let (range, inst) = if returned { (range, inst) } else { (0.0, 0) };
-            ranges[col] = range as f32;
-            labels[col] = (inst > 0) as u8;
-            insts[col] = inst as u16;
-            let point = p.dirs[b] * range;
-            if let Some(x) = xyz.as_deref_mut() {
-                x[col] = point.as_vec3().into();
+            let returned = r > 0.0 && in_limits(r);
+            let (r, inst) = if returned { (r, inst) } else { (0.0, 0) };
+            *range = r as f32;
+            *label = (inst > 0) as u8;
+            *instance = inst as u16;
+        },
+    );
+}
+
+/// xyz and velocity per beam from the frame's final range and instance. A human beam's `limb`
+/// velocity is the hit point's own when `human` names a triangle of that person on the beam,
+/// else the person's.
+pub fn derive(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, out: &mut FrameOutput) {
+    let n = p.dirs.len();
+    let w_cols = p.columns;
+    out.xyz.resize(if p.outputs.xyz { n } else { 0 }, [0.0; 3]);
+    out.velocity.resize(if p.outputs.velocity { n } else { 0 }, [0.0; 3]);
+    assert!(
+        p.velocity_model != VelocityModel::Limb || !p.outputs.velocity || p.point_velocity_mps.len() == n,
+        "limb velocities need one point velocity per beam"
+    );
+    assert!(p.column_motion.len() == 1 || p.column_motion.len() == w_cols, "one column motion, or one per column");
+    // Per column: R^T, the sensor's velocity in its own frame and its yaw rate vector.
+    let motion: Vec<(DMat3, DVec3, DVec3)> = p
+        .column_motion
+        .iter()
+        .map(|m| {
+            let r_t = m.rot.transpose();
+            (r_t, r_t * m.velocity_mps, DVec3::new(0.0, 0.0, m.yaw_rate_rps))
+        })
+        .collect();
+    let (range, instance) = (&out.range, &out.instance);
+    let xyz_on = p.outputs.xyz;
+    if xyz_on {
+        out.xyz.par_iter_mut().enumerate().with_min_len(1024).for_each(|(b, x)| {
+            *x = (p.dirs[b] * range[b] as f64).as_vec3().into();
+        });
+    }
+    if p.outputs.velocity {
+        out.velocity.par_iter_mut().enumerate().with_min_len(1024).for_each(|(b, v)| {
+            let r = range[b] as f64;
+            if r <= 0.0 {
+                *v = [0.0; 3];
+                return;
             }
-            if let Some(v) = vel.as_deref_mut() {
-                v[col] = if !returned {
-                    [0.0; 3]
-                } else {
-                    let mut vel = match (inst > 0, p.velocity_model) {
-                        (false, _) => -v_s,
-                        (true, VelocityModel::Limb) => p.point_velocity_mps[b] - v_s,
-                        (true, _) => v_h[inst as usize - 1] - v_s,
-                    };
-                    if p.velocity_model != VelocityModel::Paper {
-                        vel -= w.cross(point);
-                    }
-                    vel.as_vec3().into()
-                };
+            let (r_t, v_s, w) = motion[if motion.len() == 1 { 0 } else { b % w_cols }];
+            let inst = instance[b];
+            let point = p.dirs[b] * r;
+            let ht = human.triangle[b];
+            let own_point = ht != NO_TRIANGLE && human_geom.mesh_of_triangle(ht).instance == inst as u32;
+            let mut vel = match (inst > 0, p.velocity_model) {
+                (false, _) => -v_s,
+                (true, VelocityModel::Limb) if own_point => p.point_velocity_mps[b] - v_s,
+                (true, _) => r_t * p.human_velocity_mps[inst as usize - 1] - v_s,
+            };
+            if p.velocity_model != VelocityModel::Paper {
+                vel -= w.cross(point);
             }
-        }
-    });
+            *v = vel.as_vec3().into();
+        });
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const MOTION: [ColumnMotion; 1] = [ColumnMotion {
+        rot: DMat3::from_cols(DVec3::new(0.0, 1.0, 0.0), DVec3::new(-1.0, 0.0, 0.0), DVec3::Z),
+        velocity_mps: DVec3::new(0.0, 1.0, 0.0),
+        yaw_rate_rps: 0.5,
+    }];
 
     fn params<'a>(dirs: &'a [DVec3], hv: &'a [DVec3], keep_holes: bool, model: VelocityModel) -> PostParams<'a> {
         PostParams {
@@ -129,9 +163,7 @@ mod tests {
             keep_holes,
             velocity_model: model,
             outputs: OutputSet::default(),
-            world_from_sensor_rot: DMat3::from_rotation_z(std::f64::consts::FRAC_PI_2),
-            sensor_velocity_mps: DVec3::new(0.0, 1.0, 0.0),
-            sensor_yaw_rate_rps: 0.5,
+            column_motion: &MOTION,
             human_velocity_mps: hv,
             point_velocity_mps: &[],
         }

@@ -102,9 +102,25 @@ pub struct Flags {
     /// Turn on the Vulkan validation layer (slow; for debugging).
     #[arg(long)]
     pub validation: bool,
+    /// The sensor model (rolling shutter, noise, dropout, divergence): `on` (default) or
+    /// `off` for the paper's clean, instantaneous frames.
+    #[arg(long, value_parser = parse_on_off)]
+    pub sensor_model: Option<bool>,
+    /// Each column at its own time over the sweep (`on`, default) or every column at the
+    /// frame's time (`off`).
+    #[arg(long, value_parser = parse_on_off)]
+    pub rolling_shutter: Option<bool>,
     /// Also write each frame's posed human triangles (sensor frame) as PLY under this folder.
     #[arg(long)]
     pub export_geometry: Option<PathBuf>,
+}
+
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" | "true" => Ok(true),
+        "off" | "false" => Ok(false),
+        other => Err(format!("`{other}`: expected on or off")),
+    }
 }
 
 fn parse_count(s: &str) -> Result<[usize; 2], String> {
@@ -235,6 +251,12 @@ impl Flags {
                     }
                 }
             }
+        }
+        if let Some(on) = a.sensor_model {
+            cfg.sensor_model.enabled = on;
+        }
+        if let Some(on) = a.rolling_shutter {
+            cfg.sensor_model.rolling_shutter = on;
         }
         cfg.debug.validation |= a.validation;
         cfg.validate()?;

@@ -138,6 +138,8 @@ pub struct Config {
     pub scene: SceneConfig,
     pub render: RenderConfig,
     pub output: OutputConfig,
+    /// The sensor's own effects (rolling shutter, noise, dropout, beam divergence, intensity).
+    pub sensor_model: SensorModelConfig,
     /// Knobs for measuring and debugging; they never change what is written, so they are
     /// not recorded in the outputs.
     #[serde(skip_serializing_if = "DebugConfig::is_default")]
@@ -239,6 +241,113 @@ pub struct OutputConfig {
     pub background: bool,
 }
 
+/// `[sensor_model]`: what a real spinning LiDAR adds to the perfect geometry
+/// (`crate::sensor_model`). Every term applies to what pedscan renders (people, an environment),
+/// never to a recorded background, which carries its own. Defaults and their sources: README,
+/// "Sensor model".
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorModelConfig {
+    /// Master switch (`--sensor-model on|off`): off (the default for now) gives the paper's
+    /// clean, instantaneous frames (intensity is still written: it is data, not an effect).
+    pub enabled: bool,
+    /// Each column is taken at its own time over the sweep (`--rolling-shutter off`: every
+    /// column at the frame's time).
+    pub rolling_shutter: bool,
+    /// Gaussian range noise per return, standard deviation, m.
+    pub range_noise_m: f64,
+    /// Per-laser range bias, drawn once per sequence and laser from N(0, this), m.
+    pub laser_bias_m: f64,
+    /// Returns lost at random, whatever the surface (fraction).
+    pub dropout_rate: f64,
+    /// Range at which a surface of reflectance 0.1 seen head-on is detected half the time, m;
+    /// detection follows the received power `reflectance * cos(incidence) / range^2`.
+    pub detection_range_m: f64,
+    /// Width of the detection curve in natural-log units of received power (0 = a hard
+    /// threshold).
+    pub detection_softness: f64,
+    /// Incidence angles (from the surface normal) over which detection falls linearly from
+    /// all to none, degrees.
+    pub grazing_deg: [f64; 2],
+    /// Full beam divergence, horizontal and vertical, mrad (0 = a knife-edge beam).
+    pub divergence_mrad: [f64; 2],
+    /// Surfaces closer together than this within one beam's footprint give one mixed return
+    /// (their range weighted by returned power); farther apart, the strongest wins, m.
+    pub mixed_return_m: f64,
+    /// Per person, uniform in [min, max]: reflectance (near infrared) of skin (head, hands),
+    /// upper clothing (torso, arms), lower clothing (hips, legs) and shoes.
+    pub skin_reflectance: [f64; 2],
+    pub upper_reflectance: [f64; 2],
+    pub lower_reflectance: [f64; 2],
+    pub shoe_reflectance: [f64; 2],
+    /// Intensity units: intensity = this * reflectance * cos(incidence); unset = the units of
+    /// the background (a Velodyne capture: 100, its calibrated reflectivity in percent; KITTI
+    /// remission and everything else: 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub intensity_scale: Option<f64>,
+}
+
+impl Default for SensorModelConfig {
+    fn default() -> Self {
+        SensorModelConfig {
+            enabled: false,
+            rolling_shutter: true,
+            range_noise_m: 0.02,
+            laser_bias_m: 0.005,
+            dropout_rate: 0.002,
+            detection_range_m: 70.0,
+            detection_softness: 0.3,
+            grazing_deg: [75.0, 89.0],
+            divergence_mrad: [3.0, 1.5],
+            mixed_return_m: 0.5,
+            skin_reflectance: [0.25, 0.55],
+            upper_reflectance: [0.05, 0.7],
+            lower_reflectance: [0.05, 0.6],
+            shoe_reflectance: [0.03, 0.3],
+            intensity_scale: None,
+        }
+    }
+}
+
+impl SensorModelConfig {
+    /// The same with every effect off (`--sensor-model off`).
+    pub fn off() -> SensorModelConfig {
+        SensorModelConfig { enabled: false, ..SensorModelConfig::default() }
+    }
+
+    /// The same with every effect on (`--sensor-model on`).
+    pub fn on() -> SensorModelConfig {
+        SensorModelConfig { enabled: true, ..SensorModelConfig::default() }
+    }
+
+    fn validate(&self) -> Result<()> {
+        let m = self;
+        non_negative("sensor_model.range_noise_m", m.range_noise_m)?;
+        non_negative("sensor_model.laser_bias_m", m.laser_bias_m)?;
+        if !(m.range_noise_m <= 1.0 && m.laser_bias_m <= 1.0) {
+            return Err(Error::input("config key `sensor_model.range_noise_m`", "range noise and bias must be at most 1 m"));
+        }
+        range_ok("sensor_model.dropout_rate", [m.dropout_rate, m.dropout_rate], 0.0, 1.0)?;
+        positive("sensor_model.detection_range_m", m.detection_range_m)?;
+        non_negative("sensor_model.detection_softness", m.detection_softness)?;
+        range_ok("sensor_model.grazing_deg", m.grazing_deg, 0.0, 90.0)?;
+        range_ok("sensor_model.divergence_mrad", [m.divergence_mrad[0].min(m.divergence_mrad[1]), m.divergence_mrad[0].max(m.divergence_mrad[1])], 0.0, 50.0)?;
+        non_negative("sensor_model.mixed_return_m", m.mixed_return_m)?;
+        for (key, r) in [
+            ("sensor_model.skin_reflectance", m.skin_reflectance),
+            ("sensor_model.upper_reflectance", m.upper_reflectance),
+            ("sensor_model.lower_reflectance", m.lower_reflectance),
+            ("sensor_model.shoe_reflectance", m.shoe_reflectance),
+        ] {
+            range_ok(key, r, 0.0, 1.0)?;
+        }
+        if let Some(s) = m.intensity_scale {
+            positive("sensor_model.intensity_scale", s)?;
+        }
+        Ok(())
+    }
+}
+
 /// `[debug]`: switches that change how a run computes, never what it writes.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -281,6 +390,7 @@ impl Default for Config {
             scene: SceneConfig::default(),
             render: RenderConfig::default(),
             output: OutputConfig::default(),
+            sensor_model: SensorModelConfig::default(),
             debug: DebugConfig::default(),
         }
     }
@@ -447,6 +557,7 @@ impl Config {
                 return bad("scene.floor_z_m", format!("{z} is not a usable height"));
             }
         }
+        self.sensor_model.validate()?;
         if self.humans.models.is_empty() && hi > 0 {
             return bad("humans.models", "no model given but people are requested".into());
         }

@@ -2,8 +2,9 @@
 //!
 //! ```text
 //! /range f32[T,H,W]  /xyz f32[T,H,W,3]  /label u8[T,H,W]  /instance u16[T,H,W]
-//! /velocity f32[T,H,W,3]  /background/range f32[T,H,W]
-//! /sensor/time_s f64[T]  /sensor/world_from_sensor f64[T,4,4]
+//! /velocity f32[T,H,W,3]  /background/range f32[T,H,W]  /intensity f32[T,H,W]
+//! /clean/range f32[T,H,W]  /clean/label u8[T,H,W]  /clean/instance u16[T,H,W]  (sensor model on)
+//! /sensor/time_s f64[T]  /sensor/column_time_s f64[T,W]  /sensor/world_from_sensor f64[T,4,4]
 //! /sensor/velocity_mps f64[T,3]  /sensor/yaw_rate_rps f64[T]
 //! /sensor/elevation_deg f32[H]  /sensor/azimuth_deg f32[W]
 //! /humans/height_m f32[N]  /humans/weight_kg f32[N]  /humans/model str[N]
@@ -41,6 +42,10 @@ enum Grid {
     Instance,
     Velocity,
     Background,
+    Intensity,
+    CleanRange,
+    CleanLabel,
+    CleanInstance,
 }
 
 struct BeamDataset {
@@ -62,6 +67,7 @@ pub(crate) struct H5Writer {
     frames: usize,
     humans: usize,
     time_s: Vec<f64>,
+    column_time_s: Vec<f64>,
     world_from_sensor: Vec<f64>,
     sensor_velocity_mps: Vec<f64>,
     sensor_yaw_rate_rps: Vec<f64>,
@@ -203,11 +209,24 @@ impl H5Writer {
                 "Range of the background alone (no humans), 0 = no return",
             ));
         }
+        specs.push((
+            Grid::Intensity,
+            "intensity",
+            0,
+            "1",
+            "Return intensity: the recording's own on recorded beams, else intensity_scale x reflectance x cos(incidence) (README, Sensor model); 0 = no return",
+        ));
+        if meta.outputs.clean {
+            specs.push((Grid::CleanRange, "clean/range", 0, "m", "Range before the sensor model (no noise, dropout or divergence), 0 = no return"));
+            specs.push((Grid::CleanLabel, "clean/label", 0, "1", "Label before the sensor model"));
+            specs.push((Grid::CleanInstance, "clean/instance", 0, "1", "Instance before the sensor model"));
+        }
         let bg = if meta.outputs.background {
             Some(group(&file, "background").map_err(&e)?)
         } else {
             None
         };
+        let clean = if meta.outputs.clean { Some(group(&file, "clean").map_err(&e)?) } else { None };
 
         let mut beams = Vec::with_capacity(specs.len());
         for (grid, key, comps, units, desc) in specs {
@@ -218,12 +237,13 @@ impl H5Writer {
             let mut chunk = shape.clone();
             chunk[0] = 1;
             let (parent, leaf): (&Group, &str) = match key.split_once('/') {
+                Some(("clean", leaf)) => (clean.as_ref().expect("clean group exists"), leaf),
                 Some((_, leaf)) => (bg.as_ref().expect("background group exists"), leaf),
                 None => (&file, key),
             };
             let (ds, elem) = match grid {
-                Grid::Label => (beam_dataset::<u8>(parent, leaf, shape, chunk, compression), 1),
-                Grid::Instance => (beam_dataset::<u16>(parent, leaf, shape, chunk, compression), 2),
+                Grid::Label | Grid::CleanLabel => (beam_dataset::<u8>(parent, leaf, shape, chunk, compression), 1),
+                Grid::Instance | Grid::CleanInstance => (beam_dataset::<u16>(parent, leaf, shape, chunk, compression), 2),
                 _ => (beam_dataset::<f32>(parent, leaf, shape, chunk, compression), 4),
             };
             let ds = ds.map_err(&e)?;
@@ -270,6 +290,7 @@ impl H5Writer {
             frames: t,
             humans: n,
             time_s: Vec::with_capacity(t),
+            column_time_s: Vec::with_capacity(t * w),
             world_from_sensor: Vec::with_capacity(t * 16),
             sensor_velocity_mps: Vec::with_capacity(t * 3),
             sensor_yaw_rate_rps: Vec::with_capacity(t),
@@ -293,6 +314,10 @@ impl H5Writer {
                     Grid::Instance => bytemuck::cast_slice(&f.instance),
                     Grid::Velocity => bytemuck::cast_slice(&f.velocity),
                     Grid::Background => bytemuck::cast_slice(&f.background_range),
+                    Grid::Intensity => bytemuck::cast_slice(&f.intensity),
+                    Grid::CleanRange => bytemuck::cast_slice(&f.clean_range),
+                    Grid::CleanLabel => &f.clean_label,
+                    Grid::CleanInstance => bytemuck::cast_slice(&f.clean_instance),
                 }
             })
             .collect();
@@ -315,6 +340,7 @@ impl H5Writer {
             write_chunk(&b.ds, index, data).map_err(|m| write_error(&self.name, format!("writing frame {index} of {}: {m}", b.ds.name())))?;
         }
         self.time_s.push(f.time_s);
+        self.column_time_s.extend_from_slice(&f.column_time_s);
         self.world_from_sensor.extend(f.world_from_sensor.iter().flatten());
         self.sensor_velocity_mps.extend_from_slice(&f.sensor_velocity_mps);
         self.sensor_yaw_rate_rps.push(f.sensor_yaw_rate_rps);
@@ -341,6 +367,15 @@ impl H5Writer {
                 &ds,
                 "description",
                 "Time of each frame since the start of the sequence",
+                &name,
+            )?;
+            let w = self.column_time_s.len() / t.max(1);
+            let ds = small(&sensor, "column_time_s", &[t, w], &self.column_time_s).map_err(&e)?;
+            attr_str(&ds, "units", "s", &name)?;
+            attr_str(
+                &ds,
+                "description",
+                "Time each column's beams were fired, since the start of the sequence (rolling shutter; all the frame's time without)",
                 &name,
             )?;
             let ds = small(&sensor, "world_from_sensor", &[t, 4, 4], &self.world_from_sensor)

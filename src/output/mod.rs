@@ -61,11 +61,13 @@ pub struct OutputSet {
     pub xyz: bool,
     pub velocity: bool,
     pub background: bool,
+    /// `/clean/*`: range, label and instance before the sensor model (written when it is on).
+    pub clean: bool,
 }
 
 impl Default for OutputSet {
     fn default() -> Self {
-        OutputSet { xyz: true, velocity: true, background: true }
+        OutputSet { xyz: true, velocity: true, background: true, clean: false }
     }
 }
 
@@ -95,6 +97,14 @@ pub struct FrameOutput {
     pub velocity: Vec<[f32; 3]>,
     /// Range of the background alone, metres, 0 = no return (present iff `OutputSet::background`).
     pub background_range: Vec<f32>,
+    /// Return intensity per beam (see `crate::sensor_model`), 0 = no return.
+    pub intensity: Vec<f32>,
+    /// Range, label and instance before the sensor model (present iff `OutputSet::clean`).
+    pub clean_range: Vec<f32>,
+    pub clean_label: Vec<u8>,
+    pub clean_instance: Vec<u16>,
+    /// Per column: the time its beams were fired, seconds since the start of the sequence.
+    pub column_time_s: Vec<f64>,
     /// Seconds since the start of the sequence.
     pub time_s: f64,
     /// Row-major 4x4 pose of the sensor in the world.

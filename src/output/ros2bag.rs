@@ -5,9 +5,10 @@
 //! chunks with message indexes and a summary. Topics, one message per frame each:
 //!
 //! - `/pedscan/points`, `sensor_msgs/msg/PointCloud2`, frame `pedscan_sensor`, organized
-//!   H x W (row 0 = highest beam, as the grid), 40-byte points: `x y z intensity` f32,
-//!   `ring` u16 (0 = lowest beam, as Velodyne's driver), `instance` u16, `time` f32 (seconds
-//!   after the stamp: 0, the frame is one instant), `vx vy vz` f32 (`/velocity`), `label` u8;
+//!   H x W (row 0 = highest beam, as the grid), 40-byte points: `x y z intensity` f32
+//!   (`/intensity`), `ring` u16 (0 = lowest beam, as Velodyne's driver), `instance` u16,
+//!   `time` f32 (seconds after the stamp: the column's time, `/sensor/column_time_s`, minus
+//!   the frame's), `vx vy vz` f32 (`/velocity`), `label` u8;
 //!   a beam without return has x = y = z = NaN (`is_dense` false when a frame has one).
 //! - `/tf`, `tf2_msgs/msg/TFMessage`: `world` -> `pedscan_sensor` (`world_from_sensor`).
 //!
@@ -211,8 +212,10 @@ impl Ros2BagWriter {
             for (k, c) in xyz.iter().enumerate() {
                 put(p, 4 * k, &c.to_le_bytes());
             }
+            put(p, 12, &f.intensity[b].to_le_bytes());
             put(p, 16, &ring.to_le_bytes());
             put(p, 18, &f.instance[b].to_le_bytes());
+            put(p, 20, &((f.column_time_s[b % cols] - f.time_s) as f32).to_le_bytes());
             for (k, c) in v.iter().enumerate() {
                 put(p, 24 + 4 * k, &c.to_le_bytes());
             }

@@ -15,7 +15,7 @@
 //! ```
 //!
 //! Points are the returned beams in row-major grid order (row 0 = highest beam), holes
-//! skipped. Remission is 0: pedscan writes no intensity yet. Classes: person 30, moving-person
+//! skipped. Remission is `/intensity`. Classes: person 30, moving-person
 //! 254 (the person walks faster than [`MOVING_SPEED_MPS`]), background 50 (SemanticKITTI's
 //! "building": pedscan does not know what the background is, and this class, unlike 0, 1, 52
 //! or 99, is one the common learning maps keep). A sequence is written into `SS.tmp/` and
@@ -132,7 +132,7 @@ impl SemanticKittiWriter {
         self.velocities.clear();
         for b in 0..f.range.len() {
             let Some([x, y, z]) = f.point(&self.dirs, b) else { continue };
-            for c in [x, y, z, 0.0] {
+            for c in [x, y, z, f.intensity[b]] {
                 self.points.extend_from_slice(&c.to_le_bytes());
             }
             let k = f.instance[b] as usize;

@@ -224,11 +224,23 @@ impl SequenceWriter {
             ("xyz", f.xyz.len(), m.outputs.xyz),
             ("velocity", f.velocity.len(), m.outputs.velocity),
             ("background_range", f.background_range.len(), m.outputs.background),
+            ("intensity", f.intensity.len(), true),
+            ("clean_range", f.clean_range.len(), m.outputs.clean),
+            ("clean_label", f.clean_label.len(), m.outputs.clean),
+            ("clean_instance", f.clean_instance.len(), m.outputs.clean),
         ];
         for (what, len, needed) in checks {
             if needed && len != n {
                 return bad(what, len);
             }
+        }
+        if f.column_time_s.len() != m.sensor.columns {
+            return Err(Error::Internal(format!(
+                "sequence {} frame {index}: {} column times for {} columns",
+                m.index,
+                f.column_time_s.len(),
+                m.sensor.columns
+            )));
         }
         if f.humans.len() != m.humans.len() {
             return Err(Error::Internal(format!(

@@ -42,6 +42,22 @@ pub struct EnvMesh {
     pub name: String,
     pub indices: Vec<u32>,
     pub double_sided: bool,
+    /// Near-infrared reflectance for the sensor model's intensity: the material's
+    /// `extras.reflectance` when it has one (0..1), else the luminance of its base colour.
+    pub reflectance: f32,
+}
+
+/// A material's near-infrared reflectance: `extras.reflectance` (a number in 0..1) when given,
+/// else the Rec. 709 luminance of its base colour factor (a visible-light stand-in).
+fn material_reflectance(m: &gltf::Material) -> f32 {
+    let extra = m.extras().as_ref().and_then(|raw| serde_json::from_str::<serde_json::Value>(raw.get()).ok());
+    if let Some(r) = extra.as_ref().and_then(|v| v.get("reflectance")).and_then(|v| v.as_f64()) {
+        if (0.0..=1.0).contains(&r) {
+            return r as f32;
+        }
+    }
+    let [r, g, b, _] = m.pbr_metallic_roughness().base_color_factor();
+    (0.2126 * r + 0.7152 * g + 0.0722 * b).clamp(0.0, 1.0)
 }
 
 /// glTF (y up) -> world (z up): `(x, y, z)_world = (x, -z, y)_gltf`, as Blender exports.
@@ -126,6 +142,7 @@ impl Environment {
                     name: mesh.name().unwrap_or("").to_string(),
                     indices: local,
                     double_sided: prim.material().double_sided(),
+                    reflectance: material_reflectance(&prim.material()),
                 });
             }
         }
@@ -476,7 +493,7 @@ mod tests {
             DVec3::new(5.0, 5.0, 0.0),
             DVec3::new(-5.0, 5.0, 0.0),
         ];
-        env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true });
+        env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5 });
         let b = env.positions.len() as u32;
         for z in [0.0, 1.0] {
             for (x, y) in [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)] {
@@ -488,7 +505,7 @@ mod tests {
         for (a, c) in [(0, 1), (1, 2), (2, 3), (3, 0)] {
             idx.extend(side(a, c, c + 4, a + 4));
         }
-        env.meshes.push(EnvMesh { name: "box".into(), indices: idx, double_sided: false });
+        env.meshes.push(EnvMesh { name: "box".into(), indices: idx, double_sided: false, reflectance: 0.5 });
         let g = WalkableGrid::from_environment(&env, 0.1).unwrap();
         assert_eq!(g.clearance(DVec2::new(0.0, 0.0)), 0.0, "inside the box");
         assert!(g.clearance(DVec2::new(0.55, 0.0)) < 0.1);

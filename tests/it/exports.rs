@@ -46,6 +46,7 @@ fn the_semantickitti_export_holds_what_the_hdf5_holds() {
         let xyz: Vec<f32> = f.dataset("xyz").unwrap().read_raw().unwrap();
         let instance: Vec<u16> = f.dataset("instance").unwrap().read_raw().unwrap();
         let velocity: Vec<f32> = f.dataset("velocity").unwrap().read_raw().unwrap();
+        let intensity: Vec<f32> = f.dataset("intensity").unwrap().read_raw().unwrap();
         let pose: Vec<f64> = f.dataset("sensor/world_from_sensor").unwrap().read_raw().unwrap();
         let time: Vec<f64> = f.dataset("sensor/time_s").unwrap().read_raw().unwrap();
         let speed: Vec<f32> = f.dataset("humans/velocity_mps").unwrap().read_raw().unwrap();
@@ -70,7 +71,7 @@ fn the_semantickitti_export_holds_what_the_hdf5_holds() {
                     assert!((pts[4 * i + a] - xyz[3 * g + a]).abs() <= 1e-5 * range[g].max(1.0), "seq {seq} frame {t} beam {b}");
                     assert_eq!(vel[3 * i + a], velocity[3 * g + a]);
                 }
-                assert_eq!(pts[4 * i + 3], 0.0, "no intensity yet: remission 0");
+                assert_eq!(pts[4 * i + 3], intensity[g], "remission is /intensity");
                 let k = instance[g] as usize;
                 assert_eq!((labels[i] >> 16) as usize, k);
                 let class = labels[i] & 0xffff;

@@ -18,4 +18,5 @@ mod output;
 mod production;
 mod proxy;
 mod real_inputs;
+mod sensor_model;
 mod stability;

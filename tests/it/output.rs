@@ -48,6 +48,8 @@ fn frame(m: &SequenceMeta, t: usize) -> FrameOutput {
         range: vec![0.0; n],
         label: vec![0; n],
         instance: vec![0; n],
+        intensity: (0..n).map(|i| (i % 13) as f32 * 0.05).collect(),
+        column_time_s: (0..cols).map(|c| t as f64 * 0.1 + 0.1 * (c as f64 + 0.5) / cols as f64).collect(),
         time_s: t as f64 * 0.1,
         world_from_sensor: [
             [1.0, 0.0, 0.0, t as f64],
@@ -238,7 +240,7 @@ fn roundtrip_no_humans() {
 #[test]
 fn optional_outputs_absent_when_disabled() {
     let dir = tempfile::tempdir().unwrap();
-    let m = meta(0, 2, 1, OutputSet { xyz: false, velocity: false, background: false });
+    let m = meta(0, 2, 1, OutputSet { xyz: false, velocity: false, background: false, clean: false });
     let paths = write_seq(dir.path(), &m, &WriterOptions { png: true, ..Default::default() });
     let f = hdf5::File::open(&paths[0]).unwrap();
     assert!(f.dataset("range").is_ok());
