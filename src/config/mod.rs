@@ -248,8 +248,8 @@ pub struct OutputConfig {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorModelConfig {
-    /// Master switch (`--sensor-model on|off`): off (the default for now) gives the paper's
-    /// clean, instantaneous frames (intensity is still written: it is data, not an effect).
+    /// Master switch (`--sensor-model on|off`): off gives the paper's clean, instantaneous
+    /// frames (intensity is still written: it is data, not an effect).
     pub enabled: bool,
     /// Each column is taken at its own time over the sweep (`--rolling-shutter off`: every
     /// column at the frame's time).
@@ -290,7 +290,7 @@ pub struct SensorModelConfig {
 impl Default for SensorModelConfig {
     fn default() -> Self {
         SensorModelConfig {
-            enabled: false,
+            enabled: true,
             rolling_shutter: true,
             range_noise_m: 0.02,
             laser_bias_m: 0.005,

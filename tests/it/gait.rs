@@ -10,6 +10,8 @@ use pedscan::generator::Generator;
 /// speed, model name).
 fn slide_ratios(speed_mps: [f64; 2], seed: u64) -> Vec<(f64, f64, String)> {
     let mut cfg = Config::default();
+    // The posed meshes at one instant, as the test poses them (no rolling shutter).
+    cfg.sensor_model = pedscan::config::SensorModelConfig::off();
     cfg.render.backend = BackendChoice::Raycast;
     cfg.humans.count = [30, 30];
     cfg.humans.speed_mps = speed_mps;
@@ -171,6 +173,7 @@ fn arm_swing_varies_per_person_and_moves_only_the_arms() {
 
     // Drawn per person within the configured range, the same for the same seed.
     let mut cfg = pedscan::config::Config::default();
+    cfg.sensor_model = pedscan::config::SensorModelConfig::off();
     cfg.render.backend = pedscan::config::BackendChoice::Raycast;
     cfg.humans.count = [10, 10];
     let gen = pedscan::generator::Generator::new(cfg).unwrap();

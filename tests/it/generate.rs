@@ -57,7 +57,7 @@ fn generate_writes_consistent_labeled_sequences() {
     let dir = tmp.path();
     // The raster path explicitly (the default `auto` picks the ray caster on lavapipe).
     let o = pedscan(
-        &["generate", "--out", "out", "--frames", "5", "--sequences", "2", "--humans", "4..6", "--seed", "11", "--png", "--backend", "raster"],
+        &["generate", "--out", "out", "--frames", "5", "--sequences", "2", "--humans", "4..6", "--seed", "11", "--png", "--backend", "raster", "--sensor-model", "off"],
         dir,
     );
     ok(&o);

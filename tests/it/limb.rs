@@ -11,6 +11,8 @@ use pedscan::output::FrameOutput;
 #[test]
 fn limb_velocity_is_the_motion_of_the_hit_point_on_the_posed_mesh() {
     let mut cfg = Config::default();
+    // The posed meshes at one instant, as the test poses them (no rolling shutter).
+    cfg.sensor_model = pedscan::config::SensorModelConfig::off();
     cfg.render.backend = BackendChoice::Raycast;
     cfg.humans.count = [12, 12];
     cfg.output.velocity = VelocityModel::Limb;

@@ -103,7 +103,7 @@ fn people_are_composited_into_a_recorded_kitti_sequence() {
     let recorded = write_recording(dir, frames_total);
     let o = pedscan(
         &[
-            "generate", "--out", "out", "--background", "velodyne", "--poses", "poses.txt", "--frames", "6", "--humans", "3",
+            "generate", "--out", "out", "--sensor-model", "off", "--background", "velodyne", "--poses", "poses.txt", "--frames", "6", "--humans", "3",
             "--seed", "5", "--backend", "raster",
         ],
         dir,
