@@ -1097,13 +1097,23 @@ impl HumanModel {
 }
 
 /// The rotation taking unit `from` onto unit `to`; none where either is zero (a degenerate
-/// chain keeps its pose rather than turning into NaN).
+/// chain keeps its pose rather than turning into NaN). Small turns are kept:
+/// `Quat::from_rotation_arc` returns the identity below ~7e-4 rad (cos within 2 ulp of 1),
+/// which froze the re-solved legs for a few frames around each instant where the stride
+/// scaling moves a foot by less than a few tenths of a millimetre (the stance foot then slid
+/// at (k - 1) / k of the walking speed).
 fn arc(from: Vec3, to: Vec3) -> Quat {
     if from == Vec3::ZERO || to == Vec3::ZERO {
-        Quat::IDENTITY
-    } else {
-        Quat::from_rotation_arc(from, to)
+        return Quat::IDENTITY;
     }
+    // (from x to, 1 + from . to), normalised: the rotation by the angle between them about
+    // their normal, exact down to zero; only near-opposite vectors need the general form.
+    let w = 1.0 + from.dot(to);
+    if w < 1e-4 {
+        return Quat::from_rotation_arc(from, to);
+    }
+    let c = from.cross(to);
+    Quat::from_xyzw(c.x, c.y, c.z, w).normalize()
 }
 
 /// Whether a node name names a leg bone (the standing pose keeps those at rest): `leg`,
