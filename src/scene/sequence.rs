@@ -352,6 +352,12 @@ const PINNED_AT: f64 = 0.5 * TOE_OFF as f64;
 pub const STAND_BELOW_MPS: f64 = 0.1;
 
 impl HumanPlan {
+    /// Position at time `t_s` (that of [`HumanPlan::at`], without the gait's cost: sampling
+    /// checks it at every frame against every other person).
+    pub fn position_m(&self, t_s: f64) -> DVec3 {
+        self.trajectory.position(if self.motion.moves() { t_s } else { 0.0 })
+    }
+
     /// State at time `t_s` according to the motion mode (the paper's Table 5 ablations).
     pub fn at(&self, t_s: f64) -> HumanAt {
         let tr = &self.trajectory;
@@ -370,7 +376,7 @@ impl HumanPlan {
         };
         let feet = if self.motion == MotionMode::Full { self.foot_shifts(t_s, phase) } else { [FootShift::ZERO; 2] };
         HumanAt {
-            position_m: tr.position(tm),
+            position_m: self.position_m(t_s),
             heading_rad: tr.heading_rad(tm),
             velocity_mps,
             gait_phase: phase,
@@ -705,10 +711,10 @@ fn sample_synthetic_people(
                 stride_scale: 1.0,
             };
             let ok = times_s.iter().all(|&t| {
-                let p = plan.at(t).position_m.truncate();
+                let p = plan.position_m(t).truncate();
                 let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
                 let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
-                let apart = humans.iter().all(|h| h.at(t).position_m.truncate().distance(p) >= hc.min_separation_m);
+                let apart = humans.iter().all(|h| h.position_m(t).truncate().distance(p) >= hc.min_separation_m);
                 free && off_sensor && apart
             });
             if ok {
