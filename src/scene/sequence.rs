@@ -348,6 +348,11 @@ impl HumanAt {
 /// Where a stance foot is pinned: the place and heading it has halfway through the stance.
 const PINNED_AT: f64 = 0.5 * TOE_OFF as f64;
 
+/// The largest move and turn of a planted foot for a curve, m and rad: a walk round a 0.5 m
+/// radius moves it ~0.16 m and turns it ~0.8 rad between heel strike and mid-stance.
+const MAX_FOOT_SHIFT_M: f64 = 0.3;
+const MAX_FOOT_YAW_RAD: f64 = 1.2;
+
 /// Below this speed a walking person blends toward the standing pose (linearly, standing at 0).
 pub const STAND_BELOW_MPS: f64 = 0.1;
 
@@ -425,7 +430,10 @@ impl HumanPlan {
                 let w = x * x * (3.0 - 2.0 * x);
                 left.zip(next).map(|(a, b)| a.lerp(b, w))
             };
-            m.map_or(FootShift::ZERO, |m| FootShift { forward_m: m.x as f32, left_m: m.y as f32, yaw_rad: m.z as f32 })
+            // A turn tighter than a walk makes (a recorded heading that swings round on the
+            // spot) would pull the foot beyond the leg's reach: scaled back, continuously.
+            let fit = m.map_or(0.0, |m| (MAX_FOOT_SHIFT_M / m.truncate().length()).min(MAX_FOOT_YAW_RAD / m.z.abs()).min(1.0));
+            m.map_or(FootShift::ZERO, |m| FootShift { forward_m: (fit * m.x) as f32, left_m: (fit * m.y) as f32, yaw_rad: (fit * m.z) as f32 })
         })
     }
 }
@@ -803,6 +811,16 @@ mod tests {
                         assert!(jump < 5e-3, "t = {} ms: the shift jumps by {jump}", k);
                     }
                 }
+            }
+        }
+        // A turn no walk makes (6 rad/s at 1.2 m/s: a 0.2 m radius) moves a foot 0.3 m and
+        // turns it 1.2 rad at most.
+        if let HumanPath::Arc(a) = &mut p.trajectory {
+            a.yaw_rate_rps = 6.0;
+        }
+        for k in 0..200 {
+            for f in p.at(k as f64 * 0.01).feet {
+                assert!(f.forward_m.hypot(f.left_m) <= 0.3 + 1e-6 && f.yaw_rad.abs() <= 1.2 + 1e-6, "{f:?}");
             }
         }
         // A person who does not walk on (in place, standing) has no shifts.
