@@ -716,8 +716,10 @@ impl HumanModel {
     /// strike. Every point of the planted foot then moves at `k` times `stride / cycle`, which
     /// the phase (advanced per `k` strides) matches, so it stays where it is on the ground. Over
     /// the swing the foot follows the animation, moved fore or aft by `(k - 1) c(phase)`, `c`
-    /// the line that takes it from where the stance leaves it to where the next one starts,
-    /// and what the exact stance differed from the animation at toe-off fades out. The gait
+    /// a cubic from where the stance leaves it to where the next one starts with the stance's
+    /// slope at both ends (so at any `k` the foot leaves and meets the ground with no
+    /// horizontal speed in the world, as the animation does at `k = 1`), and what the exact
+    /// stance differed from the animation at toe-off fades out. The gait
     /// events are the bundled people's contract (`tools/humans/README.md`): left heel strike at
     /// phase 0, right at 0.5, toe-off 0.62 of the cycle after, foot flat from 0.10 to 0.31,
     /// ankle under the hip at 0.25.
@@ -741,10 +743,16 @@ impl HumanModel {
         // Halfway through the flat foot: the pivot changes from the heel to the toe joint.
         const HEEL_TO_TOE: f32 = 0.205;
         let stride = self.stride_length_m.unwrap_or(0.0);
+        // Over the swing the stance's line `c(u) = -stride (u - 0.25)` continues as a cubic
+        // back to where the next stance starts, with the stance's slope at both ends: the foot
+        // leaves and meets the ground at the speed the stance has (none, in the world).
         let swing_line = |u: f32| {
-            let back = -stride * (TOE_OFF - UNDER_HIP);
-            let front = stride * UNDER_HIP;
-            (k - 1.0) * (back + (front - back) * (u - TOE_OFF) / (1.0 - TOE_OFF))
+            let (back, front) = (-stride * (TOE_OFF - UNDER_HIP), stride * UNDER_HIP);
+            let slope = -stride * (1.0 - TOE_OFF);
+            let x = (u - TOE_OFF) / (1.0 - TOE_OFF);
+            let (x2, x3) = (x * x, x * x * x);
+            let c = (2.0 * x3 - 3.0 * x2 + 1.0) * back + (x3 - 2.0 * x2 + x) * slope + (3.0 * x2 - 2.0 * x3) * front + (x3 - x2) * slope;
+            (k - 1.0) * c
         };
         // The ankle and orientation of the stance foot at its own phase u, placed exactly.
         let planted = |leg: &Leg, u: f32, rot: Quat| {
