@@ -8,9 +8,12 @@
 //!
 //! Gait: the phase advances by distance walked / stride length. The stride is the model's own,
 //! the distance its animation covers in one cycle over a planted foot (`stride_length_m` in its
-//! metadata): the cycle is scaled to the walking speed, so the stance foot stays planted at any
-//! speed. A model without a recorded stride uses Alexander's relation between relative stride
-//! and Froude number (see [`stride_length_m`]), and its feet slide where that differs.
+//! metadata), times a per-person factor the legs are re-solved for (two-bone IK,
+//! [`GaitStyle::stride`]): the cycle is scaled to the walking speed. For models with the
+//! bundled people's legs the stance foot is placed exactly about its heel and toe pivots and
+//! pinned where the path turns ([`FootShift`]), so it stays planted at any speed and on
+//! curves. A model without a recorded stride uses Alexander's relation between relative
+//! stride and Froude number (see [`stride_length_m`]), and its feet slide where that differs.
 
 pub(crate) mod checks;
 pub mod proxy;
@@ -202,6 +205,13 @@ struct Channel {
     arm: bool,
 }
 
+/// Gait events of the bundled people's walk (`tools/humans/README.md`), in cycles after a
+/// foot's heel strike (the left foot strikes at phase 0, the right at 0.5): the toes leave
+/// the ground.
+pub const TOE_OFF: f32 = 0.62;
+/// The stance ankle passes under the hip.
+pub const UNDER_HIP: f32 = 0.25;
+
 /// How a person walks, beside the phase: 1 / 1 is the model's own walk.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GaitStyle {
@@ -213,20 +223,48 @@ pub struct GaitStyle {
     /// travel relative to the hips is scaled by it and the legs re-solved (two-bone IK), so the
     /// walk covers this times the model's stride per cycle with the feet still planted.
     pub stride: f32,
+    /// Per foot (left, right): where the path's turns put it beside the straight walk, body
+    /// frame (see [`FootShift`]); zero on a straight path.
+    pub feet: [FootShift; 2],
 }
 
 impl GaitStyle {
     /// The model's own walk.
-    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0 };
+    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2] };
+}
+
+/// A planar rigid move of one foot in the body frame (x forward, y left, yaw about z up),
+/// applied after the walk has placed it: `p -> R(yaw) p + (forward, left)`. On a curved path a
+/// planted foot has to move in the body frame, which turns under it; the sequence computes this
+/// move so that the foot keeps the world place and heading it has mid-stance
+/// (`crate::scene::sequence::HumanPlan::at`), and blends it over the swing.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FootShift {
+    pub forward_m: f32,
+    pub left_m: f32,
+    pub yaw_rad: f32,
+}
+
+impl FootShift {
+    pub const ZERO: FootShift = FootShift { forward_m: 0.0, left_m: 0.0, yaw_rad: 0.0 };
 }
 
 /// The nodes of one leg the stride scaling re-solves: hip (thigh bone), knee (shank bone),
-/// ankle (foot bone).
+/// ankle (foot bone); and where the foot pivots on the ground in the stance, model frame at
+/// rest (the bundled people's walk, `tools/humans/README.md`): the heel contact point (the
+/// rear-most point of the sole, under the ankle) during the heel rocker and the toe joint
+/// (first metatarsophalangeal) during the forefoot rocker.
 #[derive(Clone, Copy, Debug)]
 struct Leg {
     thigh: usize,
     shank: usize,
     foot: usize,
+    ankle: Vec3,
+    heel: Vec3,
+    mtp: Vec3,
+    /// Forward (model z) translation of the flat foot from rest when its ankle passes under
+    /// the hip (phase 0.25 after its heel strike).
+    flat_under_hip: f32,
 }
 
 /// One level of detail: a compact skinned mesh (only the vertices its triangles use).
@@ -319,12 +357,14 @@ impl HumanModel {
         let mut nodes = Vec::with_capacity(parents.len());
         let leg_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_leg_name)).collect();
         let node_named = |name: &str| doc.nodes().position(|n| n.name() == Some(name));
-        let leg = |side: &str| -> Option<Leg> {
-            Some(Leg {
-                thigh: node_named(&format!("upperleg01.{side}"))?,
-                shank: node_named(&format!("lowerleg01.{side}"))?,
-                foot: node_named(&format!("foot.{side}"))?,
-            })
+        // A leg's nodes: (thigh, shank, foot, toe).
+        let leg = |side: &str| -> Option<[usize; 4]> {
+            Some([
+                node_named(&format!("upperleg01.{side}"))?,
+                node_named(&format!("lowerleg01.{side}"))?,
+                node_named(&format!("foot.{side}"))?,
+                node_named(&format!("toe1-1.{side}"))?,
+            ])
         };
         let arm_nodes: Vec<bool> = doc.nodes().map(|n| n.name().is_some_and(is_arm_name)).collect();
         for (n, parent) in doc.nodes().zip(parents) {
@@ -444,7 +484,7 @@ impl HumanModel {
             legs: None,
         };
         if let (Some(l), Some(r), Some(&root)) = (leg("L"), leg("R"), model.joint_nodes.first()) {
-            model.legs = Some(([l, r], root));
+            model.legs = model.plant_legs([l, r]).map(|legs| (legs, root));
         }
         model.check_reach(path)?;
         model.stand_pose(&leg_nodes);
@@ -602,17 +642,15 @@ impl HumanModel {
             }
         }
         let mut global: Vec<Option<Mat4>> = vec![None; self.nodes.len()];
-        if style.stride != 1.0 && walk > 0.0 {
-            if let Some((legs, root)) = self.legs {
-                let phase = if self.cycle_s > 0.0 { t / self.cycle_s } else { 0.0 };
-                self.scale_stride(&mut local, &mut global, legs, root, phase, 1.0 + walk * (style.stride - 1.0));
-            }
+        if let (Some((legs, root)), true) = (self.legs, walk > 0.0 && self.stride_length_m.is_some() && self.cycle_s > 0.0) {
+            let phase = t / self.cycle_s;
+            self.place_feet(&mut local, &mut global, legs, root, phase, 1.0 + walk * (style.stride - 1.0), walk, style.feet);
         }
         out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
     }
 
     /// The stride scales a model's own stride takes without strain: its walk re-solved for
-    /// 0.6 to 1.2 times the recorded stride.
+    /// 0.75 to 1.2 times the recorded stride.
     pub fn stride_scale_range(&self) -> (f32, f32) {
         if self.legs.is_some() && self.stride_length_m.is_some() {
             (0.75, 1.2)
@@ -621,20 +659,77 @@ impl HumanModel {
         }
     }
 
-    /// Re-solves both legs of the pose `local` at `phase` for `k` times the stride. Model
-    /// frame: y up, the person faces +z. Each foot moves fore or aft, rigidly (its animated
-    /// orientation kept, so the heel and forefoot rockers are unchanged), by `(k - 1) c(phase)`
-    /// with `c` a line of slope `-stride` per cycle over the foot's stance (zero where the
-    /// ankle passes under the hip) that returns over the swing: every point of a planted foot,
-    /// moving backwards at `stride / cycle` in the animation, moves at `k` times that, which the
-    /// phase (advanced per `k` strides) matches, so it stays planted. The gait events are the
-    /// bundled people's contract (`tools/humans/README.md`): left heel strike at phase 0, right
-    /// at 0.5, toe-off 0.62 of the cycle after, ankle under the hip 0.25 after. The pelvis moves
-    /// up or down so that the more stretched leg is exactly as stretched as in the animation at
-    /// this phase (a shorter stride stands taller), then each leg is a two-bone chain (hip ->
-    /// knee -> ankle) bent in the plane of its animated knee.
+    /// The legs' rest pivots, as the builder of the bundled people takes them: the heel contact
+    /// point is the rear-most vertex of the sole (the full mesh's lowest centimetre, more than
+    /// 2 cm to the foot's side of the midline) under the ankle, the toe pivot the toe joint.
+    /// The flat foot's forward translation under the hip follows the builder's placement too
+    /// (both heels strike where the left one's ankle passes under the left hip a quarter of a
+    /// stride later). None where a foot has no sole.
+    fn plant_legs(&self, legs: [[usize; 4]; 2]) -> Option<[Leg; 2]> {
+        let at = |n: usize| global_rest(&self.nodes, n).w_axis.truncate();
+        let rest = &self.lods.first()?.positions;
+        let mut out = Vec::with_capacity(2);
+        for ([thigh, shank, foot, toe], side) in legs.into_iter().zip([1.0f32, -1.0]) {
+            let ankle = at(foot);
+            let back = rest.iter().filter(|p| p.y < 0.01 && side * p.x > 0.02).map(|p| p.z).fold(f32::INFINITY, f32::min);
+            if !back.is_finite() {
+                return None;
+            }
+            out.push(Leg { thigh, shank, foot, ankle, heel: Vec3::new(ankle.x, 0.0, back), mtp: at(toe), flat_under_hip: 0.0 });
+        }
+        let (hip_l, ankle_l, heel_l) = (at(out[0].thigh).z, out[0].ankle.z, out[0].heel.z);
+        for leg in &mut out {
+            leg.flat_under_hip = hip_l - ankle_l + heel_l - leg.heel.z;
+        }
+        Some([out[0], out[1]])
+    }
+
+    /// Global transform of node `i` at time `t` of the walk (the model's own walk, as
+    /// [`HumanModel::joint_globals`] gives it in [`GaitStyle::WALK`]), from its chain alone.
+    fn walk_global(&self, i: usize, t: f32) -> Mat4 {
+        let n = &self.nodes[i];
+        let (mut tr, mut rot, mut scale) = (n.translation, n.rotation, n.scale);
+        for ch in self.channels.iter().filter(|c| c.node == i) {
+            let v = sample(ch, t);
+            match ch.property {
+                Property::Translation => tr = v.truncate(),
+                Property::Rotation => rot = Quat::from_vec4(v).normalize(),
+                Property::Scale => scale = v.truncate(),
+            }
+        }
+        let m = Mat4::from_scale_rotation_translation(scale, rot, tr);
+        match n.parent {
+            Some(p) => self.walk_global(p, t) * m,
+            None => m,
+        }
+    }
+
+    /// Places both feet of the pose `local` at `phase` and re-solves the legs, for `k` times
+    /// the model's stride, `walk` of the way from the animation to the planted feet, each foot
+    /// moved by `feet` (scaled by `walk`). Model frame: y up, the person faces +z.
+    ///
+    /// Over the stance a foot is placed as the builder placed it, but exactly rather than as
+    /// the animation's keys interpolate it: rotated by its animated orientation (the heel and
+    /// forefoot rockers) about its ground pivot (the heel contact point until the foot is flat,
+    /// the toe joint after), the pivot moving backwards at `k` strides per cycle through the
+    /// place where the flat foot has its ankle under the hip a quarter of a cycle after heel
+    /// strike. Every point of the planted foot then moves at `k` times `stride / cycle`, which
+    /// the phase (advanced per `k` strides) matches, so it stays where it is on the ground. Over
+    /// the swing the foot follows the animation, moved fore or aft by `(k - 1) c(phase)`, `c`
+    /// a cubic from where the stance leaves it to where the next one starts with the stance's
+    /// slope at both ends (so at any `k` the foot leaves and meets the ground with no
+    /// horizontal speed in the world, as the animation does at `k = 1`), and what the exact
+    /// stance differed from the animation at toe-off fades out. The gait
+    /// events are the bundled people's contract (`tools/humans/README.md`): left heel strike at
+    /// phase 0, right at 0.5, toe-off 0.62 of the cycle after, foot flat from 0.10 to 0.31,
+    /// ankle under the hip at 0.25.
+    ///
+    /// The pelvis moves up or down so that the more stretched leg is exactly as stretched as in
+    /// the animation at this phase (a shorter stride stands taller), then each leg is a two-bone
+    /// chain (hip -> knee -> ankle) bent in the plane of its animated knee.
     /// `cache` holds the globals of `local` (or `None`s) and is left consistent with the result.
-    fn scale_stride(
+    #[allow(clippy::too_many_arguments)]
+    fn place_feet(
         &self,
         local: &mut [(Vec3, Quat, Vec3)],
         cache: &mut [Option<Mat4>],
@@ -642,23 +737,28 @@ impl HumanModel {
         root: usize,
         phase: f32,
         k: f32,
+        walk: f32,
+        feet: [FootShift; 2],
     ) {
-        const TOE_OFF: f32 = 0.62;
-        const UNDER_HIP: f32 = 0.25;
+        // Halfway through the flat foot: the pivot changes from the heel to the toe joint.
+        const HEEL_TO_TOE: f32 = 0.205;
         let stride = self.stride_length_m.unwrap_or(0.0);
-        // The planted line of each foot (left strikes at 0, right at 0.5).
-        let shift = |strike: f32| {
-            let u = (phase - strike).rem_euclid(1.0);
-            let c = if u < TOE_OFF {
-                -stride * (u - UNDER_HIP)
-            } else {
-                let back = -stride * (TOE_OFF - UNDER_HIP);
-                let front = stride * UNDER_HIP;
-                back + (front - back) * (u - TOE_OFF) / (1.0 - TOE_OFF)
-            };
+        // Over the swing the stance's line `c(u) = -stride (u - 0.25)` continues as a cubic
+        // back to where the next stance starts, with the stance's slope at both ends: the foot
+        // leaves and meets the ground at the speed the stance has (none, in the world).
+        let swing_line = |u: f32| {
+            let (back, front) = (-stride * (TOE_OFF - UNDER_HIP), stride * UNDER_HIP);
+            let slope = -stride * (1.0 - TOE_OFF);
+            let x = (u - TOE_OFF) / (1.0 - TOE_OFF);
+            let (x2, x3) = (x * x, x * x * x);
+            let c = (2.0 * x3 - 3.0 * x2 + 1.0) * back + (x3 - 2.0 * x2 + x) * slope + (3.0 * x2 - 2.0 * x3) * front + (x3 - x2) * slope;
             (k - 1.0) * c
         };
-        let shifts = [shift(0.0), shift(0.5)];
+        // The ankle and orientation of the stance foot at its own phase u, placed exactly.
+        let planted = |leg: &Leg, u: f32, rot: Quat| {
+            let pivot = if u < HEEL_TO_TOE { leg.heel } else { leg.mtp };
+            pivot + Vec3::Z * (leg.flat_under_hip - k * stride * (u - UNDER_HIP)) + rot * (leg.ankle - pivot)
+        };
         let pos = |m: Mat4| m.w_axis.truncate();
         let nodes = &self.nodes;
         // Animated hips, knees, ankles and foot orientations; the targets.
@@ -667,12 +767,31 @@ impl HumanModel {
             (pos(global_of(nodes, local, cache, l.thigh)), pos(global_of(nodes, local, cache, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
         });
         let stretch = anim.iter().map(|&(h, _, a, _)| (a - h).length()).fold(0.0f32, f32::max);
-        let targets: [Vec3; 2] = [0, 1].map(|i| anim[i].2 + Vec3::Z * shifts[i]);
+        let mut targets = [(Vec3::ZERO, Quat::IDENTITY); 2];
+        for (i, (leg, &(_, _, ankle, rot))) in legs.iter().zip(&anim).enumerate() {
+            let u = (phase - 0.5 * i as f32).rem_euclid(1.0);
+            let moved = if u < TOE_OFF {
+                planted(leg, u, rot) - ankle
+            } else {
+                // The animation at toe-off, where the exact stance handed over.
+                let t_off = (phase + TOE_OFF - u).rem_euclid(1.0) * self.cycle_s;
+                let off = self.walk_global(leg.foot, t_off);
+                let handover = planted(leg, TOE_OFF, Quat::from_mat4(&off).normalize()) - pos(off) - Vec3::Z * swing_line(TOE_OFF);
+                let fade = 1.0 - smoothstep((u - TOE_OFF) / (1.0 - TOE_OFF));
+                Vec3::Z * swing_line(u) + handover * fade
+            };
+            // The turn's move, in the model frame (body x forward = model z, body y left =
+            // model x, body yaw = model yaw about y).
+            let f = feet[i];
+            let turn = Quat::from_rotation_y(walk * f.yaw_rad);
+            let target = ankle + walk * moved;
+            targets[i] = (turn * target + walk * Vec3::new(f.left_m, 0.0, f.forward_m), turn * rot);
+        }
         // Pelvis height: the highest at which no leg reaches further than `stretch`.
         let lift = anim
             .iter()
             .zip(&targets)
-            .map(|(&(h, _, _, _), &t)| {
+            .map(|(&(h, _, _, _), &(t, _))| {
                 let flat = Vec3::new(t.x - h.x, 0.0, t.z - h.z).length_squared();
                 (stretch * stretch - flat).max(0.0).sqrt() - (h.y - t.y)
             })
@@ -681,7 +800,7 @@ impl HumanModel {
             local[root].0.y += lift;
             cache.fill(None);
         }
-        for (leg, (&(_, knee0, _, foot_rot), &target)) in legs.iter().zip(anim.iter().zip(&targets)) {
+        for (leg, (&(_, knee0, _, _), &(target, foot_rot))) in legs.iter().zip(anim.iter().zip(&targets)) {
             let (hip_m, knee_m, ankle_m) =
                 (global_of(nodes, local, cache, leg.thigh), global_of(nodes, local, cache, leg.shank), global_of(nodes, local, cache, leg.foot));
             let (hip, knee, ankle) = (pos(hip_m), pos(knee_m), pos(ankle_m));
@@ -702,7 +821,7 @@ impl HumanModel {
             let (knee_now, ankle_now) = (pos(knee_m), pos(global_of(nodes, local, cache, leg.foot)));
             let turn2 = arc((ankle_now - knee_now).normalize_or_zero(), (target - knee_now).normalize_or_zero());
             self.set_global_rotation(local, cache, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
-            // Foot: its animated orientation.
+            // Foot: its animated orientation, turned with the path.
             self.set_global_rotation(local, cache, leg.foot, foot_rot);
         }
     }
@@ -808,6 +927,12 @@ fn global_of(nodes: &[NodeRest], local: &[(Vec3, Quat, Vec3)], cache: &mut [Opti
     };
     cache[i] = Some(g);
     g
+}
+
+/// 0 below 0, 1 above 1, smooth (zero slope at both ends) in between.
+fn smoothstep(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
 }
 
 /// Samples a channel at time `t` (clamped to its key range), glTF interpolation rules.
@@ -1097,13 +1222,23 @@ impl HumanModel {
 }
 
 /// The rotation taking unit `from` onto unit `to`; none where either is zero (a degenerate
-/// chain keeps its pose rather than turning into NaN).
+/// chain keeps its pose rather than turning into NaN). Small turns are kept:
+/// `Quat::from_rotation_arc` returns the identity below ~7e-4 rad (cos within 2 ulp of 1),
+/// which froze the re-solved legs for a few frames around each instant where the stride
+/// scaling moves a foot by less than a few tenths of a millimetre (the stance foot then slid
+/// at (k - 1) / k of the walking speed).
 fn arc(from: Vec3, to: Vec3) -> Quat {
     if from == Vec3::ZERO || to == Vec3::ZERO {
-        Quat::IDENTITY
-    } else {
-        Quat::from_rotation_arc(from, to)
+        return Quat::IDENTITY;
     }
+    // (from x to, 1 + from . to), normalised: the rotation by the angle between them about
+    // their normal, exact down to zero; only near-opposite vectors need the general form.
+    let w = 1.0 + from.dot(to);
+    if w < 1e-4 {
+        return Quat::from_rotation_arc(from, to);
+    }
+    let c = from.cross(to);
+    Quat::from_xyzw(c.x, c.y, c.z, w).normalize()
 }
 
 /// Whether a node name names a leg bone (the standing pose keeps those at rest): `leg`,

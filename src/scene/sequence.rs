@@ -4,7 +4,7 @@
 
 use crate::config::{Config, WalkMode};
 use crate::error::{Error, Result};
-use crate::human::{stride_length_m, GaitStyle, HumanModel, MotionMode};
+use crate::human::{stride_length_m, FootShift, GaitStyle, HumanModel, MotionMode, TOE_OFF};
 use crate::scene::planner::WalkPath;
 use crate::scene::{Trajectory, WalkableGrid};
 use crate::input::tracks::Track;
@@ -59,6 +59,29 @@ impl HumanPath {
             HumanPath::Arc(a) => a.distance(t_s),
             HumanPath::Walk(w, _) => w.distance(t_s),
             HumanPath::Track(k) => k.distance(t_s),
+        }
+    }
+    /// The first time at which the distance walked is `d_m` (before 0 or past a track's
+    /// table: at the speed there); None where the path does not get there (standing still).
+    pub fn time_at_distance(&self, d_m: f64) -> Option<f64> {
+        let at_speed = |t0: f64, d0: f64, v: f64| (v > 1e-9).then(|| t0 + (d_m - d0) / v);
+        match self {
+            HumanPath::Arc(a) => at_speed(0.0, 0.0, a.speed_mps),
+            HumanPath::Walk(w, _) => at_speed(0.0, 0.0, w.speed_mps()),
+            HumanPath::Track(k) => {
+                let w = &k.walked_m;
+                let last = w.len().saturating_sub(1);
+                if d_m <= 0.0 || last == 0 {
+                    return at_speed(0.0, 0.0, k.state(0.0).1.length());
+                }
+                if d_m > w[last] {
+                    let t = last as f64 * TRACK_DISTANCE_STEP_S;
+                    return at_speed(t, w[last], k.state(t).1.length());
+                }
+                let i = w.partition_point(|&x| x < d_m).max(1);
+                let f = if w[i] > w[i - 1] { (d_m - w[i - 1]) / (w[i] - w[i - 1]) } else { 0.0 };
+                Some((i as f64 - 1.0 + f) * TRACK_DISTANCE_STEP_S)
+            }
         }
     }
 }
@@ -310,19 +333,36 @@ pub struct HumanAt {
     /// 1 = the walk at `gait_phase`, 0 = the standing pose; in between below
     /// [`STAND_BELOW_MPS`] (a walking person who stops comes to stand; `in-place` walks on).
     pub walking: f64,
+    /// Where the path's turns move each foot (left, right) in the body frame so that a planted
+    /// foot keeps its place and heading on the ground (see [`HumanPlan::foot_shifts`]).
+    pub feet: [FootShift; 2],
 }
 
 impl HumanAt {
     /// How the person walks at this instant (for posing its model).
     pub fn style(&self) -> GaitStyle {
-        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32 }
+        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet }
     }
 }
+
+/// Where a stance foot is pinned: the place and heading it has halfway through the stance.
+const PINNED_AT: f64 = 0.5 * TOE_OFF as f64;
+
+/// The largest move and turn of a planted foot for a curve, m and rad: a walk round a 0.5 m
+/// radius moves it ~0.16 m and turns it ~0.8 rad between heel strike and mid-stance.
+const MAX_FOOT_SHIFT_M: f64 = 0.3;
+const MAX_FOOT_YAW_RAD: f64 = 1.2;
 
 /// Below this speed a walking person blends toward the standing pose (linearly, standing at 0).
 pub const STAND_BELOW_MPS: f64 = 0.1;
 
 impl HumanPlan {
+    /// Position at time `t_s` (that of [`HumanPlan::at`], without the gait's cost: sampling
+    /// checks it at every frame against every other person).
+    pub fn position_m(&self, t_s: f64) -> DVec3 {
+        self.trajectory.position(if self.motion.moves() { t_s } else { 0.0 })
+    }
+
     /// State at time `t_s` according to the motion mode (the paper's Table 5 ablations).
     pub fn at(&self, t_s: f64) -> HumanAt {
         let tr = &self.trajectory;
@@ -339,15 +379,62 @@ impl HumanPlan {
         } else {
             1.0
         };
+        let feet = if self.motion == MotionMode::Full { self.foot_shifts(t_s, phase) } else { [FootShift::ZERO; 2] };
         HumanAt {
-            position_m: tr.position(tm),
+            position_m: self.position_m(t_s),
             heading_rad: tr.heading_rad(tm),
             velocity_mps,
             gait_phase: phase,
             arm_swing: self.arm_swing,
             stride_scale: self.stride_scale,
             walking,
+            feet,
         }
+    }
+
+    /// Each foot's move in the body frame at `t_s` (gait phase `phase`) that keeps it planted
+    /// where the path turns. The walk places a stance foot as on a straight path: in the body
+    /// frame it moves straight back by the distance walked. On a curve the body also turns and
+    /// moves sideways, so the foot is pinned instead where that straight walk puts it halfway
+    /// through its stance, with that instant's heading: at time t the foot is moved by
+    /// `B(t)^-1 B(t_pin) X(d(t) - d(t_pin))` (B the body's pose, X a move straight forward,
+    /// d the distance walked), which is the identity on a straight line. Over the swing the
+    /// move blends (smoothstep) from the one the foot left the ground with to the one the next
+    /// stance lands it with. Zero for a person who does not walk.
+    pub fn foot_shifts(&self, t_s: f64, phase: f64) -> [FootShift; 2] {
+        let tr = &self.trajectory;
+        let d = tr.distance(t_s);
+        let pose = |t: f64| (tr.position(t).truncate(), tr.heading_rad(t));
+        // The move at the instant `t_at` (distance `d_at`) of the stance pinned at `d_pin`.
+        let shift = |at: (DVec2, f64), d_at: f64, d_pin: f64| -> Option<DVec3> {
+            let (p_pin, h_pin) = pose(tr.time_at_distance(d_pin)?);
+            let (p, h) = at;
+            let pinned = p_pin + DVec2::from_angle(h_pin) * (d_at - d_pin);
+            let local = DVec2::from_angle(-h).rotate(pinned - p);
+            let yaw = (h_pin - h + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            Some(local.extend(yaw))
+        };
+        let toe_off = TOE_OFF as f64;
+        let stride = self.stride_m;
+        [0.0, 0.5].map(|strike| {
+            let u = (phase - strike).rem_euclid(1.0);
+            let m = if u < toe_off {
+                shift(pose(t_s), d, d + (PINNED_AT - u) * stride)
+            } else {
+                // From the stance the foot left (pinned (u - PINNED_AT) strides back) to the next.
+                let (d_off, d_on) = (d - (u - toe_off) * stride, d + (1.0 - u) * stride);
+                let at = |d_at: f64| tr.time_at_distance(d_at).map(pose);
+                let left = at(d_off).and_then(|p| shift(p, d_off, d - (u - PINNED_AT) * stride));
+                let next = at(d_on).and_then(|p| shift(p, d_on, d_on + PINNED_AT * stride));
+                let x = ((u - toe_off) / (1.0 - toe_off)).clamp(0.0, 1.0);
+                let w = x * x * (3.0 - 2.0 * x);
+                left.zip(next).map(|(a, b)| a.lerp(b, w))
+            };
+            // A turn tighter than a walk makes (a recorded heading that swings round on the
+            // spot) would pull the foot beyond the leg's reach: scaled back, continuously.
+            let fit = m.map_or(0.0, |m| (MAX_FOOT_SHIFT_M / m.truncate().length()).min(MAX_FOOT_YAW_RAD / m.z.abs()).min(1.0));
+            m.map_or(FootShift::ZERO, |m| FootShift { forward_m: (fit * m.x) as f32, left_m: (fit * m.y) as f32, yaw_rad: (fit * m.z) as f32 })
+        })
     }
 }
 
@@ -632,10 +719,10 @@ fn sample_synthetic_people(
                 stride_scale: 1.0,
             };
             let ok = times_s.iter().all(|&t| {
-                let p = plan.at(t).position_m.truncate();
+                let p = plan.position_m(t).truncate();
                 let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
                 let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
-                let apart = humans.iter().all(|h| h.at(t).position_m.truncate().distance(p) >= hc.min_separation_m);
+                let apart = humans.iter().all(|h| h.position_m(t).truncate().distance(p) >= hc.min_separation_m);
                 free && off_sensor && apart
             });
             if ok {
@@ -677,6 +764,68 @@ mod tests {
             motion,
             arm_swing: 1.0,
             stride_scale: 1.0,
+        }
+    }
+
+    /// On a curve the shifts keep a stance foot's place and heading on the ground: a point of
+    /// the foot, moved straight back by the distance walked as the walk moves it in the body
+    /// frame, then by the foot's shift, then into the world by the body's pose, stays where it
+    /// is from heel strike to toe-off. On a straight path the shifts are zero; over the swing
+    /// they change continuously.
+    #[test]
+    fn foot_shifts_pin_a_stance_foot_on_a_curve() {
+        let mut p = plan(MotionMode::Full);
+        let world = |p: &HumanPlan, t: f64, foot: usize, q: DVec2| {
+            let at = p.at(t);
+            let f = at.feet[foot];
+            let walked = q - DVec2::X * p.trajectory.distance(t);
+            let body = DVec2::from_angle(f.yaw_rad as f64).rotate(walked) + DVec2::new(f.forward_m as f64, f.left_m as f64);
+            let w = at.position_m.truncate() + DVec2::from_angle(at.heading_rad).rotate(body);
+            (w, at.heading_rad + f.yaw_rad as f64)
+        };
+        for yaw_rate in [0.0, 0.8, -1.5] {
+            if let HumanPath::Arc(a) = &mut p.trajectory {
+                a.yaw_rate_rps = yaw_rate;
+            }
+            // The left foot's stance: phase 0 (heel strike) to 0.62, from t = 0.75 * 1.2 / 1.2.
+            let (t0, t1) = (0.75, 0.75 + 0.62 - 1e-3);
+            let q = DVec2::new(0.1, 0.09);
+            let (w0, h0) = world(&p, t0, 0, q);
+            let mut worst: f64 = 0.0;
+            for k in 0..=40 {
+                let t = t0 + (t1 - t0) * k as f64 / 40.0;
+                let (w, h) = world(&p, t, 0, q);
+                worst = worst.max((w - w0).length()).max((h - h0).abs());
+            }
+            assert!(worst < 1e-5, "yaw rate {yaw_rate}: the planted foot moved {worst} m / rad");
+            let size = |t: f64| p.at(t).feet.iter().map(|f| f.forward_m.abs() + f.left_m.abs() + f.yaw_rad.abs()).sum::<f32>();
+            if yaw_rate == 0.0 {
+                assert!((0..50).all(|k| size(0.05 * k as f64) < 1e-6), "a straight path shifts no foot");
+            } else {
+                assert!(size(0.1) > 1e-3, "a curve shifts the feet");
+                // Continuous over the whole cycle, the swing included.
+                for k in 0..2000 {
+                    let (a, b) = (p.at(k as f64 * 1e-3).feet, p.at((k + 1) as f64 * 1e-3).feet);
+                    for (x, y) in a.iter().zip(&b) {
+                        let jump = (x.forward_m - y.forward_m).abs() + (x.left_m - y.left_m).abs() + (x.yaw_rad - y.yaw_rad).abs();
+                        assert!(jump < 5e-3, "t = {} ms: the shift jumps by {jump}", k);
+                    }
+                }
+            }
+        }
+        // A turn no walk makes (6 rad/s at 1.2 m/s: a 0.2 m radius) moves a foot 0.3 m and
+        // turns it 1.2 rad at most.
+        if let HumanPath::Arc(a) = &mut p.trajectory {
+            a.yaw_rate_rps = 6.0;
+        }
+        for k in 0..200 {
+            for f in p.at(k as f64 * 0.01).feet {
+                assert!(f.forward_m.hypot(f.left_m) <= 0.3 + 1e-6 && f.yaw_rad.abs() <= 1.2 + 1e-6, "{f:?}");
+            }
+        }
+        // A person who does not walk on (in place, standing) has no shifts.
+        for motion in [MotionMode::InPlace, MotionMode::Static, MotionMode::Sliding] {
+            assert_eq!(plan(motion).at(0.4).feet, [FootShift::ZERO; 2]);
         }
     }
 

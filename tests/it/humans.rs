@@ -179,8 +179,10 @@ fn the_walk_moves_the_legs_and_keeps_the_height() {
 const BODY_DENSITY: f64 = 1010.0;
 
 /// The mass a bundled body is built to: its weight label, except where that weight is below
-/// the lowest plausible BMI for the age (documented in tools/humans/README.md): the 1.2 m child
-/// is built at BMI 12.0 (17.3 kg, not 15 kg), the 1.4 m child at BMI 12.6 (24.7 kg, not 20 kg).
+/// the lowest plausible BMI for the age (tools/humans/README.md, "Unreachable weights"): the
+/// −3 SD line of the WHO 2007 BMI-for-age reference (5–19 years), boys and girls averaged, at
+/// the ages the builder gives 1.2 and 1.4 m: the 1.2 m child is built at BMI 12.0 (7 years;
+/// 17.3 kg, not 15 kg), the 1.4 m child at BMI 12.6 (10 years; 24.7 kg, not 20 kg).
 fn built_mass_kg(height_m: f64, weight_kg: f64) -> f64 {
     let floor_bmi = match (height_m * 1000.0).round() as u32 {
         1200 => 12.0,

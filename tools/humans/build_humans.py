@@ -115,9 +115,24 @@ ADULT_BMI_REF = 22.0
 # breathing (functional residual capacity) brings the whole body to ~1000-1020 (people
 # barely float on a full breath). The mesh volume includes the chest cavity, hence this value.
 BODY_DENSITY = 1010.0
-# Lowest plausible BMI of the children: WHO 2007 growth reference, BMI-for-age -3 SD (the
-# severe-thinness line, sexes averaged, rounded) at 7 and 10 years. The paper's 1.2 m / 15 kg
-# (BMI 10.4) and 1.4 m / 20 kg (BMI 10.2) lie far below it and are built at this floor.
+# Lowest plausible BMI of the children: the -3 SD line ("severe thinness") of the WHO 2007
+# growth reference for 5-19 years, BMI-for-age, boys and girls averaged, rounded to 0.1, at
+# the ages used for 1.2 and 1.4 m (7 and 10 years: the WHO 2007 median height is 120 cm at
+# 6.7 y for boys and 6.9 y for girls, 140 cm at 10.4 and 10.2 y). The -3 SD value is
+# M (1 + L S z)^(1/L) at z = -3 from the reference's LMS table:
+#   84 months: boys L -1.2460, M 15.4832, S 0.09068 -> 12.25; girls L -1.2565, M 15.4036,
+#              S 0.10746 -> 11.75; mean 12.00
+#   120 months: boys L -1.7407, M 16.4433, S 0.10566 -> 12.78; girls L -1.4864, M 16.6133,
+#              S 0.12307 -> 12.38; mean 12.58
+# (WHO, "Growth reference data for 5-19 years", BMI-for-age tables bfa_boys_z_WHO2007_exp /
+# bfa_girls_z_WHO2007_exp, https://www.who.int/tools/growth-reference-data-for-5to19-years;
+# M. de Onis et al., "Development of a WHO growth reference for school-aged children and
+# adolescents", Bull. World Health Organ. 85 (2007) 660-667, doi:10.2471/BLT.07.043497.)
+# At the median-height ages themselves the floors are 12.0 and 12.7 (0.5 % more mass for the
+# 1.4 m child), less than the 0.4-0.5 between boys and girls. The paper's 1.2 m / 15 kg
+# (BMI 10.4: z = -4.4 for girls, -5.0 for boys at 7 y) and 1.4 m / 20 kg (BMI 10.2: z = -5.0 /
+# -5.7 at 10 y) lie far below -3 SD, at or past the |z| > 5 WHO flags as implausible, and are
+# built at this floor.
 CHILD_BMI_FLOOR = {7.0: 12.0, 10.0: 12.6}
 
 
