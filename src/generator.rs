@@ -34,9 +34,14 @@ pub type ReferenceHit = (usize, Option<(f64, u16)>, f64);
 
 /// Rolling shutter: a person is posed at key times at most this far apart over the columns
 /// it spans, and each vertex interpolated between the two around its own time (see
-/// [`Sweep::warp_keys`]); 8 ms keeps the interpolation's error near 0.1 mm at walking
-/// accelerations.
-const KEY_STEP_S: f64 = 0.008;
+/// [`Sweep::warp_keys`]); 12 ms keeps the interpolation's error (acceleration x step^2 / 8)
+/// near 0.2 mm at walking accelerations.
+const KEY_STEP_S: f64 = 0.012;
+
+/// Rolling shutter: the horizontal reach of a person about its centre line, as a fraction
+/// of height (a hand or a foot mid-swing); its columns span this. A vertex beyond takes the
+/// pose at the span's end (clamped), so the bound needs to be generous, not tight.
+const BODY_HALF_WIDTH_PER_HEIGHT: f64 = 0.45;
 
 /// Bounding-sphere radius of a person as a fraction of height (arms and legs mid-swing).
 const BODY_RADIUS_PER_HEIGHT: f64 = 0.75;
@@ -169,6 +174,8 @@ struct Scratch {
     human_hits: BeamHits,
     /// The recorded background of the current frame (target grid ranges), when there is one.
     recorded: Option<Vec<f32>>,
+    /// Its intensity per beam, in the recording's units (empty when it has none).
+    recorded_intensity: Vec<f32>,
     /// The people in `humans` (instance, model, level of detail), last frame and this one,
     /// and this frame's placements (sensor from model, gait phase).
     layout: Vec<(u32, usize, usize)>,
@@ -515,14 +522,23 @@ impl Generator {
         self.cfg.sensor_model.enabled && self.cfg.sensor_model.rolling_shutter
     }
 
-    /// The sweep of a frame at `t_s`.
-    fn sweep(&self, t_s: f64, rolling: bool) -> Sweep {
-        Sweep { t0_s: t_s, period_s: if rolling { 1.0 / self.sensor.rate_hz } else { 0.0 }, columns: self.sensor.columns }
+    /// The sweep of frame `k` of a plan starting at `t_s`: one revolution of the sensor, or
+    /// under a recording the recording's own frame step (its sensor turned once per frame).
+    fn sweep(&self, plan: &SequencePlan, k: usize, t_s: f64, rolling: bool) -> Sweep {
+        let t = &plan.times_s;
+        let period = match (&self.recording, t.len()) {
+            (Some(_), n) if n >= 2 => {
+                let step = if k + 1 < n { t[k + 1] - t[k] } else { t[n - 1] - t[n - 2] };
+                if step > 0.0 && step.is_finite() { step } else { 1.0 / self.sensor.rate_hz }
+            }
+            _ => 1.0 / self.sensor.rate_hz,
+        };
+        Sweep { t0_s: t_s, period_s: if rolling { period } else { 0.0 }, columns: self.sensor.columns }
     }
 
     fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64, rolling: bool) -> Result<()> {
         let sensor_from_world = state.world_from_sensor.inverse();
-        let sweep = self.sweep(state.t_s, rolling);
+        let sweep = self.sweep(plan, state.frame, state.t_s, rolling);
         let s = &mut self.scratch;
         s.sweep = Some(sweep);
         // The sensor's motion per column (one entry when every column is the frame's instant).
@@ -542,8 +558,11 @@ impl Generator {
             });
         }
         match (&self.recording, state.recorded_frame) {
-            (Some(rec), Some(k)) => rec.frame_ranges(k, s.recorded.get_or_insert_with(Vec::new))?,
-            _ => s.recorded = None,
+            (Some(rec), Some(k)) => rec.frame(k, s.recorded.get_or_insert_with(Vec::new), &mut s.recorded_intensity)?,
+            _ => {
+                s.recorded = None;
+                s.recorded_intensity.clear();
+            }
         }
         s.background.clear();
         if let Some(env) = &self.environment {
@@ -614,7 +633,7 @@ impl Generator {
                 }
                 let st = h.at(t_c);
                 let centre = plan.sensor.pose(t_c).inverse().transform_point3(st.position_m + DVec3::new(0.0, 0.0, 0.5 * height));
-                let (ta, tb, u_c) = sweep.span_of_sphere(centre, BODY_RADIUS_PER_HEIGHT * height);
+                let (ta, tb, u_c) = sweep.span_of_sphere(centre, BODY_HALF_WIDTH_PER_HEIGHT * height);
                 // Key times at most KEY_STEP_S apart: a near person spans much of the sweep.
                 let keys = ((tb - ta) / KEY_STEP_S).ceil().clamp(1.0, 64.0) as usize;
                 let key_time = |j: usize| ta + (tb - ta) * j as f64 / keys as f64;
@@ -729,7 +748,7 @@ impl Generator {
         k: usize,
         columns: impl Iterator<Item = usize>,
     ) -> Result<Vec<ReferenceHit>> {
-        let sweep = self.sweep(plan.times_s[k], true);
+        let sweep = self.sweep(plan, k, plan.times_s[k], true);
         let w = self.sensor.columns;
         let mut out = Vec::new();
         let mut people = crate::backend::raster::clusters::MeshClusters::default();
@@ -804,16 +823,23 @@ impl Generator {
             let origin = pose.w_axis.truncate();
             let dir = DMat3::from_mat4(pose) * dirs[b];
             let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return };
-            let mut best = (f64::INFINITY, u32::MAX);
-            for cand in std::iter::once(*t).chain(background.neighbours(*t)) {
+            let test = |cand: u32| -> Option<f64> {
                 let k = background.mesh_index_of_triangle(cand);
                 let mesh = &background.meshes[k];
                 let first = env_meshes[k].first_vertex as u32;
                 let idx = &background.indices[3 * cand as usize..3 * cand as usize + 3];
                 let tri = [0, 1, 2].map(|c| env.positions[(first + idx[c] - mesh.first_vertex) as usize] - origin);
-                if let Some(h) = crate::backend::triangle::intersect_pre(&ray, &tri, !mesh.double_sided) {
-                    if crate::backend::triangle::better(h, cand, best.0, best.1) {
-                        best = (h, cand);
+                crate::backend::triangle::intersect_pre(&ray, &tri, !mesh.double_sided)
+            };
+            // The triangle the cast found holds the exact hit but near its edges; there, its
+            // one-ring.
+            let mut best = test(*t).map_or((f64::INFINITY, u32::MAX), |h| (h, *t));
+            if best.1 == u32::MAX {
+                for cand in background.neighbours(*t) {
+                    if let Some(h) = test(cand) {
+                        if crate::backend::triangle::better(h, cand, best.0, best.1) {
+                            best = (h, cand);
+                        }
                     }
                 }
             }
@@ -948,7 +974,7 @@ impl Generator {
             let s = &self.scratch;
             derive(&self.post_params(state), &s.human_hits, &s.humans, out);
         }
-        let sweep = self.scratch.sweep.unwrap_or(self.sweep(state.t_s, false));
+        let sweep = self.scratch.sweep.unwrap_or(Sweep { t0_s: state.t_s, period_s: 0.0, columns: self.sensor.columns });
         out.column_time_s.clear();
         out.column_time_s.extend((0..self.sensor.columns).map(|c| sweep.column_time(c)));
         out.time_s = state.t_s;
@@ -973,6 +999,8 @@ impl Generator {
             background: &s.background,
             bg_hits: &s.bg_hits,
             recorded: s.recorded.as_deref(),
+            recorded_intensity: &s.recorded_intensity,
+            intensity_scale: self.intensity_scale,
             columns: self.sensor.columns,
             layout: &s.layout,
             regions: &self.regions,
@@ -996,7 +1024,7 @@ impl Generator {
             clean: &s.clean,
             draws: &s.draws,
             intensity_scale: self.intensity_scale,
-            recorded_intensity: None,
+            recorded_intensity: (s.recorded.is_some() && s.recorded_intensity.len() == n).then_some(s.recorded_intensity.as_slice()),
             seed: self.cfg.seed,
             sequence: s.draws_for.map_or(0, |k| k.0),
             frame: state.frame,
@@ -1209,6 +1237,8 @@ struct SceneSurfaces<'a> {
     background: &'a FrameGeometry,
     bg_hits: &'a BeamHits,
     recorded: Option<&'a [f32]>,
+    recorded_intensity: &'a [f32],
+    intensity_scale: f64,
     columns: usize,
     layout: &'a [(u32, usize, usize)],
     regions: &'a [Vec<Vec<u8>>],
@@ -1242,9 +1272,14 @@ impl SceneSurfaces<'_> {
 
     fn background_surface(&self, b: usize, t: u32, range_m: f64, dir: DVec3) -> Surface {
         if self.recorded.is_some() {
-            return Surface { range_m, instance: 0, reflectance: RECORDED_REFLECTANCE, cos_incidence: 1.0, rendered: false, normal: glam::Vec3::ZERO };
+            // The recording's intensity (already with its incidence) in reflectance units, for
+            // the footprint's power; unknown: a typical reflectance.
+            let reflectance = match self.recorded_intensity.get(b) {
+                Some(&i) if self.recorded_intensity.len() == self.dirs.len() => (i as f64 / self.intensity_scale).clamp(0.0, 1.0) as f32,
+                _ => RECORDED_REFLECTANCE,
+            };
+            return Surface { range_m, instance: 0, reflectance, cos_incidence: 1.0, rendered: false, normal: glam::Vec3::ZERO };
         }
-        let _ = b;
         let (reflectance, (cos, normal)) = if t == crate::backend::NO_TRIANGLE || t >= self.background.triangle_count() {
             (0.5, (1.0, glam::Vec3::ZERO))
         } else {
@@ -1290,34 +1325,52 @@ impl SceneSurfaces<'_> {
     }
 }
 
-/// The footprint's people are searched among the triangles the beam and its eight grid
+/// The footprint's people are searched among the triangles the beam and its left and right
 /// neighbours hit, and those triangles' one-rings (watertight test, as the casters): the
 /// footprint (a few millimetres to centimetres across) lies between those beams, so its people
 /// surface is there but for a limb thinner than the beam spacing that no neighbour hits.
 impl FootprintScene for SceneSurfaces<'_> {
     fn cast_footprint(&self, b: usize, dirs: &[DVec3; crate::sensor_model::FOOTPRINT_RAYS], out: &mut [Option<Surface>; crate::sensor_model::FOOTPRINT_RAYS]) {
         let w = self.columns;
-        let (row, col) = ((b / w) as i64, (b % w) as i64);
-        let rows = (self.dirs.len() / w) as i64;
+        let (row, col) = (b / w, b % w);
         let mut candidates: Vec<u32> = Vec::with_capacity(64);
-        for dr in -1..=1 {
-            for dc in -1..=1 {
-                let r = row + dr;
-                if r < 0 || r >= rows {
-                    continue;
-                }
-                let nb = (r as usize) * w + (col + dc).rem_euclid(w as i64) as usize;
-                let t = self.human_hits.triangle[nb];
-                if t != crate::backend::NO_TRIANGLE {
-                    candidates.push(t);
-                    candidates.extend(self.humans.neighbours(t));
-                }
+        // The beam and its left and right neighbours (6 mrad apart on an HDL-32E; the rows
+        // above and below are 23 mrad away, far beyond a footprint of a few mrad).
+        for c in [(col + w - 1) % w, col, (col + 1) % w] {
+            let t = self.human_hits.triangle[row * w + c];
+            if t != crate::backend::NO_TRIANGLE {
+                candidates.push(t);
+                candidates.extend(self.humans.neighbours(t));
             }
         }
         candidates.sort_unstable();
         candidates.dedup();
-        let triangles: Vec<(u32, [DVec3; 3], bool)> =
-            candidates.iter().map(|&t| (t, self.humans.triangle_f64(t), !self.humans.mesh_of_triangle(t).double_sided)).collect();
+        // The pyramid through the origin that holds every footprint ray (widened by 1 %): a
+        // triangle with all three corners outside one of its faces meets none of the rays.
+        let d = dirs[0];
+        let e_az = DVec3::new(-d.y, d.x, 0.0).normalize_or_zero();
+        let e_el = d.cross(e_az);
+        let (mut hx, mut hy) = (0.0f64, 0.0f64);
+        for r in &dirs[1..] {
+            let along = r.dot(d);
+            hx = hx.max(r.dot(e_az).abs() / along);
+            hy = hy.max(r.dot(e_el).abs() / along);
+        }
+        let (hx, hy) = (1.01 * hx + 1e-9, 1.01 * hy + 1e-9);
+        let outside = |tri: &[DVec3; 3]| {
+            // Per corner: which faces it lies beyond (bits), ANDed over the corners.
+            let beyond = |p: DVec3| -> u8 {
+                let (a, x, y) = (p.dot(d), p.dot(e_az), p.dot(e_el));
+                (a <= 0.0) as u8 | ((x > hx * a) as u8) << 1 | ((x < -hx * a) as u8) << 2 | ((y > hy * a) as u8) << 3 | ((y < -hy * a) as u8) << 4
+            };
+            beyond(tri[0]) & beyond(tri[1]) & beyond(tri[2]) != 0
+        };
+        let triangles: Vec<(u32, [DVec3; 3], bool)> = candidates
+            .iter()
+            .map(|&t| (t, self.humans.triangle_f64(t)))
+            .filter(|(_, tri)| !outside(tri))
+            .map(|(t, tri)| (t, tri, !self.humans.mesh_of_triangle(t).double_sided))
+            .collect();
         for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
             let mut best = (f64::INFINITY, u32::MAX);
             if let Some(ray) = crate::backend::triangle::RayPre::new(dir) {

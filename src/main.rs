@@ -215,6 +215,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             std::fs::write(&json, serde_json::to_string_pretty(&points)?).with_context(|| json.display().to_string())?;
             let mut table = pedscan::commands::bench::markdown(&points);
             table += &bench_rates(&base, quick);
+            table += &bench_terms(&base, quick);
             std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
             pedscan::commands::bench::plot(&points).save(&plot)?;
             print!("{table}");
@@ -264,6 +265,22 @@ fn main() -> ExitCode {
 }
 
 /// The bench's triangle-rate table, or a line saying why there is none.
+/// The sensor model's terms timed on both backends (the raster one where Vulkan opens).
+fn bench_terms(base: &Config, quick: bool) -> String {
+    use pedscan::commands::bench::{sensor_model_costs, terms_markdown};
+    use pedscan::config::BackendChoice;
+    let (frames, repeats) = if quick { (4, 3) } else { (16, 5) };
+    let mut rows = Vec::new();
+    let mut notes = String::new();
+    for backend in [BackendChoice::Raycast, BackendChoice::Raster] {
+        match sensor_model_costs(base, &[backend], frames, repeats) {
+            Ok(r) => rows.extend(r),
+            Err(e) => notes += &format!("\n{backend:?}: not measured ({e})\n"),
+        }
+    }
+    terms_markdown(&rows, frames, repeats) + &notes
+}
+
 fn bench_rates(base: &Config, quick: bool) -> String {
     use pedscan::commands::bench::{rates_markdown, triangle_rates};
     let counts: &[usize] = if quick { &[1_000, 16_000] } else { &[1_000, 4_000, 16_000, 64_000] };

@@ -171,6 +171,9 @@ pub fn run_point(base: &Config, spec: &PointSpec) -> Result<Point> {
     cfg.frames = spec.frames;
     cfg.sequences = 1;
     cfg.png = false;
+    // The sweep measures the renderers on the same posed frames; the sensor model's own cost
+    // is the table of its terms (`sensor_model_costs`).
+    cfg.sensor_model = crate::config::SensorModelConfig::off();
     // A custom HDL-32E with more columns for the column sweep.
     let mut sensor = crate::sensor::Sensor::hdl32e();
     sensor.columns = spec.columns;
@@ -462,6 +465,102 @@ pub fn rates_markdown(device: &str, rows: &[RateRow]) -> String {
             r.raster_texels,
             r.raycast_beams
         );
+    }
+    s
+}
+
+/// One term of the sensor model timed on one backend (see [`sensor_model_costs`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct TermRow {
+    pub backend: String,
+    pub variant: String,
+    /// Median milliseconds per frame (pose, cast, post; no writing).
+    pub ms_per_frame: f64,
+}
+
+/// The sensor model's variants timed: everything off, each term alone, everything on.
+pub fn sensor_model_variants() -> Vec<(&'static str, crate::config::SensorModelConfig)> {
+    use crate::config::SensorModelConfig;
+    // Every term off but the master switch: detection certain, no noise, knife edges.
+    let none = SensorModelConfig {
+        rolling_shutter: false,
+        range_noise_m: 0.0,
+        laser_bias_m: 0.0,
+        dropout_rate: 0.0,
+        detection_range_m: 1e9,
+        grazing_deg: [90.0, 90.0],
+        divergence_mrad: [0.0, 0.0],
+        ..SensorModelConfig::on()
+    };
+    let d = SensorModelConfig::on();
+    vec![
+        ("off", SensorModelConfig::off()),
+        ("intensity only", none.clone()),
+        ("rolling shutter", SensorModelConfig { rolling_shutter: true, ..none.clone() }),
+        (
+            "noise + dropout",
+            SensorModelConfig {
+                range_noise_m: d.range_noise_m,
+                laser_bias_m: d.laser_bias_m,
+                dropout_rate: d.dropout_rate,
+                detection_range_m: d.detection_range_m,
+                grazing_deg: d.grazing_deg,
+                ..none.clone()
+            },
+        ),
+        ("divergence", SensorModelConfig { divergence_mrad: d.divergence_mrad, ..none }),
+        ("all (default)", d),
+    ]
+}
+
+/// The cost of each sensor-model term on each backend: `frames` frames of sequence 0 of
+/// `base` per variant, `repeats` rounds interleaved over the variants, medians of the rounds.
+pub fn sensor_model_costs(base: &Config, backends: &[crate::config::BackendChoice], frames: usize, repeats: usize) -> Result<Vec<TermRow>> {
+    let variants = sensor_model_variants();
+    let mut rows = Vec::new();
+    for &backend in backends {
+        let mut gens = Vec::new();
+        for (_, m) in &variants {
+            let mut cfg = base.clone();
+            cfg.render.backend = backend;
+            cfg.sensor_model = m.clone();
+            cfg.frames = frames;
+            let gen = crate::generator::Generator::new(cfg)?;
+            let plan = gen.plan(0)?;
+            gens.push((gen, plan));
+        }
+        let mut times = vec![Vec::new(); variants.len()];
+        let mut out = crate::output::FrameOutput::default();
+        for _ in 0..repeats.max(1) {
+            for (v, (gen, plan)) in gens.iter_mut().enumerate() {
+                gen.begin_sequence(0, plan);
+                let t = Instant::now();
+                for k in 0..plan.times_s.len() {
+                    gen.frame(plan, k, &mut out)?;
+                }
+                times[v].push(t.elapsed().as_secs_f64() * 1e3 / plan.times_s.len() as f64);
+            }
+        }
+        let name = if backend == crate::config::BackendChoice::Raycast { "raycast" } else { "raster" };
+        for ((variant, _), t) in variants.iter().zip(times.iter_mut()) {
+            rows.push(TermRow { backend: name.into(), variant: variant.to_string(), ms_per_frame: median(t) });
+        }
+        for (gen, _) in gens {
+            gen.finish()?;
+        }
+    }
+    Ok(rows)
+}
+
+/// The Markdown table of [`sensor_model_costs`].
+pub fn terms_markdown(rows: &[TermRow], frames: usize, repeats: usize) -> String {
+    let mut s = format!(
+        "\nSensor model cost per term (ms per frame: pose, cast and post, not writing; {frames} frames x {repeats} interleaved rounds, medians; the difference to `off` in brackets):\n\n\
+         | backend | variant | ms/frame | over off |\n|---|---|---|---|\n"
+    );
+    for r in rows {
+        let off = rows.iter().find(|o| o.backend == r.backend && o.variant == "off").map_or(r.ms_per_frame, |o| o.ms_per_frame);
+        s += &format!("| {} | {} | {:.2} | {:+.2} |\n", r.backend, r.variant, r.ms_per_frame, r.ms_per_frame - off);
     }
     s
 }

@@ -3,7 +3,7 @@
 //! z up). No header, no ring, no time: the frame's time comes from `times.txt`
 //! ([`super::poses::read_times`]).
 //!
-//! Intensity is read past (a [`Scan`] has no intensity). Points with a non-finite coordinate
+//! Intensity (remission) is kept per point; a non-finite one is read as 0. Points with a non-finite coordinate
 //! and all-zero points (no return) are dropped.
 
 use super::Scan;
@@ -29,6 +29,7 @@ fn parse_bin(bytes: &[u8]) -> std::result::Result<Scan, String> {
         ));
     }
     let mut points = Vec::with_capacity(bytes.len() / RECORD_BYTES);
+    let mut intensity = Vec::with_capacity(bytes.len() / RECORD_BYTES);
     for rec in bytes.chunks_exact(RECORD_BYTES) {
         // One unaligned 16-byte load; the values are little-endian on disk whatever the host.
         let raw: [u32; 4] = bytemuck::pod_read_unaligned(rec);
@@ -39,9 +40,12 @@ fn parse_bin(bytes: &[u8]) -> std::result::Result<Scan, String> {
         ];
         if keep(p) {
             points.push(p);
+            // A non-finite remission says nothing: 0.
+            let i = f32::from_bits(u32::from_le(raw[3]));
+            intensity.push(if i.is_finite() { i } else { 0.0 });
         }
     }
-    Ok(Scan { points, ..Scan::default() })
+    Ok(Scan { points, intensity: Some(intensity), ..Scan::default() })
 }
 
 /// A point is kept when all coordinates are finite and it is not the origin.
@@ -117,6 +121,8 @@ mod tests {
         let p = write_bin(&d, "x.bin", &recs);
         let s = read_bin(&p).unwrap();
         assert_eq!(s.points, vec![[1.0, 2.0, 3.0], [0.0, 0.0, 1.0], [4.0, 5.0, 6.0]]);
+        // The kept points' remission; a non-finite one reads as 0.
+        assert_eq!(s.intensity, Some(vec![0.5, 0.0, 0.0]));
     }
 
     #[test]

@@ -112,6 +112,9 @@ pub struct Scan {
     pub ring_elevation_deg: Option<Vec<f64>>,
     /// Capture time of the frame, seconds (pcap: first packet of the rotation), when known.
     pub time_s: Option<f64>,
+    /// Intensity per point, in the source's own units, when it has one (pcap: the calibrated
+    /// reflectivity byte, 0-255; KITTI `.bin`: remission, 0-1).
+    pub intensity: Option<Vec<f32>>,
 }
 
 #[cfg(test)]

@@ -430,6 +430,8 @@ struct Rotations {
     /// The turn being filled (only once the first cut has been seen).
     points: Vec<[f32; 3]>,
     ring: Vec<u16>,
+    /// Each return's reflectivity byte.
+    intensity: Vec<f32>,
     time_s: f64,
     started: bool,
     /// Azimuth of the last return slot measured from 180 degrees, 0.01 degree, in [0, 36000).
@@ -446,6 +448,7 @@ impl Rotations {
             scans: Vec::new(),
             points: Vec::new(),
             ring: Vec::new(),
+            intensity: Vec::new(),
             time_s: 0.0,
             started: false,
             last_s: None,
@@ -558,6 +561,7 @@ impl Rotations {
                     (d * slot.sin_el) as f32,
                 ]);
                 self.ring.push(slot.ring);
+                self.intensity.push(blk[i + 2] as f32);
             }
         }
     }
@@ -572,6 +576,7 @@ impl Rotations {
                 ring: Some(std::mem::replace(&mut self.ring, Vec::with_capacity(cap))),
                 ring_elevation_deg: Some(dec.ring_elevation_deg.clone()),
                 time_s: Some(self.time_s),
+                intensity: Some(std::mem::replace(&mut self.intensity, Vec::with_capacity(cap))),
             });
         } else if !at_start {
             self.partial += 1;
@@ -787,6 +792,8 @@ mod tests {
         assert!(s.points[3][1] < -0.99 && s.points[3][0].abs() < 0.01);
         let ring = s.ring.as_ref().unwrap();
         assert_eq!(ring, &vec![0, 31, 10, 23]);
+        // Each return's reflectivity byte (the packets here say 100 everywhere).
+        assert_eq!(s.intensity.as_deref(), Some(&[100.0f32; 4][..]));
         let re = s.ring_elevation_deg.as_ref().unwrap();
         assert_eq!(re.len(), 32);
         assert!(re.windows(2).all(|w| w[0] < w[1]));

@@ -110,10 +110,21 @@ impl Projector {
     /// Projects `scan` into `range_out`, resized to `rows * columns` (row-major,
     /// `row * columns + col`), metres, `0.0` = no return. See the module docs for the rule.
     pub fn project(&self, scan: &Scan, range_out: &mut Vec<f32>) -> ProjectStats {
+        self.project_with_intensity(scan, range_out, &mut Vec::new())
+    }
+
+    /// [`Projector::project`], and the intensity of the return each cell keeps into
+    /// `intensity_out` (same shape; left empty when the scan has no intensity).
+    pub fn project_with_intensity(&self, scan: &Scan, range_out: &mut Vec<f32>, intensity_out: &mut Vec<f32>) -> ProjectStats {
         let rows = self.target.rows();
         let cols = self.target.columns;
         range_out.clear();
         range_out.resize(rows * cols, 0.0);
+        let intensity = scan.intensity.as_deref().filter(|i| i.len() == scan.points.len());
+        intensity_out.clear();
+        if intensity.is_some() {
+            intensity_out.resize(rows * cols, 0.0);
+        }
         let source = self.row_source(scan);
         let mut stats = ProjectStats {
             ring_mapped: !matches!(source, RowSource::Elevation),
@@ -139,14 +150,18 @@ impl Projector {
                 stats.outside_band += 1;
                 continue;
             };
-            let cell = &mut range_out[row * cols + self.target.column_of(x, y)];
+            let c = row * cols + self.target.column_of(x, y);
+            let cell = &mut range_out[c];
+            let nearer = *cell == 0.0 || r32 < *cell;
             if *cell == 0.0 {
-                *cell = r32;
                 stats.kept += 1;
             } else {
                 stats.replaced += 1;
-                if r32 < *cell {
-                    *cell = r32;
+            }
+            if nearer {
+                *cell = r32;
+                if let Some(src) = intensity {
+                    intensity_out[c] = src[i];
                 }
             }
         }
@@ -346,15 +361,20 @@ mod tests {
         let d = s.beam_dir(10, 400);
         // Directions a little off the beam centre, still in the same cell.
         let d2 = dir(&s, 400, s.elevation_deg[10] + 0.2);
+        let mut intensity = Vec::new();
         for ranges in [[10.0, 5.0, 7.0], [5.0, 10.0, 7.0], [7.0, 10.0, 5.0]] {
             let scan = Scan {
                 points: vec![point(d, ranges[0]), point(d2, ranges[1]), point(d, ranges[2])],
+                // Each return's intensity is its range: the kept one must say 5.
+                intensity: Some(ranges.iter().map(|r| *r as f32).collect()),
                 ..Scan::default()
             };
-            let st = proj.project(&scan, &mut out);
+            let st = proj.project_with_intensity(&scan, &mut out, &mut intensity);
             assert_eq!((st.kept, st.replaced, st.outside_band), (1, 2, 0));
             assert!((out[10 * s.columns + 400] - 5.0).abs() < 1e-6);
             assert_eq!(out.iter().filter(|v| **v != 0.0).count(), 1);
+            assert_eq!(intensity[10 * s.columns + 400], 5.0, "the nearest return's intensity");
+            assert_eq!(intensity.iter().filter(|v| **v != 0.0).count(), 1);
         }
         // A tie keeps the first; it is still counted as replaced.
         let scan = Scan { points: vec![point(d, 5.0), point(d2, 5.0)], ..Scan::default() };

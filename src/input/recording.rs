@@ -39,10 +39,14 @@ use crate::sensor::Sensor;
 use glam::{DMat4, DVec3};
 use std::path::{Path, PathBuf};
 
+/// One projected frame: range per beam and, when the source has intensity, the kept return's
+/// intensity per beam (else empty).
+type Image = (Vec<f32>, Vec<f32>);
+
 /// The frames of a recording.
 enum Frames {
-    /// Projected range images (pcap).
-    Images(Vec<Vec<f32>>),
+    /// Projected range and intensity images (pcap).
+    Images(Vec<Image>),
     /// Frame files, read on demand.
     Files(Vec<PathBuf>),
 }
@@ -63,7 +67,7 @@ pub struct Recording {
     /// Frame files only: the range images of the last window `walkable` read (first frame,
     /// images), so the frames of the sequence are not read and projected a second time.
     /// Kept only while the window's images fit in `WINDOW_CACHE_BYTES`.
-    window: std::sync::Mutex<Option<(usize, Vec<Vec<f32>>)>>,
+    window: std::sync::Mutex<Option<(usize, Vec<Image>)>>,
     /// Frame files read and projected so far (to check the window cache).
     pub files_read: std::sync::atomic::AtomicUsize,
 }
@@ -138,8 +142,8 @@ impl Recording {
             let times: Vec<f64> = rec.scans.iter().map(|s| s.time_s.unwrap_or(f64::NAN)).collect();
             let mut images = Vec::with_capacity(rec.scans.len());
             for s in &rec.scans {
-                let mut img = Vec::new();
-                projector.project(s, &mut img);
+                let mut img = (Vec::new(), Vec::new());
+                projector.project_with_intensity(s, &mut img.0, &mut img.1);
                 images.push(img);
             }
             (Frames::Images(images), Some(times), d)
@@ -207,16 +211,22 @@ impl Recording {
 
     /// Recorded frame `k` on the target grid: range per beam, row-major, 0 = no return.
     pub fn frame_ranges(&self, k: usize, out: &mut Vec<f32>) -> Result<()> {
+        self.frame(k, out, &mut Vec::new())
+    }
+
+    /// [`Recording::frame_ranges`], and the intensity of each beam's return into `intensity`
+    /// (the source's units; left empty when the source has none).
+    pub fn frame(&self, k: usize, out: &mut Vec<f32>, intensity: &mut Vec<f32>) -> Result<()> {
         match &self.frames {
             Frames::Images(v) => {
-                out.clear();
-                out.extend_from_slice(&v[k]);
+                out.clone_from(&v[k].0);
+                intensity.clone_from(&v[k].1);
             }
             Frames::Files(files) => {
                 if let Some((first, images)) = &*self.window.lock().unwrap_or_else(|e| e.into_inner()) {
                     if let Some(img) = k.checked_sub(*first).and_then(|i| images.get(i)) {
-                        out.clear();
-                        out.extend_from_slice(img);
+                        out.clone_from(&img.0);
+                        intensity.clone_from(&img.1);
                         return Ok(());
                     }
                 }
@@ -225,7 +235,7 @@ impl Recording {
                     Some(FileKind::Bin) => kitti::read_bin(f)?,
                     _ => pcd::read_pcd(f)?,
                 };
-                self.projector.project(&scan, out);
+                self.projector.project_with_intensity(&scan, out, intensity);
                 self.files_read.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             }
         }
@@ -245,18 +255,18 @@ impl Recording {
         let mut ranges = Vec::new();
         // Frame files: keep the window's images for the frames that follow (when they fit).
         let keep = matches!(self.frames, Frames::Files(_))
-            && frames.len().saturating_mul(self.dirs.len() * 4) <= WINDOW_CACHE_BYTES;
+            && frames.len().saturating_mul(self.dirs.len() * 8) <= WINDOW_CACHE_BYTES;
         *self.window.lock().unwrap_or_else(|e| e.into_inner()) = None;
         // Kept frames are read in parallel (files are independent); the first failing
         // frame, in order, is the one reported.
-        let kept: Vec<Vec<f32>> = if keep {
+        let kept: Vec<Image> = if keep {
             use rayon::prelude::*;
-            let read: Vec<Result<Vec<f32>>> = frames
+            let read: Vec<Result<Image>> = frames
                 .clone()
                 .into_par_iter()
                 .map(|k| {
-                    let mut img = Vec::new();
-                    self.frame_ranges(k, &mut img).map(|()| img)
+                    let mut img = (Vec::new(), Vec::new());
+                    self.frame(k, &mut img.0, &mut img.1).map(|()| img)
                 })
                 .collect();
             read.into_iter().collect::<Result<_>>()?
@@ -265,7 +275,7 @@ impl Recording {
         };
         for k in frames.clone() {
             let ranges = if keep {
-                &kept[k - frames.start]
+                &kept[k - frames.start].0
             } else {
                 self.frame_ranges(k, &mut ranges)?;
                 &ranges

@@ -209,6 +209,27 @@ pub fn range_png(
     with_legend(grid, |img, top| range_legend(img, top, max_range_m))
 }
 
+/// Intensity image: each return's intensity in grey, white at the frame's 99th percentile of
+/// returned intensities (people are not coloured: the point is whether they stand out),
+/// black = no return.
+///
+/// Panics if a grid's length is not `rows * columns`.
+pub fn intensity_png(intensity: &[f32], range: &[f32], rows: usize, columns: usize, row_scale: u32) -> RgbImage {
+    check(intensity.len(), rows, columns, "intensity");
+    check(range.len(), rows, columns, "range");
+    let mut returned: Vec<f32> = intensity.iter().zip(range).filter(|(_, r)| **r > 0.0).map(|(i, _)| *i).collect();
+    returned.sort_by(|a, b| a.total_cmp(b));
+    let white = returned.get(returned.len() * 99 / 100).copied().filter(|w| *w > 0.0).unwrap_or(1.0);
+    grid_image(rows, columns, row_scale, |i| {
+        if range[i] > 0.0 {
+            let g = (40.0 + 215.0 * (intensity[i] / white).clamp(0.0, 1.0)) as u8;
+            [g, g, g]
+        } else {
+            [0, 0, 0]
+        }
+    })
+}
+
 /// Label image: returns in grey (bright = near, dark = far, log scale), each human instance in its own
 /// saturated colour ([`instance_colour`]), black = no return.
 ///

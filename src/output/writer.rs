@@ -320,8 +320,14 @@ impl SequenceWriter {
                 &dir.join(format!("bev_{index:04}.png")),
             )
         };
-        let ((a, b), (c, d)) = rayon::join(|| rayon::join(range, label), || rayon::join(vel, bev));
-        a.and(b).and(c).and(d)
+        let intensity = || {
+            save_png(
+                &crate::output::png::intensity_png(&f.intensity, &f.range, rows, cols, PNG_ROW_SCALE),
+                &dir.join(format!("intensity_{index:04}.png")),
+            )
+        };
+        let ((a, b), ((c, d), e)) = rayon::join(|| rayon::join(range, label), || rayon::join(|| rayon::join(vel, bev), intensity));
+        a.and(b).and(c).and(d).and(e)
     }
 
     /// Checks that every announced frame was written, closes the files and renames them to

@@ -251,7 +251,11 @@ fn optional_outputs_absent_when_disabled() {
     assert!(f.group("background").is_err());
     // No velocity PNGs without velocity.
     let pngs = dir_names(&paths[2]);
-    assert_eq!(pngs, vec!["bev_0000.png", "bev_0001.png", "label_0000.png", "label_0001.png", "range_0000.png", "range_0001.png"]);
+    assert_eq!(
+        pngs,
+        vec!["bev_0000.png", "bev_0001.png", "intensity_0000.png", "intensity_0001.png", "label_0000.png", "label_0001.png", "range_0000.png", "range_0001.png"]
+    );
+    assert!(f.group("clean").is_err(), "no /clean without the sensor model");
 }
 
 #[test]
@@ -262,11 +266,17 @@ fn pngs_exist_decode_and_have_the_scaled_size() {
     assert_eq!(paths[2], dir.path().join("seq_000007_png"));
     assert_eq!(dir_names(dir.path()), vec!["seq_000007.h5", "seq_000007.xml", "seq_000007_png"]);
     let names = dir_names(&paths[2]);
-    assert_eq!(names.len(), 8, "{names:?}");
+    assert_eq!(names.len(), 10, "{names:?}");
     // The grid at 4 pixels per row; range and velocity with their legend strip below.
     let legend = pedscan::output::png::LEGEND_H;
     let side = pedscan::output::png::BEV_SIDE;
-    for (kind, size) in [("range", (16, 4 * 4 + legend)), ("label", (16, 4 * 4)), ("velocity", (16, 4 * 4 + legend)), ("bev", (side, side))] {
+    for (kind, size) in [
+        ("range", (16, 4 * 4 + legend)),
+        ("label", (16, 4 * 4)),
+        ("intensity", (16, 4 * 4)),
+        ("velocity", (16, 4 * 4 + legend)),
+        ("bev", (side, side)),
+    ] {
         for t in 0..2 {
             let p = paths[2].join(format!("{kind}_{t:04}.png"));
             let img = image::open(&p).unwrap().to_rgb8();

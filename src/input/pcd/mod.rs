@@ -616,7 +616,7 @@ impl Collector {
     }
 
     fn finish(self) -> Scan {
-        Scan { points: self.points, ring: self.ring, ring_elevation_deg: None, time_s: None }
+        Scan { points: self.points, ring: self.ring, ring_elevation_deg: None, time_s: None, intensity: None }
     }
 }
 
