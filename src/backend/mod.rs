@@ -6,7 +6,8 @@
 //!
 //! - [`raster`]: Vulkan rasterization (a GPU, or lavapipe on a CPU) into cube faces or a
 //!   cylindrical panorama with an ID buffer, resampled to the beams and refined exactly;
-//!   the people drawn as conservative proxies at beam resolution and cast exactly.
+//!   the people drawn as conservative proxies at beam resolution and cast exactly (on a
+//!   GPU; on a CPU device the people are binned into the beams, as the ray caster does).
 //! - [`RaycastBackend`]: the CPU ray caster (triangles binned into beams, or each beam traced
 //!   through a BVH: the reference). It never touches Vulkan, so it runs where no driver is.
 //!
@@ -48,6 +49,13 @@ impl BeamHits {
         self.range_m.resize(n, 0.0);
         self.triangle.clear();
         self.triangle.resize(n, NO_TRIANGLE);
+    }
+
+    /// The hits of a cast (one per beam, row-major), ranges rounded to f32.
+    pub fn set_from(&mut self, cast: &[raycast::Hit]) {
+        self.clear_to(0);
+        self.range_m.extend(cast.iter().map(|h| h.range_m as f32));
+        self.triangle.extend(cast.iter().map(|h| h.triangle));
     }
 }
 

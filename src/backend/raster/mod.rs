@@ -10,9 +10,10 @@
 //!   re-intersection of the triangles around the texel (the default).
 //! - `beam_exact`: `projection = "beams"`: no views; the background's triangles drawn as
 //!   their beam-grid bounds into one texel per beam and tested exactly per beam on the device.
-//! - `people`: with exact refinement, the people are drawn as conservative proxies
+//! - `people`: with exact refinement on a GPU, the people are drawn as conservative proxies
 //!   ([`crate::human::proxy`]) at beam resolution and every beam a proxy covers is cast
-//!   exactly through the people's triangle clusters.
+//!   exactly through the people's triangle clusters. On a CPU device (lavapipe) the people
+//!   are binned into the beams instead ([`BeamCaster`], see [`People`]).
 
 pub mod beam_exact;
 pub mod clusters;
@@ -23,6 +24,7 @@ pub mod renderer;
 pub mod resample;
 
 use super::{Backend, BeamHits, Layer};
+use crate::backend::raycast::{BeamCaster, Hit};
 use crate::config::{BackendChoice, Projection, Refine, RenderConfig};
 use crate::error::Result;
 use crate::gpu::Context;
@@ -45,21 +47,36 @@ enum Views {
     Beams(BeamExact),
 }
 
+/// How the people layer is cast with exact refinement.
+///
+/// On a CPU device the proxy draw costs more than it saves: lavapipe draws the proxies on the
+/// same cores that then cast every covered beam through the people's clusters, while the
+/// binned caster settles all 32,768 beams with integer tests on most triangles (paper
+/// scenario, per frame: proxy draw ~9 ms and cluster casts ~11 ms against ~8 ms binned, and no
+/// proxies to skin). There the people are binned; on a GPU the draw is nearly free.
+enum People {
+    /// Proxies drawn at beam resolution and every covered beam cast exactly.
+    Proxies(PeopleRaster),
+    /// Every beam binned on the CPU ([`BeamCaster`], the same hits bit for bit).
+    Binned { caster: BeamCaster, cast: Vec<Hit> },
+}
+
 /// The Vulkan raster path as a [`Backend`].
 pub struct RasterBackend {
     refine: Refine,
     views: Views,
     beams: usize,
-    /// With exact refinement: the people drawn as proxies at beam resolution and cast exactly.
-    people: Option<PeopleRaster>,
-    /// Per model, the proxies of its levels of detail (with `people`).
+    /// With exact refinement: how the people are cast exactly.
+    people: Option<People>,
+    /// Per model, the proxies of its levels of detail (with `People::Proxies`).
     proxies: Vec<ModelProxies>,
     ctx: Arc<Context>,
 }
 
 impl RasterBackend {
     /// The views of `render.projection` at `render.oversample` for `sensor` on `ctx`; with
-    /// exact refinement, the people's proxies (`render.proxy_max_error_m`) for `models`.
+    /// exact refinement on a GPU, the people's proxies (`render.proxy_max_error_m`) for
+    /// `models`, on a CPU device the binned caster (see [`People`]).
     pub fn new(ctx: Arc<Context>, sensor: &crate::sensor::Sensor, render: &RenderConfig, models: &[HumanModel]) -> Result<RasterBackend> {
         let views = match render.projection {
             Projection::Cube => {
@@ -73,12 +90,17 @@ impl RasterBackend {
             // Exact by construction: `refine` only decides how the people are drawn.
             Projection::Beams => Views::Beams(BeamExact::new(&ctx, sensor)?),
         };
-        let (people, proxies) = if render.refine == Refine::Exact {
-            let max_error = render.proxy_max_error_m as f32;
-            let proxies: Vec<ModelProxies> = models.par_iter().map(|m| ModelProxies::build(m, max_error, 1.0)).collect();
-            (Some(PeopleRaster::new(&ctx, sensor)?), proxies)
-        } else {
-            (None, Vec::new())
+        let (people, proxies) = match render.refine {
+            Refine::Exact if ctx.is_cpu() => {
+                let caster = BeamCaster::new(&sensor.beam_dirs(), sensor.rows(), sensor.columns);
+                (Some(People::Binned { caster, cast: Vec::new() }), Vec::new())
+            }
+            Refine::Exact => {
+                let max_error = render.proxy_max_error_m as f32;
+                let proxies: Vec<ModelProxies> = models.par_iter().map(|m| ModelProxies::build(m, max_error, 1.0)).collect();
+                (Some(People::Proxies(PeopleRaster::new(&ctx, sensor)?)), proxies)
+            }
+            _ => (None, Vec::new()),
         };
         let beams = sensor.rows() * sensor.columns;
         Ok(RasterBackend { refine: render.refine, views, beams, people, proxies, ctx })
@@ -100,7 +122,7 @@ impl Backend for RasterBackend {
     }
 
     fn proxies(&self) -> Option<&[ModelProxies]> {
-        self.people.is_some().then_some(&self.proxies[..])
+        matches!(self.people, Some(People::Proxies(_))).then_some(&self.proxies[..])
     }
 
     fn cast(&mut self, layer: Layer<'_>, hits: &mut BeamHits) -> Result<()> {
@@ -113,7 +135,13 @@ impl Backend for RasterBackend {
             return Ok(());
         }
         match (layer, self.people.as_mut(), &mut self.views) {
-            (Layer::People { people, proxies }, Some(raster), _) => raster.render(proxies, people, hits),
+            (Layer::People { people, proxies }, Some(People::Proxies(raster)), _) => raster.render(proxies, people, hits),
+            (Layer::People { people, .. }, Some(People::Binned { caster, cast }), _) => {
+                // Ranges are limited later, in the post-pass, as for the ray-cast backend.
+                caster.cast(people, f64::MAX, cast);
+                hits.set_from(cast);
+                Ok(())
+            }
             (_, _, Views::Beams(beams)) => beams.cast(geom, hits),
             (_, _, Views::Resampled { lookup, renderer }) => {
                 let frame = renderer.render(geom)?;
