@@ -395,6 +395,9 @@ impl BeamExact {
             .enumerate()
             .map(|(row, (ranges, tris))| {
                 let mut missed = 0;
+                // The last drawn triangle of the row, its vertices and cull flag: neighbouring
+                // beams mostly show the same one.
+                let mut last = (NO_TRIANGLE, [DVec3::ZERO; 3], false);
                 for col in 0..columns {
                     let b = row * columns + col;
                     let id = ids[b];
@@ -402,10 +405,10 @@ impl BeamExact {
                         continue;
                     }
                     let t = id - 1;
-                    let confirmed = caster.ray_pre(b).and_then(|pre| {
-                        let k = geom.mesh_index_of_triangle(t);
-                        intersect_pre(pre, &geom.triangle_f64(t), !geom.meshes[k].double_sided)
-                    });
+                    if last.0 != t {
+                        last = (t, geom.triangle_f64(t), !geom.mesh_of_triangle(t).double_sided);
+                    }
+                    let confirmed = caster.ray_pre(b).and_then(|pre| intersect_pre(pre, &last.1, last.2));
                     let hit = match confirmed {
                         Some(r) => Some((r, t)),
                         None => {
