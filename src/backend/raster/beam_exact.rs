@@ -103,8 +103,9 @@ pub struct BeamExactStats {
     pub texels: u64,
     /// Beams whose drawn triangle the f64 test did not confirm, cast on the CPU instead.
     pub fallback_beams: u64,
-    /// Seconds: bounding and staging on the CPU; drawing and reading back (upload, submit,
-    /// wait, copy); the f64 tests of the drawn triangles.
+    /// Seconds: bounding, staging and submitting on the CPU; from the submit until the draw
+    /// and read-back had completed (whatever the host did meanwhile); the f64 tests of the
+    /// drawn triangles.
     pub stage_s: f64,
     pub draw_s: f64,
     pub resolve_s: f64,
@@ -132,8 +133,17 @@ pub struct BeamExact {
     tiles: Vec<[f32; 4]>,
     staged: Vec<Instance>,
     ids: Vec<u32>,
+    /// When the draw in flight (between `begin` and `finish`) was submitted.
+    submitted: Option<std::time::Instant>,
     stats: BeamExactStats,
     ctx: Arc<Context>,
+}
+
+impl Drop for BeamExact {
+    fn drop(&mut self) {
+        // A draw still in flight reads the buffers dropped below.
+        let _ = self.commands.wait();
+    }
 }
 
 impl BeamExact {
@@ -219,6 +229,7 @@ impl BeamExact {
             tiles,
             staged: Vec::new(),
             ids: vec![0; rows * columns],
+            submitted: None,
             stats: BeamExactStats::default(),
             ctx: ctx.clone(),
         })
@@ -231,9 +242,17 @@ impl BeamExact {
 
     /// The nearest hit of every beam over all meshes of `geom`, into `out` (row-major).
     pub fn cast(&mut self, geom: &FrameGeometry, out: &mut BeamHits) -> Result<()> {
-        let (rows, columns) = self.caster.shape();
-        let n = rows * columns;
-        out.clear_to(n);
+        self.begin(geom)?;
+        self.finish(geom, out)
+    }
+
+    /// The first half of [`Self::cast`]: bounds `geom`'s triangles and submits their draw,
+    /// which runs on the device until [`Self::finish`] (with the same `geom`) waits for it.
+    /// The host is free in between: on lavapipe the draw keeps about one core busy, and the
+    /// caller can cast another layer on the others.
+    pub fn begin(&mut self, geom: &FrameGeometry) -> Result<()> {
+        self.commands.wait()?;
+        self.submitted = None;
         self.stats = BeamExactStats::default();
         let t0 = std::time::Instant::now();
         self.caster.bounds(geom, &mut self.bounds);
@@ -241,12 +260,23 @@ impl BeamExact {
             return Ok(());
         }
         self.stage(geom);
-        let t1 = std::time::Instant::now();
-        self.draw()?;
+        self.submit()?;
+        self.stats.stage_s = t0.elapsed().as_secs_f64();
+        self.submitted = Some(std::time::Instant::now());
+        Ok(())
+    }
+
+    /// The second half of [`Self::cast`]: waits for the draw [`Self::begin`] submitted for
+    /// `geom`, and confirms every beam's triangle into `out` (row-major).
+    pub fn finish(&mut self, geom: &FrameGeometry, out: &mut BeamHits) -> Result<()> {
+        let (rows, columns) = self.caster.shape();
+        out.clear_to(rows * columns);
+        let Some(submitted) = self.submitted.take() else { return Ok(()) };
+        self.commands.wait()?;
+        self.read_ids()?;
         let t2 = std::time::Instant::now();
         self.resolve(geom, out);
-        self.stats.stage_s = (t1 - t0).as_secs_f64();
-        self.stats.draw_s = (t2 - t1).as_secs_f64();
+        self.stats.draw_s = (t2 - submitted).as_secs_f64();
         self.stats.resolve_s = t2.elapsed().as_secs_f64();
         Ok(())
     }
@@ -347,13 +377,13 @@ impl BeamExact {
         self.stats.texels = texels;
     }
 
-    /// Draws the staged instances and reads the id image back into `ids`.
-    fn draw(&mut self) -> Result<()> {
+    /// Submits the draw of the staged instances and the read-back of the id image.
+    fn submit(&mut self) -> Result<()> {
         let (rows, columns) = self.caster.shape();
         let bytes = (std::mem::size_of::<Instance>() * self.staged.len()) as u64;
         if bytes > self.instances.size() {
             let size = bytes.max(2 * self.instances.size()).next_power_of_two();
-            // The old buffer is idle: every cast waits for its fence.
+            // The old buffer is idle: `begin` waited for the last draw.
             self.instances = Buffer::new(&self.ctx, &BufferDesc::upload("beam bounds", size, vk::BufferUsageFlags::VERTEX_BUFFER))?;
         }
         self.instances.write(&self.staged)?;
@@ -372,7 +402,11 @@ impl BeamExact {
         rec.end_render_pass();
         rec.copy_image_to_buffer(&self.id, &self.readback, 0);
         rec.transfer_to_host_barrier();
-        rec.submit_and_wait()?;
+        rec.submit()
+    }
+
+    /// Copies the read-back id image (the draw has completed) into `ids`.
+    fn read_ids(&mut self) -> Result<()> {
         let src = &self.readback.read_bytes()?[..4 * self.ids.len()];
         match bytemuck::try_cast_slice::<u8, u32>(src) {
             Ok(s) => self.ids.copy_from_slice(s),
