@@ -54,6 +54,8 @@ enum Views {
 /// binned caster settles all 32,768 beams with integer tests on most triangles (paper
 /// scenario, per frame: proxy draw ~9 ms and cluster casts ~11 ms against ~8 ms binned, and no
 /// proxies to skin). There the people are binned; on a GPU the draw is nearly free.
+// One per backend: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
 enum People {
     /// Proxies drawn at beam resolution and every covered beam cast exactly.
     Proxies(PeopleRaster),
