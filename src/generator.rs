@@ -786,16 +786,11 @@ impl Generator {
     pub fn render_posed(&mut self) -> Result<()> {
         let s = &mut self.scratch;
         let t = &mut self.timings;
-        for (layer, hits, stage) in [
-            (Layer::Background(&s.background), &mut s.bg_hits, &mut t.background_s),
-            (Layer::People { people: &s.humans, proxies: &s.proxies }, &mut s.human_hits, &mut t.humans_s),
-        ] {
-            let t0 = std::time::Instant::now();
-            self.backend.cast(layer, hits)?;
-            let build = self.backend.take_build_seconds();
-            t.bvh_s += build;
-            *stage += t0.elapsed().as_secs_f64() - build;
-        }
+        let people = Layer::People { people: &s.humans, proxies: &s.proxies };
+        let seconds = self.backend.cast_frame(Layer::Background(&s.background), people, &mut s.bg_hits, &mut s.human_hits)?;
+        t.bvh_s += seconds.build;
+        t.background_s += seconds.background;
+        t.humans_s += seconds.people;
         if let Some(r) = &s.recorded {
             s.bg_hits.range_m.clone_from(r);
         }

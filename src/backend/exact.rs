@@ -48,18 +48,27 @@ fn diff_of_products_exact(p: f64, q: f64, r: f64, s: f64) -> f64 {
 /// Relative bound under which the sign of the plain f64 `p*q - r*s` is not trusted.
 const DOP_ERR: f64 = 2.0 * f64::EPSILON;
 
+/// The plain f64 `p * q - r * s` when its sign is certain (it is then nonzero).
+#[inline(always)]
+fn diff_of_products_plain(p: f64, q: f64, r: f64, s: f64) -> Option<f64> {
+    let pq = p * q;
+    let rs = r * s;
+    let d = pq - rs;
+    (d.abs() > DOP_ERR * (pq.abs() + rs.abs()) + f64::MIN_POSITIVE).then_some(d)
+}
+
 /// `p * q - r * s`: the plain f64 value when its sign is certain, else the exact-sign value.
 /// Antisymmetric: `diff_of_products(r, s, p, q) == -diff_of_products(p, q, r, s)`.
 #[inline(always)]
 pub(crate) fn diff_of_products(p: f64, q: f64, r: f64, s: f64) -> f64 {
-    let pq = p * q;
-    let rs = r * s;
-    let d = pq - rs;
-    if d.abs() > DOP_ERR * (pq.abs() + rs.abs()) + f64::MIN_POSITIVE {
-        d
-    } else {
-        diff_of_products_exact(p, q, r, s)
-    }
+    diff_of_products_plain(p, q, r, s).unwrap_or_else(|| diff_of_products_exact(p, q, r, s))
+}
+
+/// Whether `p * q - r * s` is nonzero by its plain f64 value alone (false: not known without
+/// the exact expansion).
+#[inline(always)]
+pub(crate) fn certainly_nonzero(p: f64, q: f64, r: f64, s: f64) -> bool {
+    diff_of_products_plain(p, q, r, s).is_some()
 }
 
 #[cfg(test)]

@@ -6,7 +6,8 @@
 //!
 //! - [`raster`]: Vulkan rasterization (a GPU, or lavapipe on a CPU) into cube faces or a
 //!   cylindrical panorama with an ID buffer, resampled to the beams and refined exactly;
-//!   the people drawn as conservative proxies at beam resolution and cast exactly.
+//!   the people drawn as conservative proxies at beam resolution and cast exactly (on a
+//!   GPU; on a CPU device the people are binned into the beams, as the ray caster does).
 //! - [`RaycastBackend`]: the CPU ray caster (triangles binned into beams, or each beam traced
 //!   through a BVH: the reference). It never touches Vulkan, so it runs where no driver is.
 //!
@@ -49,6 +50,13 @@ impl BeamHits {
         self.triangle.clear();
         self.triangle.resize(n, NO_TRIANGLE);
     }
+
+    /// The hits of a cast (one per beam, row-major), ranges rounded to f32.
+    pub fn set_from(&mut self, cast: &[raycast::Hit]) {
+        self.clear_to(0);
+        self.range_m.extend(cast.iter().map(|h| h.range_m as f32));
+        self.triangle.extend(cast.iter().map(|h| h.triangle));
+    }
 }
 
 /// One layer of a posed frame: what a backend casts at a time.
@@ -68,6 +76,17 @@ pub enum LayerKind {
     People,
 }
 
+/// Seconds the casts of one frame took, per layer (what `--timings` reports as stages).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameSeconds {
+    /// The background layer, less `build`; with overlapped layers, the host's own time on it.
+    pub background: f64,
+    /// The people layer, less `build`.
+    pub people: f64,
+    /// Building or refitting acceleration structures (see [`Backend::take_build_seconds`]).
+    pub build: f64,
+}
+
 /// Finds the nearest surface per beam for the posed triangles of a frame.
 pub trait Backend {
     /// Which backend this is (`raster` or `raycast`), as recorded in the outputs.
@@ -85,6 +104,20 @@ pub trait Backend {
     /// The nearest surface of `layer` per beam, into `hits` (row-major, `rows x columns`).
     fn cast(&mut self, layer: Layer<'_>, hits: &mut BeamHits) -> Result<()>;
 
+    /// Both layers of a frame, `background` into `background_hits` and `people` into
+    /// `people_hits`, as [`Self::cast`] would; returns the seconds of each. By default one
+    /// after the other ([`cast_in_turn`]); a backend may overlap them (the raster backend on a
+    /// CPU device draws the background while the host casts the people).
+    fn cast_frame(
+        &mut self,
+        background: Layer<'_>,
+        people: Layer<'_>,
+        background_hits: &mut BeamHits,
+        people_hits: &mut BeamHits,
+    ) -> Result<FrameSeconds> {
+        cast_in_turn(self, [(background, background_hits), (people, people_hits)])
+    }
+
     /// Seconds the casts since the last call spent building or refitting acceleration
     /// structures (reported as a stage of its own by `--timings`), then zero.
     fn take_build_seconds(&mut self) -> f64 {
@@ -100,6 +133,21 @@ pub trait Backend {
     fn validation_counter(&self) -> Option<Arc<AtomicUsize>> {
         None
     }
+}
+
+/// [`Backend::cast_frame`] one layer after the other: the background, then the people.
+pub fn cast_in_turn<B: Backend + ?Sized>(backend: &mut B, layers: [(Layer<'_>, &mut BeamHits); 2]) -> Result<FrameSeconds> {
+    let mut seconds = FrameSeconds::default();
+    let mut stage = [0.0; 2];
+    for (k, (layer, hits)) in layers.into_iter().enumerate() {
+        let t0 = std::time::Instant::now();
+        backend.cast(layer, hits)?;
+        let build = backend.take_build_seconds();
+        seconds.build += build;
+        stage[k] = t0.elapsed().as_secs_f64() - build;
+    }
+    [seconds.background, seconds.people] = stage;
+    Ok(seconds)
 }
 
 /// The Vulkan context of a run, opened on first use and shared by its backends.

@@ -10,7 +10,7 @@
 //! (`src/resample.rs`, through `intersect_triangle` today) is to use it too, so that the
 //! raster and ray-cast backends cannot drift apart on an edge or a tie.
 
-use super::exact::diff_of_products;
+use super::exact::{certainly_nonzero, diff_of_products};
 use crate::geometry::FrameGeometry;
 use glam::DVec3;
 
@@ -62,9 +62,14 @@ impl RayPre {
 fn is_degenerate(tri: &[DVec3; 3]) -> bool {
     let e1 = tri[1] - tri[0];
     let e2 = tri[2] - tri[0];
-    diff_of_products(e1.y, e2.z, e1.z, e2.y) == 0.0
-        && diff_of_products(e1.z, e2.x, e1.x, e2.z) == 0.0
-        && diff_of_products(e1.x, e2.y, e1.y, e2.x) == 0.0
+    let normal = [(e1.y, e2.z, e1.z, e2.y), (e1.z, e2.x, e1.x, e2.z), (e1.x, e2.y, e1.y, e2.x)];
+    // One component the plain product proves nonzero settles it, before any exact expansion:
+    // an axis-aligned triangle (a floor, a wall) has two components exactly 0, and the exact
+    // sign of those is what the test spent its time on.
+    if normal.iter().any(|&(p, q, r, s)| certainly_nonzero(p, q, r, s)) {
+        return false;
+    }
+    normal.iter().all(|&(p, q, r, s)| diff_of_products(p, q, r, s) == 0.0)
 }
 
 #[inline(always)]

@@ -1,6 +1,9 @@
 //! Command recording: [`Commands`] owns a pool, one primary command buffer and a fence;
 //! [`CommandRecorder`] records into it with methods that take the owning wrappers (so every
 //! handle is alive) and borrows them until [`CommandRecorder::submit_and_wait`] returns.
+//! [`CommandRecorder::submit`] returns at once instead, and the work stays in flight until
+//! [`Commands::wait`]: until then the owner of what was recorded must neither write, free nor
+//! read back any of it (the owner's `Drop` waits first).
 
 use super::{vk_err, Buffer, Context, Framebuffer, GraphicsPipeline, Image, PipelineLayout, RenderPass};
 use crate::error::{Error, Result};
@@ -13,6 +16,8 @@ pub struct Commands {
     pool: vk::CommandPool,
     buffer: vk::CommandBuffer,
     fence: vk::Fence,
+    /// Submitted by [`CommandRecorder::submit`] and not yet waited for.
+    in_flight: bool,
 }
 
 impl Commands {
@@ -24,7 +29,7 @@ impl Commands {
         // SAFETY: valid device and create info.
         let pool = unsafe { device.create_command_pool(&pool_info, None) }.map_err(vk_err("vkCreateCommandPool"))?;
         let mut commands =
-            Commands { ctx: ctx.clone(), pool, buffer: vk::CommandBuffer::null(), fence: vk::Fence::null() };
+            Commands { ctx: ctx.clone(), pool, buffer: vk::CommandBuffer::null(), fence: vk::Fence::null(), in_flight: false };
         let alloc_info = vk::CommandBufferAllocateInfo::default()
             .command_pool(pool)
             .level(vk::CommandBufferLevel::PRIMARY)
@@ -39,8 +44,9 @@ impl Commands {
     }
 
     /// Starts recording (implicitly resets the command buffer, whose last submission has
-    /// completed: `submit_and_wait` waits for it).
+    /// completed: `submit_and_wait` waits for it, and so does this for a `submit`).
     pub fn begin(&mut self) -> Result<CommandRecorder<'_>> {
+        self.wait()?;
         let info = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: the buffer is not pending (every submission is waited for) and its pool
         // allows individual resets.
@@ -48,12 +54,39 @@ impl Commands {
             .map_err(vk_err("vkBeginCommandBuffer"))?;
         Ok(CommandRecorder { commands: self, in_pass: false, vertex_count: 0, index_count: 0 })
     }
+
+    /// Waits for the work of the last [`CommandRecorder::submit`], if it is still in flight.
+    pub fn wait(&mut self) -> Result<()> {
+        if !self.in_flight {
+            return Ok(());
+        }
+        self.in_flight = false;
+        wait_and_reset(&self.ctx, self.fence)
+    }
+
+    /// Whether submitted work has not been waited for yet.
+    pub fn in_flight(&self) -> bool {
+        self.in_flight
+    }
+}
+
+/// Waits for `fence` and resets it.
+fn wait_and_reset(ctx: &Context, fence: vk::Fence) -> Result<()> {
+    let device = ctx.device();
+    // SAFETY: the fence belongs to this device and was submitted.
+    unsafe { device.wait_for_fences(&[fence], true, u64::MAX) }.map_err(vk_err("vkWaitForFences"))?;
+    // SAFETY: the fence is signalled and no longer in use.
+    unsafe { device.reset_fences(&[fence]) }.map_err(vk_err("vkResetFences"))
 }
 
 impl Drop for Commands {
     fn drop(&mut self) {
-        // SAFETY: submissions are always waited for, so nothing is pending; destroying the
-        // pool frees its command buffer.
+        // Nothing may be pending when the pool goes.
+        if self.wait().is_err() {
+            let _ = self.ctx.wait_idle();
+        }
+        // SAFETY: every submission has been waited for, so nothing is pending; destroying
+        // the pool frees its command buffer.
         unsafe {
             self.ctx.device().destroy_fence(self.fence, None);
             self.ctx.device().destroy_command_pool(self.pool, None);
@@ -245,18 +278,27 @@ impl<'a> CommandRecorder<'a> {
 
     /// Ends recording, submits, and waits for completion.
     pub fn submit_and_wait(self) -> Result<()> {
+        let commands = self.submit_only()?;
+        wait_and_reset(&commands.ctx, commands.fence)
+    }
+
+    /// Ends recording and submits without waiting: the work is in flight until
+    /// [`Commands::wait`] (or the next [`Commands::begin`]). Everything recorded must stay
+    /// alive and untouched by the host until then (see the module notes).
+    pub fn submit(self) -> Result<()> {
+        let commands = self.submit_only()?;
+        commands.in_flight = true;
+        Ok(())
+    }
+
+    fn submit_only(self) -> Result<&'a mut Commands> {
         if self.in_pass {
             return Err(Error::Internal("submit inside a render pass".into()));
         }
-        let ctx = self.commands.ctx.clone();
-        let device = ctx.device();
         let (cmd, fence) = (self.cmd(), self.commands.fence);
         // SAFETY: recording state, outside a render pass.
-        unsafe { device.end_command_buffer(cmd) }.map_err(vk_err("vkEndCommandBuffer"))?;
-        ctx.submit(cmd, fence)?;
-        // SAFETY: the fence belongs to this device and was just submitted.
-        unsafe { device.wait_for_fences(&[fence], true, u64::MAX) }.map_err(vk_err("vkWaitForFences"))?;
-        // SAFETY: the fence is signalled and no longer in use.
-        unsafe { device.reset_fences(&[fence]) }.map_err(vk_err("vkResetFences"))
+        unsafe { self.device().end_command_buffer(cmd) }.map_err(vk_err("vkEndCommandBuffer"))?;
+        self.commands.ctx.submit(cmd, fence)?;
+        Ok(self.commands)
     }
 }

@@ -1,10 +1,10 @@
-//! Stage 4, for the raster backend: conservative proxies of the people. A proxy is a coarse
+//! Stage 4, for the raster backend on a GPU: conservative proxies of the people. A proxy is a coarse
 //! level of detail of a person pushed outward along its normals, so that in every pose its
 //! closed surface encloses the mesh the person is measured with. The raster backend draws
 //! the proxies (a few hundred to a few thousand triangles a person instead of 26,756) into a
 //! panorama whose texel centres are the beams: a beam no proxy covers hits no person; a beam
 //! a proxy covers is cast exactly, starting with the person drawn there
-//! (`crate::backend::raster::people::refine_people`).
+//! (`crate::backend::raster::people`).
 //!
 //! In: a [`HumanModel`] and its levels of detail (bind pose, model frame, with the recorded
 //! geometric error of each against LOD 0). Out: per level of detail the person can be drawn

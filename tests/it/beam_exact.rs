@@ -7,7 +7,7 @@
 use crate::common::context;
 use pedscan::backend::raster::beam_exact::BeamExact;
 use pedscan::backend::raycast::{BeamCaster, Hit};
-use pedscan::backend::{BeamHits, NO_TRIANGLE};
+use pedscan::backend::{self, BeamHits, Gpu, Layer, NO_TRIANGLE};
 use pedscan::config::{BackendChoice, Config};
 use pedscan::generator::Generator;
 use pedscan::geometry::FrameGeometry;
@@ -147,4 +147,44 @@ fn beam_raster_equals_the_ray_caster_on_large_awkward_and_wrapping_triangles() {
     raster.cast(&FrameGeometry::default(), &mut got).unwrap();
     assert!(got.triangle.iter().all(|&t| t == NO_TRIANGLE) && got.triangle.len() == dirs.len());
     finish(raster, ctx);
+}
+
+/// The raster backend on lavapipe casts a frame's two layers overlapped (`cast_frame`: the
+/// background drawn on the device while the host bins the people): the same hits as casting
+/// them one at a time, the people bit for bit the binned caster's, the background as
+/// `compare` holds it. Zero validation errors.
+#[test]
+fn raster_frames_overlap_their_layers_with_the_same_hits() {
+    let mut cfg = Config::default();
+    cfg.render.backend = BackendChoice::Raycast;
+    cfg.humans.count = [12, 12];
+    let mut gen = Generator::new(cfg.clone()).expect("generator");
+    cfg.render.backend = BackendChoice::Raster;
+    let mut gpu = Gpu::new("auto", true);
+    let mut raster = backend::create(&cfg, gen.sensor(), gen.models(), &mut gpu).unwrap();
+    drop(gpu);
+    assert!(raster.proxies().is_none(), "lavapipe bins the people: no proxies to pose");
+    let mut caster = BeamCaster::new(gen.beam_dirs(), gen.sensor().rows(), gen.sensor().columns);
+    let plan = gen.plan(0).expect("plan");
+    let (mut reference, mut want, mut seen) = (Vec::new(), BeamHits::default(), 0);
+    for k in [0, 17, 31] {
+        let state = gen.frame_state(&plan, k);
+        gen.pose_frame(&plan, &state).expect("pose");
+        let posed = gen.posed();
+        let people = Layer::People { people: posed.people, proxies: posed.proxies };
+        let (mut bg, mut humans) = (BeamHits::default(), BeamHits::default());
+        raster.cast_frame(Layer::Background(posed.background), people, &mut bg, &mut humans).unwrap();
+        let (mut bg1, mut humans1) = (BeamHits::default(), BeamHits::default());
+        raster.cast(Layer::Background(posed.background), &mut bg1).unwrap();
+        raster.cast(people, &mut humans1).unwrap();
+        assert!(bg == bg1 && humans == humans1, "frame {k}: overlapped and one at a time differ");
+        caster.cast(posed.people, f64::MAX, &mut reference);
+        want.set_from(&reference);
+        assert!(humans == want, "frame {k}: people differ from the binned caster");
+        seen += want.triangle.iter().filter(|&&t| t != NO_TRIANGLE).count();
+        caster.cast(posed.background, f64::MAX, &mut reference);
+        compare(&format!("frame {k} background"), &bg, &reference, posed.background);
+    }
+    assert!(seen > 500, "the people must be seen ({seen} beams)");
+    backend::finish(raster).expect("no validation errors");
 }

@@ -1,9 +1,12 @@
-//! The exact beam raster: Vulkan draws every triangle of a layer into an image with one
+//! The exact beam raster: Vulkan draws the large triangles of a layer into an image with one
 //! texel per beam (column x row of the sensor grid), as the triangle's conservative bound in
 //! that grid ([`BeamCaster::bounds`], the bound the ray caster tests), and the fragment shader
 //! tests the texel's beam against the triangle (`shaders/beam_exact.frag`). The depth test
 //! keeps, per beam, the nearest triangle that survived; the CPU re-tests that one triangle with
-//! the watertight f64 test the ray caster uses and takes its range.
+//! the watertight f64 test the ray caster uses and takes its range. A triangle whose bound
+//! holds at most `HOST_BEAMS` beams is not drawn: the host casts it through the beams of its
+//! bound as the ray caster does ([`BeamCaster::cast_bounds`]), while the device draws the
+//! others, and each beam keeps the nearer of the two answers.
 //!
 //! In: one layer's posed triangles (`FrameGeometry`, sensor frame). Out: per beam the range
 //! and triangle of the nearest hit ([`BeamHits`]).
@@ -17,12 +20,17 @@
 //! reference's bit for bit when W = T; ties between triangles meeting at the beam give the
 //! same point). When it does not (a beam within the tolerance band of W's edge), the beam is
 //! cast exactly on the CPU through every triangle whose bound holds it: a few beams a frame,
-//! counted in [`BeamExactStats::fallback_beams`].
+//! counted in [`BeamExactStats::fallback_beams`]. The triangles cast on the host give the
+//! exact nearest hit among them, and the nearer of that and the confirmed W (tie rule of the
+//! reference) is the answer.
 //!
-//! **Why.** Lavapipe pays a fixed cost per triangle (0.2 to 0.65 us) and very little per
-//! fragment: a layer of few, large triangles (a room, a street) is cheap to draw this way and
-//! costly to test beam by beam on the CPU; a person's tens of thousands of tiny triangles are
-//! the opposite, which is why the people are drawn as proxies ([`super::people`]).
+//! **Why.** Lavapipe pays about a microsecond per drawn rectangle and ~7 ns per fragment, on
+//! the host's own cores: for the hall (~415 triangles with a bound a frame) the binned cast of
+//! every triangle whose bound holds at most 8,192 beams costs less than drawing it, and only
+//! the ~24 triangles around the sensor (floor and ceiling, bounds of every column) are worth
+//! drawing, on the device while the host casts the rest (and, in a frame, the people:
+//! `RasterBackend::cast_frame`). A person's tens of thousands of tiny triangles are binned on
+//! a CPU device, drawn as proxies on a GPU ([`super::people`]).
 
 use crate::backend::raycast::{BeamCaster, GridBound};
 use crate::backend::triangle::{better, intersect_pre, RayPre};
@@ -48,6 +56,11 @@ const MIN_INSTANCES: u64 = 1024;
 /// Beams per tile of the coverage test (`BeamExact::stage`).
 const TILE_ROWS: usize = 4;
 const TILE_COLUMNS: usize = 8;
+/// A triangle whose bound holds at most this many beams is cast on the host instead of
+/// drawn. Hall only, 32 frames x 5 casts on lavapipe, medians: with nothing cast on the host
+/// 2.9 ms (3.7 ms of CPU) a cast, with at most 128 beams 2.5 ms, 512: 2.4, 8,192: 2.1 ms
+/// (2.9 ms of CPU; only the triangles around the sensor are drawn).
+const HOST_BEAMS: i64 = 8192;
 /// Texel coordinates are packed into 16 bits per bound.
 const MAX_GRID_SIDE: usize = 1 << 16;
 
@@ -103,8 +116,9 @@ pub struct BeamExactStats {
     pub texels: u64,
     /// Beams whose drawn triangle the f64 test did not confirm, cast on the CPU instead.
     pub fallback_beams: u64,
-    /// Seconds: bounding and staging on the CPU; drawing and reading back (upload, submit,
-    /// wait, copy); the f64 tests of the drawn triangles.
+    /// Seconds: bounding, staging and submitting on the CPU; from the submit until the draw
+    /// and read-back had completed (whatever the host did meanwhile); the f64 tests of the
+    /// drawn triangles.
     pub stage_s: f64,
     pub draw_s: f64,
     pub resolve_s: f64,
@@ -131,9 +145,23 @@ pub struct BeamExact {
     /// bounding `|d - axis|` over its beams' f32 directions.
     tiles: Vec<[f32; 4]>,
     staged: Vec<Instance>,
+    /// The bounds of the triangles cast on the host (at most `HOST_BEAMS` beams), and the
+    /// hits (beam, range, triangle) and per-beam nearest of that cast.
+    host: Vec<GridBound>,
+    host_hits: Vec<(u32, f64, u32)>,
+    host_best: Vec<(f64, u32)>,
     ids: Vec<u32>,
+    /// When the draw in flight (between `begin` and `finish`) was submitted.
+    submitted: Option<std::time::Instant>,
     stats: BeamExactStats,
     ctx: Arc<Context>,
+}
+
+impl Drop for BeamExact {
+    fn drop(&mut self) {
+        // A draw still in flight reads the buffers dropped below.
+        let _ = self.commands.wait();
+    }
 }
 
 impl BeamExact {
@@ -218,7 +246,11 @@ impl BeamExact {
             bounds: Vec::new(),
             tiles,
             staged: Vec::new(),
+            host: Vec::new(),
+            host_hits: Vec::new(),
+            host_best: vec![(f64::INFINITY, NO_TRIANGLE); rows * columns],
             ids: vec![0; rows * columns],
+            submitted: None,
             stats: BeamExactStats::default(),
             ctx: ctx.clone(),
         })
@@ -231,9 +263,17 @@ impl BeamExact {
 
     /// The nearest hit of every beam over all meshes of `geom`, into `out` (row-major).
     pub fn cast(&mut self, geom: &FrameGeometry, out: &mut BeamHits) -> Result<()> {
-        let (rows, columns) = self.caster.shape();
-        let n = rows * columns;
-        out.clear_to(n);
+        self.begin(geom)?;
+        self.finish(geom, out)
+    }
+
+    /// The first half of [`Self::cast`]: bounds `geom`'s triangles and submits their draw,
+    /// which runs on the device until [`Self::finish`] (with the same `geom`) waits for it.
+    /// The host is free in between: on lavapipe the draw keeps about one core busy, and the
+    /// caller can cast another layer on the others.
+    pub fn begin(&mut self, geom: &FrameGeometry) -> Result<()> {
+        self.commands.wait()?;
+        self.submitted = None;
         self.stats = BeamExactStats::default();
         let t0 = std::time::Instant::now();
         self.caster.bounds(geom, &mut self.bounds);
@@ -241,12 +281,40 @@ impl BeamExact {
             return Ok(());
         }
         self.stage(geom);
-        let t1 = std::time::Instant::now();
-        self.draw()?;
+        if !self.staged.is_empty() {
+            self.submit()?;
+        }
+        // The small triangles on the host, while the device draws the others.
+        self.caster.cast_bounds(geom, &self.host, &mut self.host_hits);
+        self.stats.stage_s = t0.elapsed().as_secs_f64();
+        self.submitted = Some(std::time::Instant::now());
+        Ok(())
+    }
+
+    /// The second half of [`Self::cast`]: waits for the draw [`Self::begin`] submitted for
+    /// `geom`, and confirms every beam's triangle into `out` (row-major).
+    pub fn finish(&mut self, geom: &FrameGeometry, out: &mut BeamHits) -> Result<()> {
+        let (rows, columns) = self.caster.shape();
+        out.clear_to(rows * columns);
+        let Some(submitted) = self.submitted.take() else { return Ok(()) };
+        if self.staged.is_empty() {
+            self.ids.fill(0);
+        } else {
+            self.commands.wait()?;
+            self.read_ids()?;
+        }
+        for &(b, r, t) in &self.host_hits {
+            let best = &mut self.host_best[b as usize];
+            if better(r, t, best.0, best.1) {
+                *best = (r, t);
+            }
+        }
         let t2 = std::time::Instant::now();
         self.resolve(geom, out);
-        self.stats.stage_s = (t1 - t0).as_secs_f64();
-        self.stats.draw_s = (t2 - t1).as_secs_f64();
+        for &(b, _, _) in &self.host_hits {
+            self.host_best[b as usize] = (f64::INFINITY, NO_TRIANGLE);
+        }
+        self.stats.draw_s = (t2 - submitted).as_secs_f64();
         self.stats.resolve_s = t2.elapsed().as_secs_f64();
         Ok(())
     }
@@ -258,11 +326,16 @@ impl BeamExact {
         let columns = self.caster.shape().1 as i64;
         let tiles_per_row = (columns as usize).div_ceil(TILE_COLUMNS);
         self.staged.clear();
+        self.host.clear();
         let mut mesh = 0;
         let mut texels = 0u64;
         for g in &self.bounds {
             while geom.meshes[mesh].first_triangle + geom.meshes[mesh].triangle_count <= g.triangle {
                 mesh += 1;
+            }
+            if (g.r1 - g.r0) as i64 * (g.c1 - g.c0 + 1) <= HOST_BEAMS {
+                self.host.push(*g);
+                continue;
             }
             let cull = !geom.meshes[mesh].double_sided;
             let [a, b, c] = geom.triangle_f64(g.triangle);
@@ -347,13 +420,13 @@ impl BeamExact {
         self.stats.texels = texels;
     }
 
-    /// Draws the staged instances and reads the id image back into `ids`.
-    fn draw(&mut self) -> Result<()> {
+    /// Submits the draw of the staged instances and the read-back of the id image.
+    fn submit(&mut self) -> Result<()> {
         let (rows, columns) = self.caster.shape();
         let bytes = (std::mem::size_of::<Instance>() * self.staged.len()) as u64;
         if bytes > self.instances.size() {
             let size = bytes.max(2 * self.instances.size()).next_power_of_two();
-            // The old buffer is idle: every cast waits for its fence.
+            // The old buffer is idle: `begin` waited for the last draw.
             self.instances = Buffer::new(&self.ctx, &BufferDesc::upload("beam bounds", size, vk::BufferUsageFlags::VERTEX_BUFFER))?;
         }
         self.instances.write(&self.staged)?;
@@ -372,7 +445,11 @@ impl BeamExact {
         rec.end_render_pass();
         rec.copy_image_to_buffer(&self.id, &self.readback, 0);
         rec.transfer_to_host_barrier();
-        rec.submit_and_wait()?;
+        rec.submit()
+    }
+
+    /// Copies the read-back id image (the draw has completed) into `ids`.
+    fn read_ids(&mut self) -> Result<()> {
         let src = &self.readback.read_bytes()?[..4 * self.ids.len()];
         match bytemuck::try_cast_slice::<u8, u32>(src) {
             Ok(s) => self.ids.copy_from_slice(s),
@@ -387,6 +464,7 @@ impl BeamExact {
         let caster = &self.caster;
         let ids = &self.ids;
         let bounds = &self.bounds;
+        let host = &self.host_best;
         let n = columns as i64;
         let fallback: u64 = out
             .range_m
@@ -395,17 +473,26 @@ impl BeamExact {
             .enumerate()
             .map(|(row, (ranges, tris))| {
                 let mut missed = 0;
+                // The last drawn triangle of the row, its vertices and cull flag: neighbouring
+                // beams mostly show the same one.
+                let mut last = (NO_TRIANGLE, [DVec3::ZERO; 3], false);
                 for col in 0..columns {
                     let b = row * columns + col;
                     let id = ids[b];
+                    // The nearest of the triangles cast on the host, if any.
+                    let (hr, ht) = host[b];
+                    if ht != NO_TRIANGLE {
+                        ranges[col] = hr as f32;
+                        tris[col] = ht;
+                    }
                     if id == 0 {
                         continue;
                     }
                     let t = id - 1;
-                    let confirmed = caster.ray_pre(b).and_then(|pre| {
-                        let k = geom.mesh_index_of_triangle(t);
-                        intersect_pre(pre, &geom.triangle_f64(t), !geom.meshes[k].double_sided)
-                    });
+                    if last.0 != t {
+                        last = (t, geom.triangle_f64(t), !geom.mesh_of_triangle(t).double_sided);
+                    }
+                    let confirmed = caster.ray_pre(b).and_then(|pre| intersect_pre(pre, &last.1, last.2));
                     let hit = match confirmed {
                         Some(r) => Some((r, t)),
                         None => {
@@ -413,7 +500,7 @@ impl BeamExact {
                             caster.ray_pre(b).and_then(|pre| cast_bounded(geom, bounds, pre, (row as u32, col as i64), n))
                         }
                     };
-                    if let Some((r, t)) = hit {
+                    if let Some((r, t)) = hit.filter(|&(r, t)| better(r, t, hr, ht)) {
                         ranges[col] = r as f32;
                         tris[col] = t;
                     }

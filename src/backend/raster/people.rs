@@ -1,4 +1,5 @@
-//! The raster backend's people layer (with `render.refine = "exact"`): conservative proxies
+//! The raster backend's people layer (with `render.refine = "exact"`, on a GPU; on a CPU
+//! device the backend bins the people into the beams instead): conservative proxies
 //! ([`crate::human::proxy`]) are rasterised into a cylindrical panorama at beam resolution, whose
 //! texel centres are the beams, with an ID buffer naming the proxy triangle drawn at each
 //! texel; then every beam a proxy covers is cast exactly through the people's triangle

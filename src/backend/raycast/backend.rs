@@ -69,9 +69,7 @@ impl Backend for RaycastBackend {
                 self.cast = crate::backend::raycast::cast(geom, bvh, &self.dirs, f64::MAX);
             }
         }
-        hits.clear_to(0);
-        hits.range_m.extend(self.cast.iter().map(|h| h.range_m as f32));
-        hits.triangle.extend(self.cast.iter().map(|h| h.triangle));
+        hits.set_from(&self.cast);
         Ok(())
     }
 

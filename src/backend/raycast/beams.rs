@@ -301,6 +301,21 @@ impl BeamCaster {
         self.spans = spans;
     }
 
+    /// The hits (beam, range, triangle) of the beams inside each of `bounds`, from the
+    /// [`BeamCaster::bounds`] of the same `geom` just before (its projection pass is reused),
+    /// into `hits`: what [`BeamCaster::cast`] finds for those triangles.
+    pub fn cast_bounds(&self, geom: &FrameGeometry, bounds: &[GridBound], hits: &mut Vec<(u32, f64, u32)>) {
+        hits.clear();
+        let grid = self.grid(azimuth_margin_columns(self.columns), f64::MAX);
+        let mut mesh = 0;
+        for g in bounds {
+            while geom.meshes[mesh].first_triangle + geom.meshes[mesh].triangle_count <= g.triangle {
+                mesh += 1;
+            }
+            grid.triangle(geom, g.triangle, !geom.meshes[mesh].double_sided, (0, self.rows), hits);
+        }
+    }
+
     /// The watertight ray constants of beam `b` (`None`: a degenerate direction).
     pub(crate) fn ray_pre(&self, b: usize) -> Option<&RayPre> {
         self.pre[b].as_ref()
