@@ -15,8 +15,10 @@
 //! * Fields `x y z` must exist with `TYPE F`, `SIZE 4` or `8` and `COUNT 1`. An optional
 //!   `ring` field (`TYPE U` or `I`, `SIZE 1 2 4 8`, `COUNT 1`, values 0..=65535) goes to
 //!   [`Scan::ring`]; a PCD carries no ring elevations, so [`Scan::ring_elevation_deg`] stays
-//!   `None`. Every other field (intensity, `t`, `rgb`, padding `_`, normals, any `COUNT`) is
-//!   skipped by its size.
+//!   `None`. An optional `intensity` field of one number (`TYPE F` of `SIZE 4` or `8`, or an
+//!   integer of `SIZE 1 2 4 8`) goes to [`Scan::intensity`] (a non-finite value as 0); an
+//!   intensity of another shape is passed over. Every other field (`t`, `rgb`, padding `_`,
+//!   normals, any `COUNT`) is skipped by its size.
 //!
 //! # Frame
 //!
@@ -394,10 +396,17 @@ fn parse_pcd(bytes: &[u8], name: &str) -> Result<Scan> {
             ));
         }
     }
-    let mut out = Collector::new(h.viewpoint, ring.is_some());
+    // An intensity field is read when it is one number of a supported type; any other is
+    // passed over like the fields pedscan does not use.
+    let intensity = slot(&h.fields, "intensity", name)?.filter(|s| {
+        let f = &h.fields[s.field];
+        f.count == 1 && if f.ty == b'F' { matches!(f.size, 4 | 8) } else { matches!(f.ty, b'U' | b'I') && matches!(f.size, 1 | 2 | 4 | 8) }
+    });
+    let value = |s: &Slot, b: &[u8]| if s.ty == b'F' { float(b) } else { int(b, s.ty) as f64 };
+    let mut out = Collector::new(h.viewpoint, ring.is_some(), intensity.is_some());
     let data = &bytes[h.data_offset.min(bytes.len())..];
     match h.data {
-        DataKind::Ascii => read_ascii(data, &h, xyz, ring, name, &mut out)?,
+        DataKind::Ascii => read_ascii(data, &h, xyz, ring, intensity, name, &mut out)?,
         DataKind::Binary => {
             let step = record_bytes(&h.fields, name)?;
             let need = need_bytes(h.points, step, name)?;
@@ -408,7 +417,8 @@ fn parse_pcd(bytes: &[u8], name: &str) -> Result<Scan> {
             for i in 0..h.points {
                 let p = [get(&xyz[0], i), get(&xyz[1], i), get(&xyz[2], i)].map(float);
                 let r = ring.map(|s| int(get(&s, i), s.ty));
-                out.push(p, r).map_err(|m| Error::input(name, format!("point {i}: {m}")))?;
+                let v = intensity.map(|s| value(&s, get(&s, i)));
+                out.push(p, r, v).map_err(|m| Error::input(name, format!("point {i}: {m}")))?;
             }
         }
         DataKind::BinaryCompressed => {
@@ -458,7 +468,8 @@ fn parse_pcd(bytes: &[u8], name: &str) -> Result<Scan> {
             for i in 0..n {
                 let p = [col(&xyz[0], i), col(&xyz[1], i), col(&xyz[2], i)].map(float);
                 let r = ring.map(|s| int(col(&s, i), s.ty));
-                out.push(p, r).map_err(|m| Error::input(name, format!("point {i}: {m}")))?;
+                let v = intensity.map(|s| value(&s, col(&s, i)));
+                out.push(p, r, v).map_err(|m| Error::input(name, format!("point {i}: {m}")))?;
             }
         }
     }
@@ -520,6 +531,7 @@ fn read_ascii(
     h: &Header,
     xyz: [Slot; 3],
     ring: Option<Slot>,
+    intensity: Option<Slot>,
     name: &str,
     out: &mut Collector,
 ) -> Result<()> {
@@ -538,6 +550,7 @@ fn read_ascii(
         }
         let mut p = [0.0f64; 3];
         let mut r = None;
+        let mut v_intensity = None;
         let mut n = 0usize;
         for (k, tok) in line.split_whitespace().enumerate() {
             n += 1;
@@ -555,6 +568,9 @@ fn read_ascii(
             if ring.is_some_and(|s| s.value_index == k) {
                 r = Some(v);
             }
+            if intensity.is_some_and(|s| s.value_index == k) {
+                v_intensity = Some(v);
+            }
         }
         if n != values_per_point {
             return Err(Error::input(
@@ -568,7 +584,7 @@ fn read_ascii(
             // Not an integer: passed on as out of range (reported only for a kept point).
             Some(_) => Some(-1),
         };
-        out.push(p, r).map_err(|m| Error::input(at(), m))?;
+        out.push(p, r, v_intensity).map_err(|m| Error::input(at(), m))?;
         read += 1;
     }
     if read < h.points {
@@ -585,16 +601,18 @@ struct Collector {
     viewpoint: Option<(DVec3, DMat3)>,
     points: Vec<[f32; 3]>,
     ring: Option<Vec<u16>>,
+    intensity: Option<Vec<f32>>,
 }
 
 impl Collector {
-    fn new(viewpoint: Option<(DVec3, DMat3)>, has_ring: bool) -> Self {
-        Collector { viewpoint, points: Vec::new(), ring: has_ring.then(Vec::new) }
+    fn new(viewpoint: Option<(DVec3, DMat3)>, has_ring: bool, has_intensity: bool) -> Self {
+        Collector { viewpoint, points: Vec::new(), ring: has_ring.then(Vec::new), intensity: has_intensity.then(Vec::new) }
     }
 
     /// Adds one stored point; NaN and all-zero points are dropped. A ring value outside
-    /// 0..=65535 of a kept point is an error (the message only).
-    fn push(&mut self, p: [f64; 3], ring: Option<i128>) -> std::result::Result<(), String> {
+    /// 0..=65535 of a kept point is an error (the message only); a non-finite intensity is
+    /// read as 0.
+    fn push(&mut self, p: [f64; 3], ring: Option<i128>, intensity: Option<f64>) -> std::result::Result<(), String> {
         if p == [0.0; 3] || !p.iter().all(|v| v.is_finite()) {
             return Ok(());
         }
@@ -611,12 +629,15 @@ impl Collector {
                 .map_err(|_| "ring value is not an integer in 0..=65535".to_string())?;
             rings.push(r);
         }
+        if let (Some(values), Some(v)) = (self.intensity.as_mut(), intensity) {
+            values.push(if v.is_finite() { v as f32 } else { 0.0 });
+        }
         self.points.push(q);
         Ok(())
     }
 
     fn finish(self) -> Scan {
-        Scan { points: self.points, ring: self.ring, ring_elevation_deg: None, time_s: None, intensity: None }
+        Scan { points: self.points, ring: self.ring, ring_elevation_deg: None, time_s: None, intensity: self.intensity }
     }
 }
 

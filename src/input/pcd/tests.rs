@@ -67,6 +67,8 @@ fn ascii_with_comments_nan_and_zero() {
     let scan = read_pcd(&write(&d, "a.pcd", s.as_bytes())).unwrap();
     assert_eq!(scan.points, vec![[1.0, 2.0, 3.0], [-1.5, 25.0, -3.0], [4.0, 5.0, 6.0]]);
     assert!(scan.ring.is_none() && scan.ring_elevation_deg.is_none());
+    // The kept points' intensities.
+    assert_eq!(scan.intensity, Some(vec![10.0, 7.0, 1.0]));
 }
 
 #[test]
@@ -82,7 +84,9 @@ fn binary_f32_and_f64() {
         }
         b.extend_from_slice(&7.0f32.to_le_bytes());
     }
-    assert_eq!(read_pcd(&write(&d, "b.pcd", &b)).unwrap().points, pts);
+    let scan = read_pcd(&write(&d, "b.pcd", &b)).unwrap();
+    assert_eq!(scan.points, pts);
+    assert_eq!(scan.intensity, Some(vec![7.0; pts.len()]));
 
     // Doubles, with the fields in another order.
     let mut b =
@@ -95,6 +99,26 @@ fn binary_f32_and_f64() {
         }
     }
     assert_eq!(read_pcd(&write(&d, "b64.pcd", &b)).unwrap().points, pts);
+
+    // An integer intensity (Ouster-style U2) and an unsupported one (COUNT 2: passed over).
+    let mut b = header("x y z intensity", "4 4 4 2", "F F F U", "1 1 1 1", pts.len(), 1, ID, "binary").into_bytes();
+    for (i, p) in pts.iter().enumerate() {
+        for v in p {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&(100 + i as u16).to_le_bytes());
+    }
+    let want: Vec<f32> = (0..pts.len()).map(|i| 100.0 + i as f32).collect();
+    assert_eq!(read_pcd(&write(&d, "u2.pcd", &b)).unwrap().intensity, Some(want));
+    let mut b = header("x y z intensity", "4 4 4 4", "F F F F", "1 1 1 2", pts.len(), 1, ID, "binary").into_bytes();
+    for p in &pts {
+        for v in p {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&[0u8; 8]);
+    }
+    let scan = read_pcd(&write(&d, "i2.pcd", &b)).unwrap();
+    assert_eq!((scan.points.len(), scan.intensity), (pts.len(), None));
 }
 
 #[test]
@@ -123,7 +147,9 @@ fn binary_compressed_with_literal_runs() {
         "binary_compressed",
     );
     let b = compressed_file(&head, &lzf_literals(&raw), raw.len());
-    assert_eq!(read_pcd(&write(&d, "c.pcd", &b)).unwrap().points, pts);
+    let scan = read_pcd(&write(&d, "c.pcd", &b)).unwrap();
+    assert_eq!(scan.points, pts);
+    assert_eq!(scan.intensity, Some((0..n).map(|i| i as f32).collect()));
 }
 
 #[test]
