@@ -167,7 +167,8 @@ pub struct BeamOut {
     pub range_m: f32,
     pub instance: u16,
     pub intensity: f32,
-    /// The returned surface was rendered (so the velocity of that surface applies).
+    /// The return came from the beam's footprint (a silhouette beam cast as several rays),
+    /// not from its centre ray alone.
     pub from_footprint: bool,
 }
 

@@ -157,6 +157,8 @@ fn divergence_gives_mixed_and_strongest_returns_at_an_edge() {
             let clean: Vec<Option<Surface>> = f.dirs.iter().map(|d| Some(scene.surface(*d))).collect();
             let out = run(&f, &cfg, &clean, &draws, &scene, 0);
             let b = row * w + 300;
+            assert!(out[b].from_footprint, "the edge beam is cast over its footprint");
+            assert!(!out[row * w + 100].from_footprint && !out[row * w + 302].from_footprint, "beams away from the edge are not");
             // The prediction: the rays of the footprint, each on its side of the edge.
             let dirs = pedscan::sensor_model::footprint_dirs(f.az[300], f.el[row], cfg.divergence_mrad);
             let mut hits: Vec<Surface> = dirs.iter().map(|d| scene.surface(*d)).collect();
