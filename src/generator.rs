@@ -91,6 +91,9 @@ pub struct Generator {
     env_reflectance: Vec<f32>,
     /// Intensity units (`sensor_model.intensity_scale`, resolved).
     intensity_scale: f64,
+    /// Per row its beams' elevation, per column its azimuth, radians (the footprints' frame).
+    elevation_rad: Vec<f64>,
+    azimuth_rad: Vec<f64>,
 }
 
 /// One posed frame as the backends see it (see [`Generator::posed`]).
@@ -346,6 +349,8 @@ impl Generator {
         });
         let pcap = bg.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"));
         let intensity_scale = cfg.sensor_model.intensity_scale.unwrap_or(if recording.is_some() && pcap { 100.0 } else { 1.0 });
+        let elevation_rad = sensor.elevation_deg.iter().map(|e| e.to_radians()).collect();
+        let azimuth_rad = (0..sensor.columns).map(|c| sensor.azimuth_rad(c)).collect();
         Ok(Generator {
             dirs: sensor.beam_dirs(),
             cfg,
@@ -364,6 +369,8 @@ impl Generator {
             regions,
             env_reflectance,
             intensity_scale,
+            elevation_rad,
+            azimuth_rad,
         })
     }
 
@@ -933,10 +940,15 @@ impl Generator {
     /// laser biases, the people's reflectances). [`Generator::write_sequence`] calls it; a
     /// caller driving [`Generator::frame`] itself may (else sequence 0's draws are used).
     pub fn begin_sequence(&mut self, index: usize, plan: &SequencePlan) {
-        let key = (index, plan.humans.len());
+        self.draws_for(index, plan.humans.len());
+    }
+
+    /// The sensor model's draws for sequence `index` with `people` people, drawn unless held.
+    fn draws_for(&mut self, index: usize, people: usize) {
+        let key = (index, people);
         if self.scratch.draws_for != Some(key) {
             let m = &self.cfg.sensor_model;
-            self.scratch.draws = SequenceDraws::draw(m, self.cfg.seed, index, self.sensor.rows(), plan.humans.len());
+            self.scratch.draws = SequenceDraws::draw(m, self.cfg.seed, index, self.sensor.rows(), people);
             self.scratch.draws_for = Some(key);
         }
     }
@@ -983,11 +995,10 @@ impl Generator {
     /// then the sensor model: `out`'s range, label and instance become the returned ones,
     /// `/clean/*` keeps the others, and `/intensity` is filled.
     fn apply_sensor_model(&mut self, state: &FrameState, out: &mut FrameOutput) {
+        // A caller that never said which sequence this is gets sequence 0's draws.
+        let index = self.scratch.draws_for.map_or(0, |k| k.0);
+        self.draws_for(index, state.humans.len());
         let s = &mut self.scratch;
-        if s.draws_for.is_none() || s.draws.reflectance.len() != state.humans.len() {
-            s.draws = SequenceDraws::draw(&self.cfg.sensor_model, self.cfg.seed, 0, self.sensor.rows(), state.humans.len());
-            s.draws_for = Some((0, state.humans.len()));
-        }
         let scene = SceneSurfaces {
             humans: &s.humans,
             human_hits: &s.human_hits,
@@ -1006,14 +1017,12 @@ impl Generator {
         let n = self.dirs.len();
         s.clean.clear();
         s.clean.extend((0..n).map(|b| scene.clean(b, out.range[b], out.instance[b])));
-        let elevation_rad: Vec<f64> = self.sensor.elevation_deg.iter().map(|e| e.to_radians()).collect();
-        let azimuth_rad: Vec<f64> = (0..self.sensor.columns).map(|c| self.sensor.azimuth_rad(c)).collect();
         let frame = crate::sensor_model::FrameIn {
             cfg: &self.cfg.sensor_model,
             dirs: &self.dirs,
             columns: self.sensor.columns,
-            elevation_rad: &elevation_rad,
-            azimuth_rad: &azimuth_rad,
+            elevation_rad: &self.elevation_rad,
+            azimuth_rad: &self.azimuth_rad,
             min_range_m: self.sensor.min_range_m,
             max_range_m: self.sensor.max_range_m,
             clean: &s.clean,

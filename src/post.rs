@@ -49,13 +49,6 @@ pub struct PostParams<'a> {
     pub point_velocity_mps: &'a [DVec3],
 }
 
-/// Composites `human` hits over the `background` ranges into `out` (per-beam fields only):
-/// [`select`], then [`derive`].
-pub fn composite(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, background: &[f32], out: &mut FrameOutput) {
-    select(p, human, human_geom, background, out);
-    derive(p, human, human_geom, out);
-}
-
 /// The nearer of person and background per beam: range, label, instance (and the
 /// background's own range), within the sensor's range limits.
 pub fn select(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, background: &[f32], out: &mut FrameOutput) {
@@ -147,6 +140,12 @@ pub fn derive(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, out:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`select`], then [`derive`], as the generator runs them (without the sensor model).
+    fn composite(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, background: &[f32], out: &mut FrameOutput) {
+        select(p, human, human_geom, background, out);
+        derive(p, human, human_geom, out);
+    }
 
     const MOTION: [ColumnMotion; 1] = [ColumnMotion {
         rot: DMat3::from_cols(DVec3::new(0.0, 1.0, 0.0), DVec3::new(-1.0, 0.0, 0.0), DVec3::Z),
