@@ -324,8 +324,10 @@ impl SensorModelConfig {
         let m = self;
         non_negative("sensor_model.range_noise_m", m.range_noise_m)?;
         non_negative("sensor_model.laser_bias_m", m.laser_bias_m)?;
-        if !(m.range_noise_m <= 1.0 && m.laser_bias_m <= 1.0) {
-            return Err(Error::input("config key `sensor_model.range_noise_m`", "range noise and bias must be at most 1 m"));
+        for (key, v) in [("sensor_model.range_noise_m", m.range_noise_m), ("sensor_model.laser_bias_m", m.laser_bias_m)] {
+            if v > 1.0 {
+                return Err(Error::input(format!("config key `{key}`"), format!("{v} m must be at most 1 m")));
+            }
         }
         range_ok("sensor_model.dropout_rate", [m.dropout_rate, m.dropout_rate], 0.0, 1.0)?;
         positive("sensor_model.detection_range_m", m.detection_range_m)?;
@@ -645,5 +647,24 @@ mod tests {
         c.humans.tracks_transform.scale = 1e308;
         let e = c.validate().unwrap_err();
         assert!(e.is_input() && e.to_string().contains("humans.tracks_transform") && e.to_string().contains("1e308"), "{e}");
+        // The sensor model: each impossible term named by its key.
+        let e = toml::from_str::<Config>("[sensor_model]
+range_noise = 0.1
+").unwrap_err();
+        assert!(e.to_string().contains("range_noise"), "{e}");
+        let bad: [(&str, fn(&mut SensorModelConfig)); 6] = [
+            ("range_noise_m", |m| m.range_noise_m = f64::NAN),
+            ("laser_bias_m", |m| m.laser_bias_m = 2.0),
+            ("dropout_rate", |m| m.dropout_rate = 1.5),
+            ("divergence_mrad", |m| m.divergence_mrad = [-1.0, 1.0]),
+            ("skin_reflectance", |m| m.skin_reflectance = [0.2, 1.2]),
+            ("intensity_scale", |m| m.intensity_scale = Some(0.0)),
+        ];
+        for (key, spoil) in bad {
+            let mut c = Config::default();
+            spoil(&mut c.sensor_model);
+            let e = c.validate().unwrap_err();
+            assert!(e.is_input() && e.to_string().contains(&format!("sensor_model.{key}")), "{key}: {e}");
+        }
     }
 }
