@@ -826,12 +826,8 @@ impl Generator {
             let dir = DMat3::from_mat4(pose) * dirs[b];
             let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return };
             let test = |cand: u32| -> Option<f64> {
-                let k = background.mesh_index_of_triangle(cand);
-                let mesh = &background.meshes[k];
-                let first = env_meshes[k].first_vertex as u32;
-                let idx = &background.indices[3 * cand as usize..3 * cand as usize + 3];
-                let tri = [0, 1, 2].map(|c| env.positions[(first + idx[c] - mesh.first_vertex) as usize] - origin);
-                crate::backend::triangle::intersect_pre(&ray, &tri, !mesh.double_sided)
+                let (tri, cull) = world_triangle(background, &env.positions, env_meshes, cand, origin);
+                crate::backend::triangle::intersect_pre(&ray, &tri, cull)
             };
             // The triangle the cast found holds the exact hit but near its edges; there, its
             // one-ring.
@@ -1013,6 +1009,12 @@ impl Generator {
             env_reflectance: &self.env_reflectance,
             reflectance: &s.draws.reflectance,
             dirs: &self.dirs,
+            env_world: match &self.environment {
+                Some(env) if !s.column_pose.is_empty() => {
+                    Some(EnvWorld { positions: &env.positions, meshes: &self.env_meshes, column_pose: &s.column_pose })
+                }
+                _ => None,
+            },
         };
         let n = self.dirs.len();
         s.clean.clear();
@@ -1249,6 +1251,27 @@ struct SceneSurfaces<'a> {
     env_reflectance: &'a [f32],
     reflectance: &'a [[f32; 4]],
     dirs: &'a [DVec3],
+    /// Under a sensor that moves during the sweep: the environment in the world and each
+    /// column's sensor pose, so footprint rays meet it exactly (as the beams themselves,
+    /// `refine_rolling_background`); else the placed `background` is exact.
+    env_world: Option<EnvWorld<'a>>,
+}
+
+struct EnvWorld<'a> {
+    positions: &'a [DVec3],
+    meshes: &'a [EnvDraw],
+    column_pose: &'a [DMat4],
+}
+
+/// Background triangle `t` (global in `background`, whose meshes are `env_meshes`) in the
+/// world, relative to `origin`, from the environment's f64 `positions`; and whether its back
+/// face is culled.
+fn world_triangle(background: &FrameGeometry, positions: &[DVec3], env_meshes: &[EnvDraw], t: u32, origin: DVec3) -> ([DVec3; 3], bool) {
+    let k = background.mesh_index_of_triangle(t);
+    let mesh = &background.meshes[k];
+    let first = env_meshes[k].first_vertex as u32;
+    let idx = &background.indices[3 * t as usize..3 * t as usize + 3];
+    ([0, 1, 2].map(|c| positions[(first + idx[c] - mesh.first_vertex) as usize] - origin), !mesh.double_sided)
 }
 
 /// |cos| of the angle between `dir` and the normal of triangle `t` (1 for a degenerate one),
@@ -1308,6 +1331,78 @@ impl SceneSurfaces<'_> {
 }
 
 impl SceneSurfaces<'_> {
+    /// The nearest range beam `b` sees over both layers (infinite: nothing).
+    fn nearest_range(&self, b: usize) -> f64 {
+        let human = match self.human_hits.triangle.get(b) {
+            Some(&t) if t != crate::backend::NO_TRIANGLE => self.human_hits.range_m[b] as f64,
+            _ => f64::INFINITY,
+        };
+        let background = match self.recorded {
+            Some(r) => r[b] as f64,
+            None => self.bg_hits.range_m.get(b).copied().unwrap_or(0.0) as f64,
+        };
+        human.min(if background > 0.0 { background } else { f64::INFINITY })
+    }
+
+    /// The common case of a footprint, cheaply: when every neighbour across the silhouette
+    /// sees something farther (or nothing) and every footprint ray meets the rendered triangle
+    /// the beam itself meets or one of its one-ring, the footprint lies on that surface
+    /// (nothing nearer can cover part of it, but a feature thinner than the beam spacing, as
+    /// for the candidates of `cast_footprint`). Fills `out[1..]` and returns true then.
+    fn footprint_on_own_surface(&self, b: usize, across: &[usize], dirs: &[DVec3; crate::sensor_model::FOOTPRINT_RAYS], out: &mut [Option<Surface>; crate::sensor_model::FOOTPRINT_RAYS]) -> bool {
+        let Some(own) = out[0].filter(|s| s.rendered) else { return false };
+        if across.iter().any(|&nb| self.nearest_range(nb) <= own.range_m) {
+            return false;
+        }
+        let person = own.instance > 0;
+        let (geom, t) = if person {
+            (self.humans, self.human_hits.triangle[b])
+        } else {
+            (self.background, self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE))
+        };
+        if t == crate::backend::NO_TRIANGLE || t >= geom.triangle_count() {
+            return false;
+        }
+        // The triangle in the beam's sensor frame (an environment under a moving sensor from
+        // the world, as in `cast_footprint`), and whether its back is culled.
+        let corners = |t: u32| -> ([DVec3; 3], bool) {
+            match (&self.env_world, person) {
+                (Some(e), false) => {
+                    let pose = e.column_pose[b % self.columns];
+                    let rot_t = DMat3::from_mat4(pose).transpose();
+                    let (tri, cull) = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate());
+                    (tri.map(|p| rot_t * p), cull)
+                }
+                _ => (geom.triangle_f64(t), !geom.mesh_of_triangle(t).double_sided),
+            }
+        };
+        let mut surface: Vec<(u32, [DVec3; 3], bool)> = Vec::with_capacity(16);
+        for c in std::iter::once(t).chain(geom.neighbours(t)) {
+            let (tri, cull) = corners(c);
+            surface.push((c, tri, cull));
+        }
+        let mut hits = [(0.0, 0u32); crate::sensor_model::FOOTPRINT_RAYS];
+        for (hit, &dir) in hits.iter_mut().zip(dirs).skip(1) {
+            let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return false };
+            let mut best = (f64::INFINITY, u32::MAX);
+            for &(c, ref tri, cull) in &surface {
+                if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
+                    if crate::backend::triangle::better(h, c, best.0, best.1) {
+                        best = (h, c);
+                    }
+                }
+            }
+            if best.1 == u32::MAX {
+                return false;
+            }
+            *hit = best;
+        }
+        for ((o, &dir), &(h, c)) in out.iter_mut().zip(dirs).zip(&hits).skip(1) {
+            *o = Some(if person { self.human_surface(c, h, dir) } else { self.background_surface(b, c, h, dir) });
+        }
+        true
+    }
+
     /// The background behind the people along `dir`, near beam `b`: the plane of the
     /// background triangle beam `b` meets (its footprint is millimetres across), or its
     /// recorded return.
@@ -1329,26 +1424,21 @@ impl SceneSurfaces<'_> {
     }
 }
 
-/// The footprint's people are searched among the triangles the beam and its left and right
-/// neighbours hit, and those triangles' one-rings (watertight test, as the casters): the
-/// footprint (a few millimetres to centimetres across) lies between those beams, so its people
-/// surface is there but for a limb thinner than the beam spacing that no neighbour hits.
+/// The footprint's surfaces are searched among the triangles the beam and its grid neighbours
+/// across the silhouette hit, and those triangles' one-rings (watertight test, as the
+/// casters): the footprint (a few millimetres to centimetres across) lies between those beams,
+/// so its surfaces are there but for a limb, a post or a table's edge thinner than the beam
+/// spacing that no neighbour hits. A footprint ray that meets none of the environment's candidates takes the plane of
+/// the background triangle the beam itself meets.
 impl FootprintScene for SceneSurfaces<'_> {
-    fn cast_footprint(&self, b: usize, dirs: &[DVec3; crate::sensor_model::FOOTPRINT_RAYS], out: &mut [Option<Surface>; crate::sensor_model::FOOTPRINT_RAYS]) {
-        let w = self.columns;
-        let (row, col) = (b / w, b % w);
-        let mut candidates: Vec<u32> = Vec::with_capacity(64);
-        // The beam and its left and right neighbours (6 mrad apart on an HDL-32E; the rows
-        // above and below are 23 mrad away, far beyond a footprint of a few mrad).
-        for c in [(col + w - 1) % w, col, (col + 1) % w] {
-            let t = self.human_hits.triangle[row * w + c];
-            if t != crate::backend::NO_TRIANGLE {
-                candidates.push(t);
-                candidates.extend(self.humans.neighbours(t));
-            }
+    fn cast_footprint(&self, b: usize, across: &[usize], dirs: &[DVec3; crate::sensor_model::FOOTPRINT_RAYS], out: &mut [Option<Surface>; crate::sensor_model::FOOTPRINT_RAYS]) {
+        let col = b % self.columns;
+        if self.footprint_on_own_surface(b, across, dirs, out) {
+            return;
         }
-        candidates.sort_unstable();
-        candidates.dedup();
+        // The beam and its neighbours across the silhouette.
+        let mut beams = [b; 5];
+        beams[1..1 + across.len().min(4)].copy_from_slice(&across[..across.len().min(4)]);
         // The pyramid through the origin that holds every footprint ray (widened by 1 %): a
         // triangle with all three corners outside one of its faces meets none of the rays.
         let d = dirs[0];
@@ -1369,25 +1459,66 @@ impl FootprintScene for SceneSurfaces<'_> {
             };
             beyond(tri[0]) & beyond(tri[1]) & beyond(tri[2]) != 0
         };
-        let triangles: Vec<(u32, [DVec3; 3], bool)> = candidates
-            .iter()
-            .map(|&t| (t, self.humans.triangle_f64(t)))
-            .filter(|(_, tri)| !outside(tri))
-            .map(|(t, tri)| (t, tri, !self.humans.mesh_of_triangle(t).double_sided))
-            .collect();
-        for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
+        // The candidates of one layer: the triangles the beams hit and their one-rings, those
+        // the pyramid may hold, each as `corners` gives it in the sensor frame.
+        let candidates = |geom: &FrameGeometry, hits: &BeamHits, corners: &dyn Fn(u32) -> [DVec3; 3]| -> Vec<(u32, [DVec3; 3], bool)> {
+            let mut ts: Vec<u32> = Vec::with_capacity(64);
+            for &nb in &beams {
+                let t = hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+                if t != crate::backend::NO_TRIANGLE && t < geom.triangle_count() {
+                    ts.push(t);
+                    ts.extend(geom.neighbours(t));
+                }
+            }
+            ts.sort_unstable();
+            ts.dedup();
+            ts.iter()
+                .map(|&t| (t, corners(t)))
+                .filter(|(_, tri)| !outside(tri))
+                .map(|(t, tri)| (t, tri, !geom.mesh_of_triangle(t).double_sided))
+                .collect()
+        };
+        let people = candidates(self.humans, self.human_hits, &|t| self.humans.triangle_f64(t));
+        // A rendered environment's candidates. Under a moving sensor they are taken from the
+        // world into the sensor frame of the beam's column (the placed triangles are
+        // interpolated between their vertices' times, centimetres off across a wall).
+        // Where the beam and its neighbours meet one triangle and its one-ring, the surface is
+        // continuous there and the beam's own plane holds the footprint (the fallback below).
+        let bg_triangle = |nb: usize| self.bg_hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+        let own = bg_triangle(b);
+        let continuous = own != crate::backend::NO_TRIANGLE
+            && own < self.background.triangle_count()
+            && beams.iter().all(|&nb| {
+                let t = bg_triangle(nb);
+                t == own || self.background.neighbours(own).any(|n| n == t)
+            });
+        let env = match (&self.env_world, self.recorded) {
+            (_, Some(_)) => Vec::new(),
+            _ if continuous => Vec::new(),
+            (Some(e), None) => {
+                let pose = e.column_pose[col];
+                let (origin, rot_t) = (pose.w_axis.truncate(), DMat3::from_mat4(pose).transpose());
+                let corners = |t: u32| world_triangle(self.background, e.positions, e.meshes, t, origin).0.map(|p| rot_t * p);
+                candidates(self.background, self.bg_hits, &corners)
+            }
+            (None, None) => candidates(self.background, self.bg_hits, &|t| self.background.triangle_f64(t)),
+        };
+        let nearest = |triangles: &[(u32, [DVec3; 3], bool)], dir: DVec3| -> Option<(f64, u32)> {
+            let ray = crate::backend::triangle::RayPre::new(dir)?;
             let mut best = (f64::INFINITY, u32::MAX);
-            if let Some(ray) = crate::backend::triangle::RayPre::new(dir) {
-                for &(t, ref tri, cull) in &triangles {
-                    if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
-                        if crate::backend::triangle::better(h, t, best.0, best.1) {
-                            best = (h, t);
-                        }
+            for &(t, ref tri, cull) in triangles {
+                if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
+                    if crate::backend::triangle::better(h, t, best.0, best.1) {
+                        best = (h, t);
                     }
                 }
             }
-            let human = (best.1 != u32::MAX).then_some(best);
-            *o = match (human, self.background_near(b, dir)) {
+            (best.1 != u32::MAX).then_some(best)
+        };
+        for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
+            let human = nearest(&people, dir);
+            let background = nearest(&env, dir).or_else(|| self.background_near(b, dir));
+            *o = match (human, background) {
                 (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
                 (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
                 _ => None,

@@ -6,7 +6,8 @@
 //! - **Intensity** `I = scale * reflectance * cos(incidence)` (calibrated, no range falloff,
 //!   like Velodyne's calibrated reflectivity and KITTI's remission); written always.
 //! - **Beam divergence**: a beam near a silhouette (a neighbour on the grid sees another
-//!   surface or nothing) is cast as [`FOOTPRINT_RAYS`] rays over its elliptical footprint;
+//!   person or nothing, or lies across a depth step of the environment: [`across_silhouette`])
+//!   is cast as [`FOOTPRINT_RAYS`] rays over its elliptical footprint;
 //!   hits closer together than `mixed_return_m` form one return at their power-weighted range
 //!   (a mixed pixel), and of several such returns the strongest is kept (Velodyne's default
 //!   return mode). Its power and intensity are the footprint's share.
@@ -63,9 +64,11 @@ impl Surface {
 }
 
 /// What the sensor model needs to cast a beam's footprint: the nearest surface along each of
-/// `dirs[1..]` (`dirs[0]` is the beam itself, whose surface is known) into `out[1..]`.
+/// `dirs[1..]` into `out[1..]`; `dirs[0]` is the beam itself, whose surface `out[0]` holds.
+/// `across` are the beam's grid neighbours that see another surface (the silhouette lies
+/// between them and the beam).
 pub trait FootprintScene: Sync {
-    fn cast_footprint(&self, beam: usize, dirs: &[DVec3; FOOTPRINT_RAYS], out: &mut [Option<Surface>; FOOTPRINT_RAYS]);
+    fn cast_footprint(&self, beam: usize, across: &[usize], dirs: &[DVec3; FOOTPRINT_RAYS], out: &mut [Option<Surface>; FOOTPRINT_RAYS]);
 }
 
 /// The sensor model's draws for one sequence: per-laser biases and each person's
@@ -184,6 +187,29 @@ pub fn apply(f: &FrameIn, scene: &dyn FootprintScene, out: &mut Vec<BeamOut>) {
     // Received power of reflectance 0.1 head-on at the detection range: the 50 % point.
     let p50 = 0.1 / (cfg.detection_range_m * cfg.detection_range_m);
     let [g0, g1] = [cfg.grazing_deg[0].to_radians().cos(), cfg.grazing_deg[1].to_radians().cos()];
+    // Per beam, whether a silhouette lies between it and its right (bit 0) and lower (bit 1)
+    // neighbour: each pair once (the relation is symmetric).
+    let pairs: Vec<u8> = if divergence {
+        let rows = n / w;
+        (0..n)
+            .into_par_iter()
+            .with_min_len(w)
+            .map(|b| {
+                let (row, col) = (b / w, b % w);
+                let right = across_silhouette(f, b, row * w + (col + 1) % w) as u8;
+                let below = (row + 1 < rows && across_silhouette(f, b, b + w)) as u8;
+                right | below << 1
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    // The footprints: per row at azimuth 0, per column the azimuth's sine and cosine.
+    let (ahead, sin_cos): (Vec<[DVec3; FOOTPRINT_RAYS]>, Vec<(f64, f64)>) = if divergence {
+        (f.elevation_rad.iter().map(|&el| footprint_ahead(el, cfg.divergence_mrad)).collect(), f.azimuth_rad.iter().map(|a| a.sin_cos()).collect())
+    } else {
+        (Vec::new(), Vec::new())
+    };
     out.par_chunks_mut(w).enumerate().for_each(|(row, outs)| {
         let mut rng = stream(f.seed, f.sequence as u64, f.frame as u64);
         rng.set_stream(row as u64);
@@ -193,8 +219,9 @@ pub fn apply(f: &FrameIn, scene: &dyn FootprintScene, out: &mut Vec<BeamOut>) {
             let u_drop: f64 = rng.random::<f64>();
             let z = gaussian(&mut rng);
             let clean = f.clean[b];
-            let edge = divergence && is_edge(f.clean, b, w);
-            let ret = if edge { footprint_return(f, scene, b) } else { clean.map(|s| (s, s.reflectance * s.cos_incidence)) };
+            let (across, count) = if divergence { edge_neighbours(&pairs, b, w) } else { ([0; 4], 0) };
+            let edge = count > 0;
+            let ret = if edge { footprint_return(f, scene, b, &across[..count], &ahead[row], sin_cos[col]) } else { clean.map(|s| (s, s.reflectance * s.cos_incidence)) };
             let Some((s, share)) = ret else { continue };
             if !s.rendered || !on {
                 let range = s.range_m;
@@ -228,48 +255,102 @@ pub fn apply(f: &FrameIn, scene: &dyn FootprintScene, out: &mut Vec<BeamOut>) {
     });
 }
 
-/// Whether beam `b`'s footprint may hold a person's silhouette: its left or right neighbour
-/// (columns wrap) sees another instance, or nothing where this beam sees a person (or the
-/// reverse). Rows are a few times farther apart than columns (HDL-32E: 23 against 6 mrad)
-/// while the footprint is half as tall as wide, so a silhouette between rows (a shoulder, the
-/// top of a head) falls inside a footprint a few times in a hundred; those, and silhouettes
-/// within the environment (a pillar before a wall), stay knife edges.
-fn is_edge(clean: &[Option<Surface>], b: usize, w: usize) -> bool {
+/// The grid neighbours of beam `b` (left and right, columns wrapping; above and below) across
+/// a silhouette from it ([`across_silhouette`], from `pairs`), and how many there are (0: not
+/// an edge).
+fn edge_neighbours(pairs: &[u8], b: usize, w: usize) -> ([usize; 4], usize) {
     let (row, col) = (b / w, b % w);
-    let here = clean[b];
-    let neighbours = [row * w + (col + w - 1) % w, row * w + (col + 1) % w];
-    neighbours.iter().any(|&nb| match (here, clean[nb]) {
+    let left = row * w + (col + w - 1) % w;
+    let mut across = [0; 4];
+    let mut count = 0;
+    let mut add = |yes: bool, nb: usize| {
+        if yes {
+            across[count] = nb;
+            count += 1;
+        }
+    };
+    add(pairs[left] & 1 != 0, left);
+    add(pairs[b] & 1 != 0, row * w + (col + 1) % w);
+    add(row > 0 && pairs[b - w] & 2 != 0, b.wrapping_sub(w));
+    add(pairs[b] & 2 != 0, b + w);
+    (across, count)
+}
+
+/// Whether a silhouette may lie between beams `b` and `nb` (grid neighbours), so that either's
+/// footprint may hold it: one sees another person than the other, or nothing where the other
+/// sees a person; or, in a rendered environment, they lie across a depth step (a pillar before
+/// a wall, a table's edge over the floor) or one sees nothing. A step is told from a fold (a
+/// floor meeting a wall, a box's corner: continuous, so a footprint's rays stay within a few
+/// centimetres of its centre's range) by the two surfaces' planes: over the directions between
+/// the two beams a fold's planes cross, a step's stay apart, here by more than
+/// `mixed_return_m` at both beams. A recorded background carries its own edges. Symmetric.
+fn across_silhouette(f: &FrameIn, b: usize, nb: usize) -> bool {
+    match (f.clean[b], f.clean[nb]) {
         (None, None) => false,
-        (Some(a), Some(o)) => a.instance != o.instance,
-        (Some(a), None) | (None, Some(a)) => a.instance > 0,
-    })
+        (Some(a), Some(o)) if a.instance != o.instance => true,
+        (Some(a), Some(o)) => a.instance == 0 && a.rendered && o.rendered && is_step(&a, f.dirs[b], &o, f.dirs[nb], f.cfg.mixed_return_m),
+        (Some(a), None) | (None, Some(a)) => a.instance > 0 || a.rendered,
+    }
+}
+
+/// Whether surfaces `a` (met along `da`) and `o` (along `db`) are a depth step rather than
+/// one continuous surface (see [`across_silhouette`]): `a`'s plane against `o`'s at both directions,
+/// with one sign and farther apart than `mixed_m`. A plane a direction does not meet is
+/// infinitely far; a surface without a normal is taken at its own range.
+fn is_step(a: &Surface, da: DVec3, o: &Surface, db: DVec3, mixed_m: f64) -> bool {
+    let along = |s: &Surface, d_own: DVec3, d: DVec3| -> f64 {
+        if s.normal == glam::Vec3::ZERO {
+            return s.range_m;
+        }
+        let n = s.normal.as_dvec3();
+        let t = n.dot(d_own * s.range_m) / n.dot(d);
+        if t > 0.0 && t.is_finite() { t } else { f64::INFINITY }
+    };
+    let at_a = a.range_m - along(o, db, da);
+    let at_b = along(a, da, db) - o.range_m;
+    at_a.signum() == at_b.signum() && at_a.abs().min(at_b.abs()) > mixed_m
 }
 
 /// The footprint ray directions of a beam at (azimuth, elevation): the centre first.
 pub fn footprint_dirs(az: f64, el: f64, divergence_mrad: [f64; 2]) -> [DVec3; FOOTPRINT_RAYS] {
+    turned(&footprint_ahead(el, divergence_mrad), az.sin_cos())
+}
+
+/// The footprint ray directions of a beam at elevation `el` and azimuth 0: the centre first.
+fn footprint_ahead(el: f64, divergence_mrad: [f64; 2]) -> [DVec3; FOOTPRINT_RAYS] {
     let (ha, he) = (0.5e-3 * divergence_mrad[0], 0.5e-3 * divergence_mrad[1]);
     let dir = |a: f64, e: f64| DVec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin());
-    let mut d = [dir(az, el); FOOTPRINT_RAYS];
+    let mut d = [dir(0.0, el); FOOTPRINT_RAYS];
     for (k, v) in d.iter_mut().enumerate().skip(1) {
         let phi = std::f64::consts::TAU * (k - 1) as f64 / (FOOTPRINT_RAYS - 1) as f64;
         // Horizontal divergence is an angle in the cone's own plane: divided by cos(el) in
         // azimuth.
-        *v = dir(az + RING * ha * phi.cos() / el.cos(), el + RING * he * phi.sin());
+        *v = dir(RING * ha * phi.cos() / el.cos(), el + RING * he * phi.sin());
     }
     d
 }
 
+/// `d` turned about the vertical by the azimuth whose (sine, cosine) is `sin_cos`.
+fn turned(d: &[DVec3; FOOTPRINT_RAYS], (s, c): (f64, f64)) -> [DVec3; FOOTPRINT_RAYS] {
+    d.map(|v| DVec3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z))
+}
+
 /// The return of beam `b` over its footprint: the surfaces its rays meet grouped by range
 /// (closer than `mixed_return_m` = one return), the strongest group kept; returns the group's
-/// power-weighted surface and its share `sum(reflectance * cos) / rays`.
-fn footprint_return(f: &FrameIn, scene: &dyn FootprintScene, b: usize) -> Option<(Surface, f32)> {
-    let (row, col) = (b / f.columns, b % f.columns);
-    let dirs = footprint_dirs(f.azimuth_rad[col], f.elevation_rad[row], f.cfg.divergence_mrad);
+/// power-weighted surface and its share `sum(reflectance * cos) / rays`. `ahead` is the
+/// footprint of the beam's row at azimuth 0 and `sin_cos` its column's azimuth.
+fn footprint_return(f: &FrameIn, scene: &dyn FootprintScene, b: usize, across: &[usize], ahead: &[DVec3; FOOTPRINT_RAYS], sin_cos: (f64, f64)) -> Option<(Surface, f32)> {
+    let dirs = turned(ahead, sin_cos);
     let mut hits: [Option<Surface>; FOOTPRINT_RAYS] = [None; FOOTPRINT_RAYS];
-    scene.cast_footprint(b, &dirs, &mut hits);
     hits[0] = f.clean[b];
-    let mut hits: Vec<Surface> = hits.into_iter().flatten().collect();
-    combine(&mut hits, f.cfg.mixed_return_m)
+    scene.cast_footprint(b, across, &dirs, &mut hits);
+    let mut met = [hits[0].unwrap_or(Surface { range_m: 0.0, instance: 0, reflectance: 0.0, cos_incidence: 0.0, rendered: false, normal: glam::Vec3::ZERO }); FOOTPRINT_RAYS];
+    let mut count = 0;
+    for h in hits.into_iter().flatten() {
+        met[count] = h;
+        count += 1;
+    }
+    combine(&mut met[..count], f.cfg.mixed_return_m)
 }
 
 /// Groups footprint hits by range and keeps the strongest group (see [`footprint_return`]).

@@ -24,7 +24,7 @@ impl Edge {
 }
 
 impl FootprintScene for Edge {
-    fn cast_footprint(&self, _beam: usize, dirs: &[DVec3; FOOTPRINT_RAYS], out: &mut [Option<Surface>; FOOTPRINT_RAYS]) {
+    fn cast_footprint(&self, _beam: usize, _across: &[usize], dirs: &[DVec3; FOOTPRINT_RAYS], out: &mut [Option<Surface>; FOOTPRINT_RAYS]) {
         for (o, d) in out.iter_mut().zip(dirs).skip(1) {
             *o = Some(self.surface(*d));
         }
@@ -201,4 +201,144 @@ fn rolling_shutter_default_matches_posing_per_column() {
     assert!(report.agreeing as f64 >= 0.99 * report.human_beams as f64, "{report}");
     assert!(report.human_error_m.median <= 1e-3 && report.human_error_m.p99 <= 5e-3, "{report}");
     assert!(report.background_error_m.p99 <= 1e-4, "{report}");
+}
+
+/// Silhouettes between rows and depth steps inside a rendered environment are footprint
+/// edges too; a fold (a floor meeting a wall, continuous) and one plane seen at a grazing angle
+/// (neighbouring rows metres apart in range) are not. Closed form: the mock scenes below, each
+/// with the beam of interest at row 8, column 300.
+#[test]
+fn footprint_edges_between_rows_and_inside_the_environment() {
+    let f = frame();
+    let cfg = SensorModelConfig { range_noise_m: 0.0, laser_bias_m: 0.0, dropout_rate: 0.0, ..SensorModelConfig::on() };
+    let draws = SequenceDraws::draw(&cfg, 1, 0, f.sensor.rows(), 1);
+    let w = f.sensor.columns;
+    // The column straight ahead (+x), at elevation 0.
+    let col = (0..w).min_by(|&a, &c| f.az[a].abs().total_cmp(&f.az[c].abs())).unwrap();
+    let b = 8 * w + col;
+    let plane = |range_m: f64, instance: u16, normal: glam::Vec3| Surface { range_m, instance, reflectance: 0.5, cos_incidence: 1.0, rendered: true, normal };
+    let flagged = |clean: &[Option<Surface>]| run(&f, &cfg, clean, &draws, &Edge { edge_az: 10.0, near_m: 1.0, far_m: 1.0 }, 0)[b].from_footprint;
+    // A wall at 10 m facing the sensor everywhere (normal along x, on the plane x = 10).
+    let wall = |d: &DVec3| plane(10.0 / d.x.abs().max(1e-3), 0, glam::Vec3::X);
+    let base: Vec<Option<Surface>> = f.dirs.iter().map(|d| Some(wall(d))).collect();
+    assert!(!flagged(&base), "one plane is no edge");
+    // The row below sees a person: a silhouette between rows.
+    let mut between = base.clone();
+    between[b + w] = Some(plane(5.0, 1, glam::Vec3::X));
+    assert!(flagged(&between), "a person in the next row");
+    // The row below sees a pillar 2 m before the wall (parallel faces): a depth step.
+    let mut step = base.clone();
+    step[b + w] = Some(plane(8.0 / f.dirs[b + w].x, 0, glam::Vec3::X));
+    assert!(flagged(&step), "a pillar in the next row");
+    // Only 0.3 m before the wall: within one mixed return, no step.
+    let mut shallow = base.clone();
+    shallow[b + w] = Some(plane(9.7 / f.dirs[b + w].x, 0, glam::Vec3::X));
+    assert!(!flagged(&shallow), "a step shallower than mixed_return_m");
+    // The row below sees a floor 0.2 m below the beam meeting the wall (a concave corner): a
+    // fold, though that beam's point is 1.4 m before the wall's plane.
+    let mut fold = base.clone();
+    let d = f.dirs[b + w];
+    fold[b + w] = Some(plane(0.2 / -d.z, 0, glam::Vec3::Z));
+    assert!(fold[b + w].unwrap().range_m < 9.0 && f.dirs[b].z.abs() < 1e-9, "the floor is met before the wall");
+    assert!(!flagged(&fold), "a fold");
+    // A floor seen at a grazing angle, whole: rows far apart in range, one plane.
+    let floor: Vec<Option<Surface>> = f.dirs.iter().map(|d| (d.z < -1e-3).then(|| plane(-1.7 / d.z, 0, glam::Vec3::Z))).collect();
+    // A beam whose neighbours above and below also meet the floor, the one below metres nearer.
+    let low = (1..f.sensor.rows() - 1).find(|&r| {
+        let (up, a, o) = (floor[(r - 1) * w + col], floor[r * w + col], floor[(r + 1) * w + col]);
+        up.is_some() && a.zip(o).is_some_and(|(a, o)| (a.range_m - o.range_m).abs() > 1.0)
+    });
+    let r = low.expect("a grazing row pair");
+    let grazing = run(&f, &cfg, &floor, &draws, &Edge { edge_az: 10.0, near_m: 1.0, far_m: 1.0 }, 0);
+    assert!(!grazing[r * w + col].from_footprint, "a grazing floor, row {r}");
+    // Nothing beside an environment's surface (the top of a wall against the sky).
+    let mut open = base.clone();
+    open[b - w] = None;
+    assert!(flagged(&open), "nothing in the next row");
+    // A recorded background carries its own edges.
+    let recorded: Vec<Option<Surface>> = step.iter().map(|s| s.map(|s| Surface { rendered: false, ..s })).collect();
+    assert!(!flagged(&recorded), "recorded beams are never re-modelled");
+}
+
+/// Depth steps in the hall (tables, a pillar before a wall): every beam whose footprint holds
+/// surfaces farther apart than `mixed_return_m` returns what the whole footprint returns
+/// against every triangle of the environment, with the sensor moving and turning over a
+/// rolling sweep (each column's rays from its own pose). The reference casts each column's
+/// 7 x 32 footprint rays through a BVH of the environment placed at that column's pose.
+#[test]
+fn environment_steps_return_their_whole_footprint() {
+    use pedscan::backend::raycast::cast_frame;
+    use pedscan::geometry::FrameGeometry;
+    use pedscan::sensor_model::footprint_dirs;
+    let mut cfg = Config::default();
+    cfg.render.backend = BackendChoice::Raycast;
+    cfg.humans.count = [0, 0];
+    cfg.frames = 1;
+    cfg.scene.sensor_speed_mps = [1.0, 1.0];
+    cfg.scene.sensor_yaw_rate_rps = [0.2, 0.2];
+    cfg.sensor_model = SensorModelConfig {
+        range_noise_m: 0.0,
+        laser_bias_m: 0.0,
+        dropout_rate: 0.0,
+        detection_softness: 0.0,
+        detection_range_m: 1e4,
+        grazing_deg: [90.0, 90.0],
+        ..SensorModelConfig::on()
+    };
+    let env = pedscan::scene::Environment::load(&cfg.scene.background).expect("the bundled hall");
+    let mut gen = pedscan::generator::Generator::new(cfg.clone()).expect("generator");
+    let plan = gen.plan(0).expect("plan");
+    let mut out = pedscan::output::FrameOutput::default();
+    gen.frame(&plan, 0, &mut out).expect("frame");
+    let sensor = gen.sensor().clone();
+    let (rows, w) = (sensor.rows(), sensor.columns);
+    let el: Vec<f64> = sensor.elevation_deg.iter().map(|e| e.to_radians()).collect();
+    let mut steps = 0;
+    let mut agree = 0;
+    let mut worst = (0.0f64, 0usize);
+    for c in 0..w {
+        // The environment in this column's sensor frame.
+        let pose = plan.sensor.pose(out.column_time_s[c]).inverse();
+        let verts: Vec<[f32; 3]> = env.positions.iter().map(|p| pose.transform_point3(*p).as_vec3().to_array()).collect();
+        let mut geom = FrameGeometry::default();
+        for m in &env.meshes {
+            geom.push_mesh(&verts, &m.indices, 0, m.double_sided);
+        }
+        let dirs: Vec<DVec3> = (0..rows).flat_map(|r| footprint_dirs(sensor.azimuth_rad(c), el[r], cfg.sensor_model.divergence_mrad)).collect();
+        let hits = cast_frame(&geom, &dirs, sensor.max_range_m);
+        for r in 0..rows {
+            let mut surfaces: Vec<Surface> = (0..FOOTPRINT_RAYS)
+                .filter_map(|k| {
+                    let (h, dir) = (hits[r * FOOTPRINT_RAYS + k], dirs[r * FOOTPRINT_RAYS + k]);
+                    h.is_hit().then(|| {
+                        let tri = geom.triangle_f64(h.triangle);
+                        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
+                        let reflectance = env.meshes[geom.mesh_index_of_triangle(h.triangle)].reflectance;
+                        Surface { range_m: h.range_m, instance: 0, reflectance, cos_incidence: n.dot(dir).abs() as f32, rendered: true, normal: n.as_vec3() }
+                    })
+                })
+                .collect();
+            let mut sorted: Vec<f64> = surfaces.iter().map(|s| s.range_m).collect();
+            sorted.sort_by(f64::total_cmp);
+            let step = sorted.len() < FOOTPRINT_RAYS && !sorted.is_empty() || sorted.windows(2).any(|p| p[1] - p[0] > cfg.sensor_model.mixed_return_m);
+            if !step || !hits[r * FOOTPRINT_RAYS].is_hit() {
+                continue;
+            }
+            steps += 1;
+            let (want, _) = combine(&mut surfaces, cfg.sensor_model.mixed_return_m).expect("a return");
+            let got = out.range[r * w + c] as f64;
+            let err = (got - want.range_m).abs();
+            if err < 2e-3 {
+                agree += 1;
+            } else {
+                eprintln!("beam {} (row {r}, column {c}): got {got:.3}, clean {:.3}, want {:.3}, rays {:?}", r * w + c, out.clean_range[r * w + c], want.range_m, sorted);
+                if err > worst.0 {
+                    worst = (err, r * w + c);
+                }
+            }
+        }
+    }
+    eprintln!("{steps} footprints over a depth step, {agree} agree; worst {:.3} m at beam {}", worst.0, worst.1);
+    assert!(steps >= 50, "the hall must have depth steps in view: {steps}");
+    assert!(agree as f64 >= 0.95 * steps as f64, "{agree} of {steps} agree; worst {:.3} m at beam {}", worst.0, worst.1);
 }
