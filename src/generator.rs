@@ -532,6 +532,7 @@ impl Generator {
     /// The sweep of frame `k` of a plan starting at `t_s`: one revolution of the sensor, or
     /// under a recording the recording's own frame step (its sensor turned once per frame).
     fn sweep(&self, plan: &SequencePlan, k: usize, t_s: f64, rolling: bool) -> Sweep {
+        let w = self.sensor.columns;
         let t = &plan.times_s;
         let period = match (&self.recording, t.len()) {
             (Some(_), n) if n >= 2 => {
@@ -540,14 +541,14 @@ impl Generator {
             }
             _ => 1.0 / self.sensor.rate_hz,
         };
-        Sweep { t0_s: t_s, period_s: if rolling { period } else { 0.0 }, columns: self.sensor.columns }
+        Sweep::uniform(t_s, if rolling { period } else { 0.0 }, w)
     }
 
     fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64, rolling: bool) -> Result<()> {
         let sensor_from_world = state.world_from_sensor.inverse();
         let sweep = self.sweep(plan, state.frame, state.t_s, rolling);
         let s = &mut self.scratch;
-        s.sweep = Some(sweep);
+        s.sweep = Some(sweep.clone());
         // The sensor's motion per column (one entry when every column is the frame's instant).
         s.column_motion.clear();
         let motion_at = |t: f64| ColumnMotion {
@@ -883,7 +884,7 @@ impl Generator {
                 seen[geom.mesh_index_of_triangle(t)] = true;
             }
         }
-        let rolling = s.sweep.is_some_and(|w| w.rolls());
+        let rolling = s.sweep.as_ref().is_some_and(|w| w.rolls());
         let person_time = &s.person_time;
         let model_to_body = MODEL_TO_BODY.as_dmat4();
         // Per person seen: (placed joints, sensor from model) at t - dt and t + dt.
@@ -981,7 +982,8 @@ impl Generator {
             let s = &self.scratch;
             derive(&self.post_params(state), &s.human_hits, &s.humans, out);
         }
-        let sweep = self.scratch.sweep.unwrap_or(Sweep { t0_s: state.t_s, period_s: 0.0, columns: self.sensor.columns });
+        let still = || Sweep::uniform(state.t_s, 0.0, self.sensor.columns);
+        let sweep = self.scratch.sweep.as_ref().map_or_else(still, Sweep::clone);
         out.column_time_s.clear();
         out.column_time_s.extend((0..self.sensor.columns).map(|c| sweep.column_time(c)));
         out.time_s = state.t_s;
