@@ -325,6 +325,9 @@ impl Generator {
         };
         if let Some(rec) = &recording {
             eprintln!("background {}: {}", bg.display(), rec.description);
+            if let Some(w) = &rec.sweep_warning {
+                eprintln!("warning: {}: {w}", bg.display());
+            }
             if rec.poses.is_none() {
                 eprintln!("warning: {}: no poses given (--poses), so the sensor is taken as static; background velocities are 0", bg.display());
             }
@@ -530,9 +533,18 @@ impl Generator {
     }
 
     /// The sweep of frame `k` of a plan starting at `t_s`: one revolution of the sensor, or
-    /// under a recording the recording's own frame step (its sensor turned once per frame).
+    /// under a recording its own: the capture's column times where it has them (a pcap,
+    /// [`Recording::column_offsets`]), else uniform over the recording's frame step (its
+    /// sensor turned once per frame).
     fn sweep(&self, plan: &SequencePlan, k: usize, t_s: f64, rolling: bool) -> Sweep {
         let w = self.sensor.columns;
+        let own = match (&self.recording, plan.recording_start) {
+            (Some(rec), Some(start)) if rolling => rec.column_offsets(start + k).filter(|o| o.len() == w + 1),
+            _ => None,
+        };
+        if let Some(offsets) = own {
+            return Sweep::recorded(t_s, offsets.iter().map(|o| t_s + o).collect());
+        }
         let t = &plan.times_s;
         let period = match (&self.recording, t.len()) {
             (Some(_), n) if n >= 2 => {
