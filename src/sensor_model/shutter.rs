@@ -133,39 +133,38 @@ impl Sweep {
         let angle = |q: glam::Vec3| atan2_fast(q.y * cos_r - q.x * sin_r, q.x * cos_r + q.y * sin_r);
         // The time (as a fraction of the span) of the column at `angle` from the centre's: a
         // constant rate per radian, or a recorded sweep's own table (its rate may change
-        // within a person's span).
-        let columns_per_rad = self.columns as f64 / std::f64::consts::TAU;
-        let recorded = self.boundaries.is_some();
-        let lambda_of = |angle: f32| -> f32 {
-            if recorded {
-                ((self.time_at(u_ref - angle as f64 * columns_per_rad) - ta) / span) as f32
-            } else {
-                lambda_ref - per_rad * angle
+        // within a person's span), taken at the whole column coordinates from where the span
+        // starts to where it ends (beyond, the fraction is clamped anyway) and linear between.
+        let columns_per_rad = (self.columns as f64 / std::f64::consts::TAU) as f32;
+        let table: Option<(f32, Vec<f32>)> = self.boundaries.as_ref().map(|_| {
+            let w = self.columns as f64;
+            let (mut lo, mut hi) = (u_ref.floor(), u_ref.ceil() + 1.0);
+            while self.time_at(lo) > ta && lo > u_ref - w {
+                lo -= 1.0;
             }
-        };
-        if n == 1 {
-            // Two poses (most people): straight-line code.
-            let b = keys[0].as_ref();
-            assert_eq!(a.len(), b.len(), "both poses hold every vertex");
-            for (pa, pb) in a.iter_mut().zip(b) {
-                let (qa, qb) = (glam::Vec3::from(*pa), glam::Vec3::from(*pb));
-                let lambda = lambda_of(angle(qa.lerp(qb, lambda_ref))).clamp(0.0, 1.0);
-                *pa = qa.lerp(qb, lambda).to_array();
+            while self.time_at(hi) < tb && hi < u_ref + w {
+                hi += 1.0;
             }
-            return;
-        }
-        let keys: Vec<&[[f32; 3]]> = keys.iter().map(|k| k.as_ref()).collect();
-        assert!(keys.iter().all(|k| k.len() == a.len()), "every key holds every vertex");
-        let at = |v: usize, first: glam::Vec3, lambda: f32| -> glam::Vec3 {
-            let x = (lambda.clamp(0.0, 1.0) * n as f32).min(n as f32 - 1e-4);
-            let j = x as usize;
-            let from = if j == 0 { first } else { glam::Vec3::from(keys[j - 1][v]) };
-            from.lerp(glam::Vec3::from(keys[j][v]), x - j as f32)
-        };
-        for (v, pa) in a.iter_mut().enumerate() {
-            let first = glam::Vec3::from(*pa);
-            let lambda = lambda_of(angle(at(v, first, lambda_ref)));
-            *pa = at(v, first, lambda).to_array();
+            let lambdas = (0..=(hi - lo) as usize).map(|i| ((self.time_at(lo + i as f64) - ta) / span) as f32).collect();
+            ((u_ref - lo) as f32, lambdas)
+        });
+        match table {
+            None => warp_with(a, keys, lambda_ref, angle, |x| lambda_ref - per_rad * x),
+            Some((origin, lambdas)) => {
+                let last = lambdas.len() - 1;
+                let lambda_of = |angle: f32| -> f32 {
+                    let x = origin - angle * columns_per_rad;
+                    if !(x > 0.0) {
+                        return lambdas[0];
+                    }
+                    let i = x as usize;
+                    if i >= last {
+                        return lambdas[last];
+                    }
+                    lambdas[i] + (lambdas[i + 1] - lambdas[i]) * (x - i as f32)
+                };
+                warp_with(a, keys, lambda_ref, angle, lambda_of)
+            }
         }
     }
 
@@ -205,6 +204,45 @@ impl Sweep {
                 q.as_vec3().to_array()
             })
             .collect_into_vec(out);
+    }
+}
+
+/// [`Sweep::warp_keys`]'s loop over the vertices, for one way of finding a vertex's time:
+/// `lambda_of(angle)` is the time, as a fraction of the span, of the column at `angle` from
+/// the centre's direction (a separate instance per way, so the uniform sweep's loop stays as
+/// tight as it was).
+#[inline]
+fn warp_with<K: AsRef<[[f32; 3]]>>(
+    a: &mut [[f32; 3]],
+    keys: &[K],
+    lambda_ref: f32,
+    angle: impl Fn(glam::Vec3) -> f32,
+    lambda_of: impl Fn(f32) -> f32,
+) {
+    let n = keys.len();
+    if n == 1 {
+        // Two poses (most people): straight-line code.
+        let b = keys[0].as_ref();
+        assert_eq!(a.len(), b.len(), "both poses hold every vertex");
+        for (pa, pb) in a.iter_mut().zip(b) {
+            let (qa, qb) = (glam::Vec3::from(*pa), glam::Vec3::from(*pb));
+            let lambda = lambda_of(angle(qa.lerp(qb, lambda_ref))).clamp(0.0, 1.0);
+            *pa = qa.lerp(qb, lambda).to_array();
+        }
+        return;
+    }
+    let keys: Vec<&[[f32; 3]]> = keys.iter().map(|k| k.as_ref()).collect();
+    assert!(keys.iter().all(|k| k.len() == a.len()), "every key holds every vertex");
+    let at = |v: usize, first: glam::Vec3, lambda: f32| -> glam::Vec3 {
+        let x = (lambda.clamp(0.0, 1.0) * n as f32).min(n as f32 - 1e-4);
+        let j = x as usize;
+        let from = if j == 0 { first } else { glam::Vec3::from(keys[j - 1][v]) };
+        from.lerp(glam::Vec3::from(keys[j][v]), x - j as f32)
+    };
+    for (v, pa) in a.iter_mut().enumerate() {
+        let first = glam::Vec3::from(*pa);
+        let lambda = lambda_of(angle(at(v, first, lambda_ref)));
+        *pa = at(v, first, lambda).to_array();
     }
 }
 
