@@ -572,4 +572,32 @@ mod tests {
         let still: Vec<[f64; 2]> = firings(|_| 1.0);
         assert!(boundary_times(&still, 1024).is_err());
     }
+
+    /// Hostile firings (any azimuths, times that wander back and forth, repeats, huge and tiny
+    /// values) never panic, and what is accepted is finite and strictly increasing.
+    #[test]
+    fn boundary_times_never_panic_and_accept_only_increasing_times() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut accepted = 0;
+        for case in 0..2000 {
+            let n = (next() * 300.0) as usize;
+            let scale = [1e-9, 1e-3, 1.0, 1e9][case % 4];
+            let f: Vec<[f64; 2]> = (0..n)
+                .map(|i| {
+                    let a = if case % 3 == 0 { next() } else { (i as f64 / n as f64 + 0.01 * (next() - 0.5)).rem_euclid(1.0) };
+                    let t = if case % 5 == 0 { next() * scale } else { (i as f64 + 3.0 * (next() - 0.5)) * scale * 1e-3 };
+                    [a, t]
+                })
+                .collect();
+            if let Ok(b) = boundary_times(&f, 64 + case % 7) {
+                accepted += 1;
+                assert!(b.iter().all(|t| t.is_finite()) && b.windows(2).all(|w| w[1] > w[0]), "case {case}");
+            }
+        }
+        assert!(accepted > 100, "{accepted}");
+    }
 }
