@@ -325,6 +325,9 @@ impl Generator {
         };
         if let Some(rec) = &recording {
             eprintln!("background {}: {}", bg.display(), rec.description);
+            if let Some(w) = &rec.sweep_warning {
+                eprintln!("warning: {}: {w}", bg.display());
+            }
             if rec.poses.is_none() {
                 eprintln!("warning: {}: no poses given (--poses), so the sensor is taken as static; background velocities are 0", bg.display());
             }
@@ -530,8 +533,18 @@ impl Generator {
     }
 
     /// The sweep of frame `k` of a plan starting at `t_s`: one revolution of the sensor, or
-    /// under a recording the recording's own frame step (its sensor turned once per frame).
+    /// under a recording its own: the capture's column times where it has them (a pcap,
+    /// [`Recording::column_offsets`]), else uniform over the recording's frame step (its
+    /// sensor turned once per frame).
     fn sweep(&self, plan: &SequencePlan, k: usize, t_s: f64, rolling: bool) -> Sweep {
+        let w = self.sensor.columns;
+        let own = match (&self.recording, plan.recording_start) {
+            (Some(rec), Some(start)) if rolling => rec.column_offsets(start + k).filter(|o| o.len() == w + 1),
+            _ => None,
+        };
+        if let Some(offsets) = own {
+            return Sweep::recorded(t_s, offsets.iter().map(|o| t_s + o).collect());
+        }
         let t = &plan.times_s;
         let period = match (&self.recording, t.len()) {
             (Some(_), n) if n >= 2 => {
@@ -540,14 +553,14 @@ impl Generator {
             }
             _ => 1.0 / self.sensor.rate_hz,
         };
-        Sweep { t0_s: t_s, period_s: if rolling { period } else { 0.0 }, columns: self.sensor.columns }
+        Sweep::uniform(t_s, if rolling { period } else { 0.0 }, w)
     }
 
     fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64, rolling: bool) -> Result<()> {
         let sensor_from_world = state.world_from_sensor.inverse();
         let sweep = self.sweep(plan, state.frame, state.t_s, rolling);
         let s = &mut self.scratch;
-        s.sweep = Some(sweep);
+        s.sweep = Some(sweep.clone());
         // The sensor's motion per column (one entry when every column is the frame's instant).
         s.column_motion.clear();
         let motion_at = |t: f64| ColumnMotion {
@@ -879,7 +892,7 @@ impl Generator {
                 seen[geom.mesh_index_of_triangle(t)] = true;
             }
         }
-        let rolling = s.sweep.is_some_and(|w| w.rolls());
+        let rolling = s.sweep.as_ref().is_some_and(|w| w.rolls());
         let person_time = &s.person_time;
         let model_to_body = MODEL_TO_BODY.as_dmat4();
         // Per person seen: (placed joints, sensor from model) at t - dt and t + dt.
@@ -977,7 +990,8 @@ impl Generator {
             let s = &self.scratch;
             derive(&self.post_params(state), &s.human_hits, &s.humans, out);
         }
-        let sweep = self.scratch.sweep.unwrap_or(Sweep { t0_s: state.t_s, period_s: 0.0, columns: self.sensor.columns });
+        let still = || Sweep::uniform(state.t_s, 0.0, self.sensor.columns);
+        let sweep = self.scratch.sweep.as_ref().map_or_else(still, Sweep::clone);
         out.column_time_s.clear();
         out.column_time_s.extend((0..self.sensor.columns).map(|c| sweep.column_time(c)));
         out.time_s = state.t_s;

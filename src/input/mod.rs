@@ -115,6 +115,12 @@ pub struct Scan {
     /// Intensity per point, in the source's own units, when it has one (pcap: the calibrated
     /// reflectivity byte, 0-255; KITTI `.bin`: remission, 0-1).
     pub intensity: Option<Vec<f32>>,
+    /// The recording's own sweep, when it has one (pcap): per firing in capture order, its
+    /// azimuth as a fraction of a turn clockwise from straight behind the sensor (pedscan's
+    /// column coordinate over the column count, in `[0, 1)`) and the time it was fired, s (the
+    /// clock of `time_s`). [`crate::sensor_model::shutter::boundary_times`] turns it into
+    /// column times.
+    pub firing_times: Option<Vec<[f64; 2]>>,
 }
 
 #[cfg(test)]

@@ -19,6 +19,16 @@
 //! recording's own frame rate with its own (possibly uneven) steps: people and sensor are
 //! posed at the recorded times. The target sensor's `rate_hz` is not used.
 //!
+//! # Sweeps
+//! A frame's columns are fired over its sweep (the rolling shutter,
+//! [`crate::sensor_model::shutter`]). A pcap carries its own: each frame's column times on the
+//! target grid come from its packets ([`Scan::firing_times`] through
+//! [`crate::sensor_model::shutter::boundary_times`]), as offsets from the capture's frame time,
+//! so they follow the frame's time from whichever source gives it (a poses file's clock too).
+//! A frame whose capture times are refused (a clock that steps back or jumps, too few
+//! firings) and every frame of a KITTI or PCD folder take the uniform sweep over the recorded
+//! frame step; [`Recording::sweep_warning`] says how many frames fell back and why.
+//!
 //! # Poses
 //! With a poses file (one pose per frame, same count), the sensor's world pose of frame k is
 //! pose k, and its velocity and yaw rate come from the poses (see
@@ -38,6 +48,7 @@ use crate::error::{Error, Result};
 use crate::sensor::Sensor;
 use glam::{DMat4, DVec3};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// One projected frame: range per beam and, when the source has intensity, the kept return's
 /// intensity per beam (else empty).
@@ -70,7 +81,17 @@ pub struct Recording {
     window: std::sync::Mutex<Option<(usize, Vec<Image>)>>,
     /// Frame files read and projected so far (to check the window cache).
     pub files_read: std::sync::atomic::AtomicUsize,
+    /// Per frame when the source carries its own sweep (pcap): the time of each column
+    /// boundary of the target grid (W + 1, strictly increasing), s after the frame's capture
+    /// time; `None` for a frame that takes the uniform sweep. Empty for other sources.
+    column_offsets: Vec<ColumnOffsets>,
+    /// Why frames of a capture take the uniform sweep instead of their own, once for the
+    /// whole recording (how many, and the first frame's reason).
+    pub sweep_warning: Option<String>,
 }
+
+/// A frame's column boundary times after its own time, when it has its own sweep.
+type ColumnOffsets = Option<Arc<[f64]>>;
 
 /// The most memory the window cache of a frame folder may hold.
 const WINDOW_CACHE_BYTES: usize = 256 << 20;
@@ -99,6 +120,8 @@ impl Recording {
     /// Opens a recording and its optional poses; checks counts and times.
     pub fn open(path: &Path, poses_file: Option<&Path>, target: &Sensor) -> Result<Recording> {
         let projector = Projector::new(target);
+        let mut column_offsets = Vec::new();
+        let mut sweep_warning = None;
         let (frames, capture_times, description) = if path.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
                 .map_err(|e| Error::input(path.display(), format!("cannot list the folder: {e}")))?
@@ -140,6 +163,7 @@ impl Recording {
                 rec.partial_rotations
             );
             let times: Vec<f64> = rec.scans.iter().map(|s| s.time_s.unwrap_or(f64::NAN)).collect();
+            (column_offsets, sweep_warning) = capture_sweeps(&rec.scans, target.columns);
             let mut images = Vec::with_capacity(rec.scans.len());
             for s in &rec.scans {
                 let mut img = (Vec::new(), Vec::new());
@@ -197,6 +221,8 @@ impl Recording {
             dirs: target.beam_dirs(),
             window: std::sync::Mutex::new(None),
             files_read: std::sync::atomic::AtomicUsize::new(0),
+            column_offsets,
+            sweep_warning,
         })
     }
 
@@ -240,6 +266,13 @@ impl Recording {
             }
         }
         Ok(())
+    }
+
+    /// The time of each column boundary of frame `k` on the target grid (W + 1, strictly
+    /// increasing), s after the frame's time, when the recording carries its own sweep there;
+    /// `None`: the uniform sweep over the recorded frame step.
+    pub fn column_offsets(&self, k: usize) -> Option<&Arc<[f64]>> {
+        self.column_offsets.get(k).and_then(Option::as_ref)
     }
 
     /// `world_from_sensor` of frame `k` (identity without poses).
@@ -298,6 +331,39 @@ impl Recording {
     pub fn window_name(&self, frames: std::ops::Range<usize>) -> String {
         format!("{} (frames {}..{})", self.source.display(), frames.start, frames.end)
     }
+}
+
+/// Each scan's column boundary times on a grid of `columns` (offsets from the scan's time) from
+/// its firings, and a warning naming how many scans fell back to the uniform sweep and why.
+fn capture_sweeps(scans: &[Scan], columns: usize) -> (Vec<ColumnOffsets>, Option<String>) {
+    let mut refused: Vec<(usize, String)> = Vec::new();
+    let offsets = scans
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let (Some(firings), Some(t0)) = (&s.firing_times, s.time_s) else {
+                refused.push((k, "no firing times".into()));
+                return None;
+            };
+            // Relative to the frame's time, so a Unix-time clock keeps its microseconds.
+            let relative: Vec<[f64; 2]> = firings.iter().map(|&[a, t]| [a, t - t0]).collect();
+            match crate::sensor_model::shutter::boundary_times(&relative, columns) {
+                Ok(b) => Some(b.into()),
+                Err(why) => {
+                    refused.push((k, why));
+                    None
+                }
+            }
+        })
+        .collect();
+    let warning = refused.first().map(|(k, why)| {
+        format!(
+            "{} of {} frames take the uniform sweep over their recorded step instead of their packets' column times (frame {k}: {why})",
+            refused.len(),
+            scans.len()
+        )
+    });
+    (offsets, warning)
 }
 
 fn check_times(t: &[f64], path: &Path) -> Result<()> {

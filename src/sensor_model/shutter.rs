@@ -1,6 +1,9 @@
 //! The rolling shutter: a spinning sensor fires column by column over its period, so each
 //! column sees the people, the environment and its own pose at its own time. The frame is cut
-//! behind the sensor: column `c` is taken at `t_frame + (c + 0.5) / (W * rate)`.
+//! behind the sensor: column `c` is taken at `t_frame + (c + 0.5) / (W * rate)`, or, under a
+//! recording that carries its own sweep (a Velodyne `.pcap`), at the time the capture's sensor
+//! pointed there: a table of times at the column boundaries, linear in between
+//! ([`Sweep::recorded`], [`boundary_times`]).
 //!
 //! The reference poses the whole frame at each column's time and casts that column alone
 //! ([`crate::generator::Generator::reference_rolling_hits`]): exact, and ~W times the work.
@@ -17,21 +20,52 @@
 use glam::{DMat4, DVec3};
 
 /// The timing of one sweep.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Sweep {
     /// Time of the frame (the start of the sweep), s from the sequence start.
     pub t0_s: f64,
-    /// One revolution, s; 0 = every column at `t0_s` (no rolling shutter).
+    /// One revolution, s; 0 = every column at `t0_s` (no rolling shutter). With `boundaries`,
+    /// their span (the last minus the first).
     pub period_s: f64,
     pub columns: usize,
+    /// The time of each column boundary `u = 0..=W` (W + 1 entries, strictly increasing), s
+    /// from the sequence start, when the sweep is a recording's own; `None`: uniform from
+    /// `t0_s` over `period_s`.
+    pub boundaries: Option<std::sync::Arc<[f64]>>,
 }
 
 impl Sweep {
+    /// A sweep at a constant rate: `period_s` over the `columns` from `t0_s`.
+    pub fn uniform(t0_s: f64, period_s: f64, columns: usize) -> Sweep {
+        Sweep { t0_s, period_s, columns, boundaries: None }
+    }
+
+    /// A recorded sweep of frame time `t0_s`: `boundaries` holds the time of each column
+    /// boundary (W + 1 entries, strictly increasing, as [`boundary_times`] gives them).
+    pub fn recorded(t0_s: f64, boundaries: std::sync::Arc<[f64]>) -> Sweep {
+        let w = boundaries.len().saturating_sub(1);
+        let period_s = if w > 0 { boundaries[w] - boundaries[0] } else { 0.0 };
+        Sweep { t0_s, period_s, columns: w, boundaries: (w > 0).then_some(boundaries) }
+    }
+
     /// The time of continuous column coordinate `u` (column `c` spans `[c, c + 1)`; its beam
     /// sits at `c + 0.5`); `u` may lie outside `[0, W)` for a person unwrapped over the cut.
+    /// A recorded sweep is linear between its column boundaries and continues beyond its ends
+    /// at its mean rate.
     #[inline]
     pub fn time_at(&self, u: f64) -> f64 {
-        self.t0_s + self.period_s * u / self.columns as f64
+        let Some(b) = &self.boundaries else {
+            return self.t0_s + self.period_s * u / self.columns as f64;
+        };
+        let w = self.columns;
+        if u <= 0.0 {
+            b[0] + self.period_s * u / w as f64
+        } else if u >= w as f64 {
+            b[w] + self.period_s * (u - w as f64) / w as f64
+        } else {
+            let c = (u as usize).min(w - 1);
+            b[c] + (b[c + 1] - b[c]) * (u - c as f64)
+        }
     }
 
     /// The time column `c`'s beams are fired.
@@ -97,29 +131,40 @@ impl Sweep {
         let per_rad = (self.period_s / std::f64::consts::TAU / span) as f32;
         // The angle from the centre's direction of a point, counter-clockwise.
         let angle = |q: glam::Vec3| atan2_fast(q.y * cos_r - q.x * sin_r, q.x * cos_r + q.y * sin_r);
-        if n == 1 {
-            // Two poses (most people): straight-line code.
-            let b = keys[0].as_ref();
-            assert_eq!(a.len(), b.len(), "both poses hold every vertex");
-            for (pa, pb) in a.iter_mut().zip(b) {
-                let (qa, qb) = (glam::Vec3::from(*pa), glam::Vec3::from(*pb));
-                let lambda = (lambda_ref - per_rad * angle(qa.lerp(qb, lambda_ref))).clamp(0.0, 1.0);
-                *pa = qa.lerp(qb, lambda).to_array();
+        // The time (as a fraction of the span) of the column at `angle` from the centre's: a
+        // constant rate per radian, or a recorded sweep's own table (its rate may change
+        // within a person's span), taken at the whole column coordinates from where the span
+        // starts to where it ends (beyond, the fraction is clamped anyway) and linear between.
+        let columns_per_rad = (self.columns as f64 / std::f64::consts::TAU) as f32;
+        let table: Option<(f32, Vec<f32>)> = self.boundaries.as_ref().map(|_| {
+            let w = self.columns as f64;
+            let (mut lo, mut hi) = (u_ref.floor(), u_ref.ceil() + 1.0);
+            while self.time_at(lo) > ta && lo > u_ref - w {
+                lo -= 1.0;
             }
-            return;
-        }
-        let keys: Vec<&[[f32; 3]]> = keys.iter().map(|k| k.as_ref()).collect();
-        assert!(keys.iter().all(|k| k.len() == a.len()), "every key holds every vertex");
-        let at = |v: usize, first: glam::Vec3, lambda: f32| -> glam::Vec3 {
-            let x = (lambda.clamp(0.0, 1.0) * n as f32).min(n as f32 - 1e-4);
-            let j = x as usize;
-            let from = if j == 0 { first } else { glam::Vec3::from(keys[j - 1][v]) };
-            from.lerp(glam::Vec3::from(keys[j][v]), x - j as f32)
-        };
-        for (v, pa) in a.iter_mut().enumerate() {
-            let first = glam::Vec3::from(*pa);
-            let lambda = lambda_ref - per_rad * angle(at(v, first, lambda_ref));
-            *pa = at(v, first, lambda).to_array();
+            while self.time_at(hi) < tb && hi < u_ref + w {
+                hi += 1.0;
+            }
+            let lambdas = (0..=(hi - lo) as usize).map(|i| ((self.time_at(lo + i as f64) - ta) / span) as f32).collect();
+            ((u_ref - lo) as f32, lambdas)
+        });
+        match table {
+            None => warp_with(a, keys, lambda_ref, angle, |x| lambda_ref - per_rad * x),
+            Some((origin, lambdas)) => {
+                let last = lambdas.len() - 1;
+                let lambda_of = |angle: f32| -> f32 {
+                    let x = origin - angle * columns_per_rad;
+                    if !(x > 0.0) {
+                        return lambdas[0];
+                    }
+                    let i = x as usize;
+                    if i >= last {
+                        return lambdas[last];
+                    }
+                    lambdas[i] + (lambdas[i + 1] - lambdas[i]) * (x - i as f32)
+                };
+                warp_with(a, keys, lambda_ref, angle, lambda_of)
+            }
         }
     }
 
@@ -160,6 +205,157 @@ impl Sweep {
             })
             .collect_into_vec(out);
     }
+}
+
+/// [`Sweep::warp_keys`]'s loop over the vertices, for one way of finding a vertex's time:
+/// `lambda_of(angle)` is the time, as a fraction of the span, of the column at `angle` from
+/// the centre's direction (a separate instance per way, so the uniform sweep's loop stays as
+/// tight as it was).
+#[inline]
+fn warp_with<K: AsRef<[[f32; 3]]>>(
+    a: &mut [[f32; 3]],
+    keys: &[K],
+    lambda_ref: f32,
+    angle: impl Fn(glam::Vec3) -> f32,
+    lambda_of: impl Fn(f32) -> f32,
+) {
+    let n = keys.len();
+    if n == 1 {
+        // Two poses (most people): straight-line code.
+        let b = keys[0].as_ref();
+        assert_eq!(a.len(), b.len(), "both poses hold every vertex");
+        for (pa, pb) in a.iter_mut().zip(b) {
+            let (qa, qb) = (glam::Vec3::from(*pa), glam::Vec3::from(*pb));
+            let lambda = lambda_of(angle(qa.lerp(qb, lambda_ref))).clamp(0.0, 1.0);
+            *pa = qa.lerp(qb, lambda).to_array();
+        }
+        return;
+    }
+    let keys: Vec<&[[f32; 3]]> = keys.iter().map(|k| k.as_ref()).collect();
+    assert!(keys.iter().all(|k| k.len() == a.len()), "every key holds every vertex");
+    let at = |v: usize, first: glam::Vec3, lambda: f32| -> glam::Vec3 {
+        let x = (lambda.clamp(0.0, 1.0) * n as f32).min(n as f32 - 1e-4);
+        let j = x as usize;
+        let from = if j == 0 { first } else { glam::Vec3::from(keys[j - 1][v]) };
+        from.lerp(glam::Vec3::from(keys[j][v]), x - j as f32)
+    };
+    for (v, pa) in a.iter_mut().enumerate() {
+        let first = glam::Vec3::from(*pa);
+        let lambda = lambda_of(angle(at(v, first, lambda_ref)));
+        *pa = at(v, first, lambda).to_array();
+    }
+}
+
+/// How far back in time one firing of a recorded sweep may lie behind an earlier one and still
+/// count as the capture's timestamp jitter, s: a network card stamping several packets at once
+/// puts a packet's later firings up to one packet (1.3 ms on a VLP-16) after the next packet's
+/// first; more than this is a clock stepping back.
+pub const SWEEP_JITTER_S: f64 = 2e-3;
+
+/// A step between firings of a recorded sweep is a jump of its clock when it takes more than
+/// this many times the sweep's median time per turn for its turn, plus [`SWEEP_JITTER_S`]
+/// (lost packets take as long as the turn they miss; a halved rotation speed twice as long).
+pub const SWEEP_JUMP_FACTOR: f64 = 4.0;
+
+/// The time of each column boundary `u = 0..=columns` of a recorded sweep, from its firings in
+/// capture order: `[turn, time_s]`, `turn` the azimuth as a fraction of a turn clockwise from
+/// straight behind the sensor (`u / W`, in `[0, 1)`), `time_s` when it was fired.
+///
+/// The azimuth is unwrapped from the first firing (a step of more than half a turn is one back
+/// across the seam), and a firing that does not turn past the last kept one is dropped. The
+/// times are then made monotone by isotonic regression (runs that go back are pooled into their
+/// mean at their mean azimuth), so timestamp jitter smooths out instead of folding the sweep;
+/// between kept firings the time is linear in azimuth, and columns no firing reached (lost
+/// packets) get times interpolated between their neighbours. The ends of the turn outside the
+/// firings continue at the sweep's mean rate. The result is strictly increasing.
+///
+/// Refused, with the reason, so that the frame falls back to the uniform sweep: fewer than two
+/// firings, non-finite values, firings that cover less than half the turn, a step back in time
+/// of more than [`SWEEP_JITTER_S`], a step forward of more than [`SWEEP_JUMP_FACTOR`] times
+/// the median rate's for its turn (plus the jitter), and any result that is not finite and
+/// strictly increasing.
+pub fn boundary_times(firings: &[[f64; 2]], columns: usize) -> std::result::Result<Vec<f64>, String> {
+    if columns == 0 || firings.len() < 2 {
+        return Err(format!("{} firings in the turn", firings.len()));
+    }
+    if let Some(f) = firings.iter().find(|f| !(f[0].is_finite() && f[1].is_finite())) {
+        return Err(format!("a firing at azimuth {} (turns) and time {} s", f[0], f[1]));
+    }
+    // Unwrapped azimuth, kept only while it turns on; times checked for steps back.
+    let mut kept: Vec<[f64; 2]> = Vec::with_capacity(firings.len());
+    // A first firing just before the seam belongs to the start of the turn.
+    let mut turn = if firings[0][0] > 0.5 { firings[0][0] - 1.0 } else { firings[0][0] };
+    let mut latest = firings[0][1];
+    kept.push([turn, latest]);
+    for pair in firings.windows(2) {
+        turn += (pair[1][0] - pair[0][0] + 0.5).rem_euclid(1.0) - 0.5;
+        let t = pair[1][1];
+        if t < latest - SWEEP_JITTER_S {
+            return Err(format!("its timestamps go back by {:.3} ms", 1e3 * (latest - t)));
+        }
+        latest = latest.max(t);
+        if turn > kept[kept.len() - 1][0] {
+            kept.push([turn, t]);
+        }
+    }
+    let (first, last) = (kept[0][0], kept[kept.len() - 1][0]);
+    if last - first < 0.5 || first > 0.25 || last < 0.75 {
+        return Err(format!("its firings cover the turn only from {:.3} to {:.3}", first, last));
+    }
+    // Isotonic regression of time on azimuth (pool adjacent violators): each block is
+    // (summed azimuth, summed time, count); a block not later than the one before merges.
+    let mut blocks: Vec<(f64, f64, f64)> = Vec::with_capacity(kept.len());
+    for &[a, t] in &kept {
+        blocks.push((a, t, 1.0));
+        while blocks.len() > 1 {
+            let (a1, t1, n1) = blocks[blocks.len() - 1];
+            let (a0, t0, n0) = blocks[blocks.len() - 2];
+            if t1 / n1 > t0 / n0 {
+                break;
+            }
+            blocks.pop();
+            *blocks.last_mut().expect("two blocks") = (a0 + a1, t0 + t1, n0 + n1);
+        }
+    }
+    let knots: Vec<[f64; 2]> = blocks.iter().map(|&(a, t, n)| [a / n, t / n]).collect();
+    let mean = if knots.len() > 1 {
+        (knots[knots.len() - 1][1] - knots[0][1]) / (knots[knots.len() - 1][0] - knots[0][0])
+    } else {
+        0.0
+    };
+    if !(mean > 0.0 && mean.is_finite()) {
+        return Err("its firings do not advance in time".into());
+    }
+    let mut rates: Vec<f64> = knots.windows(2).map(|k| (k[1][1] - k[0][1]) / (k[1][0] - k[0][0])).collect();
+    let mid = rates.len() / 2;
+    let median = *rates.select_nth_unstable_by(mid, f64::total_cmp).1;
+    for k in knots.windows(2) {
+        let (da, dt) = (k[1][0] - k[0][0], k[1][1] - k[0][1]);
+        if dt > SWEEP_JUMP_FACTOR * median * da + SWEEP_JITTER_S {
+            return Err(format!("its timestamps jump by {:.3} ms over {:.2} degrees", 1e3 * dt, 360.0 * da));
+        }
+    }
+    let mut out = Vec::with_capacity(columns + 1);
+    let mut j = 0;
+    for c in 0..=columns {
+        let a = c as f64 / columns as f64;
+        let t = if a <= knots[0][0] {
+            knots[0][1] - mean * (knots[0][0] - a)
+        } else if a >= knots[knots.len() - 1][0] {
+            knots[knots.len() - 1][1] + mean * (a - knots[knots.len() - 1][0])
+        } else {
+            while knots[j + 1][0] < a {
+                j += 1;
+            }
+            let ([a0, t0], [a1, t1]) = (knots[j], knots[j + 1]);
+            t0 + (t1 - t0) * (a - a0) / (a1 - a0)
+        };
+        out.push(t);
+    }
+    if !out.iter().all(|t| t.is_finite()) || !out.windows(2).all(|w| w[1] > w[0]) {
+        return Err("its column times would not increase strictly".into());
+    }
+    Ok(out)
 }
 
 /// atan2 to within 1e-5 rad (a minimax polynomial on [0, 1] and the octant symmetries):
@@ -214,7 +410,7 @@ mod tests {
     /// coordinate u = W (pi - a0) / (2 pi - w T) instead of W (pi - a0) / (2 pi).
     #[test]
     fn a_turning_sensor_skews_static_points_as_in_closed_form() {
-        let s = Sweep { t0_s: 0.0, period_s: 0.1, columns: 1024 };
+        let s = Sweep::uniform(0.0, 0.1, 1024);
         let w = 3.0; // rad/s: 0.3 rad over the sweep
         let pose = |t: f64| DMat4::from_rotation_z(w * t).inverse();
         for a0 in [-2.5f64, -1.0, 0.3, 1.7, 2.9] {
@@ -234,7 +430,7 @@ mod tests {
 
     #[test]
     fn column_times_follow_the_sweep_from_the_cut_behind_the_sensor() {
-        let s = Sweep { t0_s: 2.0, period_s: 0.1, columns: 1024 };
+        let s = Sweep::uniform(2.0, 0.1, 1024);
         assert!((s.column_time(0) - (2.0 + 0.05 / 1024.0)).abs() < 1e-15);
         assert!((s.column_time(1023) - (2.1 - 0.05 / 1024.0)).abs() < 1e-12);
         // Straight ahead (+x) is the middle of the sweep; left (+y) a quarter in.
@@ -252,22 +448,156 @@ mod tests {
     /// off by its motion over the span (about v^2: 0.3 mm at 1.5 m/s, 1.2 mm at 3 m/s, 4 m away).
     #[test]
     fn warp_between_puts_each_vertex_at_its_own_time() {
-        let s = Sweep { t0_s: 0.0, period_s: 0.1, columns: 1024 };
+        let s = Sweep::uniform(0.0, 0.1, 1024);
         for (speed, tol) in [(1.5, 4e-4), (3.0, 1.5e-3)] {
-            let v = DVec3::new(0.0, -speed, 0.0); // moving right (toward later columns)
-            let rest: Vec<DVec3> = (0..21).map(|k| DVec3::new(4.0, -1.0 + 0.1 * k as f64, 0.2)).collect();
-            let centre = DVec3::new(4.0, 0.0, 0.2);
-            let (ta, tb, u_c) = s.span_of_sphere(centre, 1.0);
-            let at = |t: f64| rest.iter().map(|p| (*p + v * t).as_vec3().to_array()).collect::<Vec<_>>();
-            let mut a = at(ta);
-            s.warp_between(&mut a, &at(tb), ta, tb, u_c);
-            for (k, p) in a.iter().enumerate() {
-                let q = glam::Vec3::from(*p).as_dvec3();
+            let (rest, v, warped) = warped_segment(&s, speed);
+            for (k, &q) in warped.iter().enumerate() {
                 // Where the segment's point k is when the column q lies in is fired.
                 let t = s.time_at(s.u_of(q.x, q.y));
                 let want = rest[k] + v * t;
                 assert!((q - want).length() < tol, "{speed} m/s, vertex {k}: {q:?} vs {want:?}");
             }
         }
+    }
+
+    /// A sweep whose first half turns at half the speed of its second: 60 ms then 30 ms.
+    fn uneven(t0: f64, columns: usize) -> Sweep {
+        let w = columns as f64;
+        let b: Vec<f64> = (0..=columns)
+            .map(|c| {
+                let u = c as f64;
+                t0 + if u <= w / 2.0 { 0.06 * u / (w / 2.0) } else { 0.06 + 0.03 * (u - w / 2.0) / (w / 2.0) }
+            })
+            .collect();
+        Sweep::recorded(t0, b.into())
+    }
+
+    #[test]
+    fn a_recorded_sweep_is_linear_between_its_boundaries_and_continues_at_its_mean_rate() {
+        let s = uneven(2.0, 1024);
+        assert_eq!((s.columns, s.rolls()), (1024, true));
+        assert!((s.period_s - 0.09).abs() < 1e-12);
+        assert!((s.time_at(256.0) - 2.03).abs() < 1e-12);
+        assert!((s.time_at(768.0) - 2.075).abs() < 1e-12);
+        assert!((s.column_time(0) - (2.0 + 0.5 * 0.06 / 512.0)).abs() < 1e-12);
+        // Beyond the ends (a person unwrapped over the cut), the mean rate: 0.09 s a turn.
+        assert!((s.time_at(-10.0) - (2.0 - 10.0 * 0.09 / 1024.0)).abs() < 1e-12);
+        assert!((s.time_at(1034.0) - (2.09 + 10.0 * 0.09 / 1024.0)).abs() < 1e-12);
+        // The uniform sweep is as it was.
+        let u = Sweep::uniform(2.0, 0.1, 1024);
+        assert_eq!(u.time_at(300.0), 2.0 + 0.1 * 300.0 / 1024.0);
+    }
+
+    /// A 2 m segment 4 m straight ahead moving right (toward later columns) at `speed`, warped
+    /// over `s`: its points at time 0, its velocity and its warped vertices.
+    fn warped_segment(s: &Sweep, speed: f64) -> (Vec<DVec3>, DVec3, Vec<DVec3>) {
+        let v = DVec3::new(0.0, -speed, 0.0);
+        let rest: Vec<DVec3> = (0..21).map(|k| DVec3::new(4.0, -1.0 + 0.1 * k as f64, 0.2)).collect();
+        let centre = DVec3::new(4.0, 0.0, 0.2);
+        let (ta, tb, u_c) = s.span_of_sphere(centre, 1.0);
+        let at = |t: f64| rest.iter().map(|p| (*p + v * t).as_vec3().to_array()).collect::<Vec<_>>();
+        let mut a = at(ta);
+        s.warp_between(&mut a, &at(tb), ta, tb, u_c);
+        (rest, v, a.iter().map(|p| glam::Vec3::from(*p).as_dvec3()).collect())
+    }
+
+    /// [`warp_between_puts_each_vertex_at_its_own_time`] on a recorded sweep whose rate
+    /// changes inside the person's span: each vertex is where the segment is when its own
+    /// column is fired by the table, which the uniform sweep of the same length misses.
+    #[test]
+    fn warp_on_a_recorded_sweep_puts_each_vertex_at_its_table_time() {
+        let s = uneven(0.0, 1024);
+        let uniform = Sweep::uniform(0.0, s.period_s, 1024);
+        // Straight ahead, across the middle of the sweep where the rate doubles.
+        let (rest, v, warped) = warped_segment(&s, 3.0);
+        let mut worst_uniform = 0.0f64;
+        for (k, &q) in warped.iter().enumerate() {
+            let u = s.u_of(q.x, q.y);
+            let want = rest[k] + v * s.time_at(u);
+            assert!((q - want).length() < 1.5e-3, "vertex {k}: {q:?} vs {want:?}");
+            worst_uniform = worst_uniform.max((q - (rest[k] + v * uniform.time_at(u))).length());
+        }
+        assert!(worst_uniform > 0.02, "the table's times differ from the uniform sweep's: {worst_uniform}");
+    }
+
+    /// Firings of a turn whose first half takes 60 ms and second 30 ms, every 0.1 degree.
+    fn firings(time: impl Fn(f64) -> f64) -> Vec<[f64; 2]> {
+        (0..=3600).map(|n| n as f64 / 3600.0).map(|a| [a.rem_euclid(1.0), time(a)]).collect()
+    }
+
+    fn two_speeds(a: f64) -> f64 {
+        if a <= 0.5 { 0.12 * a } else { 0.06 + 0.06 * (a - 0.5) }
+    }
+
+    #[test]
+    fn boundary_times_follow_the_firings_and_smooth_jitter() {
+        let b = boundary_times(&firings(two_speeds), 1024).unwrap();
+        assert_eq!(b.len(), 1025);
+        for (c, t) in b.iter().enumerate() {
+            assert!((t - two_speeds(c as f64 / 1024.0)).abs() < 1e-9, "boundary {c}: {t}");
+        }
+        // Jitter of up to 1 ms back (a batch of packets stamped late), lost firings and a
+        // first firing just before the seam: still strictly increasing, within the jitter.
+        let mut f = firings(two_speeds);
+        for (n, x) in f.iter_mut().enumerate() {
+            x[1] += [0.0, 0.4e-3, 0.9e-3, -0.6e-3][n % 4];
+        }
+        f.drain(1000..1400);
+        f[0][0] = 0.9999;
+        let b = boundary_times(&f, 1024).unwrap();
+        assert!(b.windows(2).all(|w| w[1] > w[0]));
+        for (c, t) in b.iter().enumerate() {
+            assert!((t - two_speeds(c as f64 / 1024.0)).abs() < 1e-3, "boundary {c}: {t}");
+        }
+    }
+
+    #[test]
+    fn boundary_times_refuse_clocks_that_step_back_or_jump() {
+        let mut back = firings(two_speeds);
+        for x in &mut back[2000..2100] {
+            x[1] -= 0.01;
+        }
+        assert!(boundary_times(&back, 1024).unwrap_err().contains("go back by 9.98"));
+        let mut jump = firings(two_speeds);
+        for x in &mut jump[2000..] {
+            x[1] += 0.5;
+        }
+        assert!(boundary_times(&jump, 1024).unwrap_err().contains("jump"));
+        let part: Vec<[f64; 2]> = firings(two_speeds)[..1000].to_vec();
+        assert!(boundary_times(&part, 1024).unwrap_err().contains("cover"));
+        let mut nan = firings(two_speeds);
+        nan[7][1] = f64::NAN;
+        assert!(boundary_times(&nan, 1024).is_err());
+        assert!(boundary_times(&[], 1024).is_err());
+        let still: Vec<[f64; 2]> = firings(|_| 1.0);
+        assert!(boundary_times(&still, 1024).is_err());
+    }
+
+    /// Hostile firings (any azimuths, times that wander back and forth, repeats, huge and tiny
+    /// values) never panic, and what is accepted is finite and strictly increasing.
+    #[test]
+    fn boundary_times_never_panic_and_accept_only_increasing_times() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut accepted = 0;
+        for case in 0..2000 {
+            let n = (next() * 300.0) as usize;
+            let scale = [1e-9, 1e-3, 1.0, 1e9][case % 4];
+            let f: Vec<[f64; 2]> = (0..n)
+                .map(|i| {
+                    let a = if case % 3 == 0 { next() } else { (i as f64 / n as f64 + 0.01 * (next() - 0.5)).rem_euclid(1.0) };
+                    let t = if case % 5 == 0 { next() * scale } else { (i as f64 + 3.0 * (next() - 0.5)) * scale * 1e-3 };
+                    [a, t]
+                })
+                .collect();
+            if let Ok(b) = boundary_times(&f, 64 + case % 7) {
+                accepted += 1;
+                assert!(b.iter().all(|t| t.is_finite()) && b.windows(2).all(|w| w[1] > w[0]), "case {case}");
+            }
+        }
+        assert!(accepted > 100, "{accepted}");
     }
 }

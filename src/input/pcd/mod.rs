@@ -637,7 +637,7 @@ impl Collector {
     }
 
     fn finish(self) -> Scan {
-        Scan { points: self.points, ring: self.ring, ring_elevation_deg: None, time_s: None, intensity: self.intensity }
+        Scan { points: self.points, ring: self.ring, intensity: self.intensity, ..Scan::default() }
     }
 }
 
