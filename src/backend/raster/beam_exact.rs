@@ -272,9 +272,19 @@ impl BeamExact {
     /// The host is free in between: on lavapipe the draw keeps about one core busy, and the
     /// caller can cast another layer on the others.
     pub fn begin(&mut self, geom: &FrameGeometry) -> Result<()> {
+        self.submit_draw(geom)?;
+        self.cast_host(geom);
+        Ok(())
+    }
+
+    /// The first part of [`Self::begin`]: bounds `geom`'s triangles and submits the draw of
+    /// the large ones. [`Self::cast_host`] (the small ones) must follow before
+    /// [`Self::finish`], with the same `geom`; the caller may run other work beside it.
+    pub fn submit_draw(&mut self, geom: &FrameGeometry) -> Result<()> {
         self.commands.wait()?;
         self.submitted = None;
         self.stats = BeamExactStats::default();
+        self.host_hits.clear();
         let t0 = std::time::Instant::now();
         self.caster.bounds(geom, &mut self.bounds);
         if self.bounds.is_empty() {
@@ -284,11 +294,20 @@ impl BeamExact {
         if !self.staged.is_empty() {
             self.submit()?;
         }
-        // The small triangles on the host, while the device draws the others.
-        self.caster.cast_bounds(geom, &self.host, &mut self.host_hits);
         self.stats.stage_s = t0.elapsed().as_secs_f64();
         self.submitted = Some(std::time::Instant::now());
         Ok(())
+    }
+
+    /// The second part of [`Self::begin`]: casts the small triangles (bounds of at most
+    /// `HOST_BEAMS` beams) on the host, while the device draws the others. One task: in
+    /// parallel jobs it only took the cores the device draws on.
+    pub fn cast_host(&mut self, geom: &FrameGeometry) {
+        if self.submitted.is_some() {
+            let t0 = std::time::Instant::now();
+            self.caster.cast_bounds(geom, &self.host, &mut self.host_hits);
+            self.stats.stage_s += t0.elapsed().as_secs_f64();
+        }
     }
 
     /// The second half of [`Self::cast`]: waits for the draw [`Self::begin`] submitted for
