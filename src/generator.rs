@@ -1419,23 +1419,32 @@ impl SceneSurfaces<'_> {
     }
 
     /// The background behind the people along `dir`, near beam `b`: the plane of the
-    /// background triangle beam `b` meets (its footprint is millimetres across), or its
-    /// recorded return.
+    /// background triangle beam `b` meets, through its exact hit (its footprint is millimetres
+    /// across; under a moving sensor the triangle's normal from the world, at the column's
+    /// pose), or its recorded return. None where the plane lies behind the ray.
     fn background_near(&self, b: usize, dir: DVec3) -> Option<(f64, u32)> {
         if let Some(r) = self.recorded {
             return (r[b] > 0.0).then(|| (r[b] as f64, crate::backend::NO_TRIANGLE));
         }
         let t = self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE);
         let r = self.bg_hits.range_m.get(b).copied().unwrap_or(0.0) as f64;
-        if t == crate::backend::NO_TRIANGLE || r <= 0.0 {
+        if t == crate::backend::NO_TRIANGLE || t >= self.background.triangle_count() || r <= 0.0 {
             return None;
         }
-        let [a, _, _] = self.background.triangle_f64(t);
-        let (_, n) = cos_incidence(self.background, t, self.dirs[b]);
-        let n = n.as_dvec3();
+        let n = match &self.env_world {
+            Some(e) => {
+                let pose = e.column_pose[b % self.columns];
+                let [p, q, u] = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate()).0;
+                (DMat3::from_mat4(pose).transpose() * (q - p).cross(u - p)).normalize_or_zero()
+            }
+            None => cos_incidence(self.background, t, self.dirs[b]).1.as_dvec3(),
+        };
         let denom = n.dot(dir);
-        let along = if denom.abs() > 1e-12 { n.dot(a) / denom } else { r };
-        Some((if along > 0.0 { along } else { r }, t))
+        if n == DVec3::ZERO || denom.abs() <= 1e-12 {
+            return Some((r, t));
+        }
+        let along = n.dot(self.dirs[b] * r) / denom;
+        (along > 0.0).then_some((along, t))
     }
 }
 
@@ -1443,8 +1452,11 @@ impl SceneSurfaces<'_> {
 /// across the silhouette hit, and those triangles' one-rings (watertight test, as the
 /// casters): the footprint (a few millimetres to centimetres across) lies between those beams,
 /// so its surfaces are there but for a limb, a post or a table's edge thinner than the beam
-/// spacing that no neighbour hits. A footprint ray that meets none of the environment's candidates takes the plane of
-/// the background triangle the beam itself meets.
+/// spacing that no neighbour hits. Where the environment is continuous around the beam (the
+/// beam and its neighbours meet one triangle and its one-ring) or is a recording, a ray's
+/// background is the plane the beam itself meets ([`SceneSurfaces::background_near`]); else
+/// only the candidates count, and a ray that meets none of them meets nothing (past a wall's
+/// top, say).
 impl FootprintScene for SceneSurfaces<'_> {
     fn cast_footprint(&self, b: usize, across: &[usize], dirs: &[DVec3; crate::sensor_model::FOOTPRINT_RAYS], out: &mut [Option<Surface>; crate::sensor_model::FOOTPRINT_RAYS]) {
         let col = b % self.columns;
@@ -1498,7 +1510,7 @@ impl FootprintScene for SceneSurfaces<'_> {
         // world into the sensor frame of the beam's column (the placed triangles are
         // interpolated between their vertices' times, centimetres off across a wall).
         // Where the beam and its neighbours meet one triangle and its one-ring, the surface is
-        // continuous there and the beam's own plane holds the footprint (the fallback below).
+        // continuous there and the beam's own plane holds the footprint.
         let bg_triangle = |nb: usize| self.bg_hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
         let own = bg_triangle(b);
         let continuous = own != crate::backend::NO_TRIANGLE
@@ -1507,6 +1519,7 @@ impl FootprintScene for SceneSurfaces<'_> {
                 let t = bg_triangle(nb);
                 t == own || self.background.neighbours(own).any(|n| n == t)
             });
+        let searched = self.recorded.is_none() && !continuous;
         let env = match (&self.env_world, self.recorded) {
             (_, Some(_)) => Vec::new(),
             _ if continuous => Vec::new(),
@@ -1532,7 +1545,7 @@ impl FootprintScene for SceneSurfaces<'_> {
         };
         for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
             let human = nearest(&people, dir);
-            let background = nearest(&env, dir).or_else(|| self.background_near(b, dir));
+            let background = if searched { nearest(&env, dir) } else { self.background_near(b, dir) };
             *o = match (human, background) {
                 (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
                 (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
