@@ -1289,6 +1289,21 @@ fn world_triangle(background: &FrameGeometry, positions: &[DVec3], env_meshes: &
     ([0, 1, 2].map(|c| positions[(first + idx[c] - mesh.first_vertex) as usize] - origin), !mesh.double_sided)
 }
 
+/// The nearest of `triangles` (triangle, corners in the sensor frame, back culled) along
+/// `dir`, with the casters' watertight test and tie rule.
+fn nearest_hit(triangles: &[(u32, [DVec3; 3], bool)], dir: DVec3) -> Option<(f64, u32)> {
+    let ray = crate::backend::triangle::RayPre::new(dir)?;
+    let mut best = (f64::INFINITY, u32::MAX);
+    for &(t, ref tri, cull) in triangles {
+        if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
+            if crate::backend::triangle::better(h, t, best.0, best.1) {
+                best = (h, t);
+            }
+        }
+    }
+    (best.1 != u32::MAX).then_some(best)
+}
+
 /// |cos| of the angle between `dir` and the normal of triangle `t` (1 for a degenerate one),
 /// and the unit normal (zero for a degenerate one).
 fn cos_incidence(geom: &FrameGeometry, t: u32, dir: DVec3) -> (f32, glam::Vec3) {
@@ -1346,6 +1361,22 @@ impl SceneSurfaces<'_> {
 }
 
 impl SceneSurfaces<'_> {
+    /// Environment triangle `t` in the sensor frame of column `col`, and whether its back face
+    /// is culled: under a sensor that moves during the sweep from the world at the column's
+    /// pose (the placed triangles are interpolated between their vertices' times, centimetres
+    /// off across a wall), else as placed.
+    fn env_triangle(&self, t: u32, col: usize) -> ([DVec3; 3], bool) {
+        match &self.env_world {
+            Some(e) => {
+                let pose = e.column_pose[col];
+                let (tri, cull) = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate());
+                let rot_t = DMat3::from_mat4(pose).transpose();
+                (tri.map(|p| rot_t * p), cull)
+            }
+            None => (self.background.triangle_f64(t), !self.background.mesh_of_triangle(t).double_sided),
+        }
+    }
+
     /// The nearest range beam `b` sees over both layers (infinite: nothing).
     fn nearest_range(&self, b: usize) -> f64 {
         let human = match self.human_hits.triangle.get(b) {
@@ -1378,38 +1409,17 @@ impl SceneSurfaces<'_> {
         if t == crate::backend::NO_TRIANGLE || t >= geom.triangle_count() {
             return false;
         }
-        // The triangle in the beam's sensor frame (an environment under a moving sensor from
-        // the world, as in `cast_footprint`), and whether its back is culled.
-        let corners = |t: u32| -> ([DVec3; 3], bool) {
-            match (&self.env_world, person) {
-                (Some(e), false) => {
-                    let pose = e.column_pose[b % self.columns];
-                    let rot_t = DMat3::from_mat4(pose).transpose();
-                    let (tri, cull) = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate());
-                    (tri.map(|p| rot_t * p), cull)
-                }
-                _ => (geom.triangle_f64(t), !geom.mesh_of_triangle(t).double_sided),
-            }
-        };
-        let mut surface: Vec<(u32, [DVec3; 3], bool)> = Vec::with_capacity(16);
-        for c in std::iter::once(t).chain(geom.neighbours(t)) {
-            let (tri, cull) = corners(c);
-            surface.push((c, tri, cull));
-        }
+        let col = b % self.columns;
+        let surface: Vec<(u32, [DVec3; 3], bool)> = std::iter::once(t)
+            .chain(geom.neighbours(t))
+            .map(|c| {
+                let (tri, cull) = if person { (geom.triangle_f64(c), !geom.mesh_of_triangle(c).double_sided) } else { self.env_triangle(c, col) };
+                (c, tri, cull)
+            })
+            .collect();
         let mut hits = [(0.0, 0u32); crate::sensor_model::FOOTPRINT_RAYS];
         for (hit, &dir) in hits.iter_mut().zip(dirs).skip(1) {
-            let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return false };
-            let mut best = (f64::INFINITY, u32::MAX);
-            for &(c, ref tri, cull) in &surface {
-                if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
-                    if crate::backend::triangle::better(h, c, best.0, best.1) {
-                        best = (h, c);
-                    }
-                }
-            }
-            if best.1 == u32::MAX {
-                return false;
-            }
+            let Some(best) = nearest_hit(&surface, dir) else { return false };
             *hit = best;
         }
         for ((o, &dir), &(h, c)) in out.iter_mut().zip(dirs).zip(&hits).skip(1) {
@@ -1432,10 +1442,9 @@ impl SceneSurfaces<'_> {
             return None;
         }
         let n = match &self.env_world {
-            Some(e) => {
-                let pose = e.column_pose[b % self.columns];
-                let [p, q, u] = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate()).0;
-                (DMat3::from_mat4(pose).transpose() * (q - p).cross(u - p)).normalize_or_zero()
+            Some(_) => {
+                let [p, q, u] = self.env_triangle(t, b % self.columns).0;
+                (q - p).cross(u - p).normalize_or_zero()
             }
             None => cos_incidence(self.background, t, self.dirs[b]).1.as_dvec3(),
         };
@@ -1520,32 +1529,10 @@ impl FootprintScene for SceneSurfaces<'_> {
                 t == own || self.background.neighbours(own).any(|n| n == t)
             });
         let searched = self.recorded.is_none() && !continuous;
-        let env = match (&self.env_world, self.recorded) {
-            (_, Some(_)) => Vec::new(),
-            _ if continuous => Vec::new(),
-            (Some(e), None) => {
-                let pose = e.column_pose[col];
-                let (origin, rot_t) = (pose.w_axis.truncate(), DMat3::from_mat4(pose).transpose());
-                let corners = |t: u32| world_triangle(self.background, e.positions, e.meshes, t, origin).0.map(|p| rot_t * p);
-                candidates(self.background, self.bg_hits, &corners)
-            }
-            (None, None) => candidates(self.background, self.bg_hits, &|t| self.background.triangle_f64(t)),
-        };
-        let nearest = |triangles: &[(u32, [DVec3; 3], bool)], dir: DVec3| -> Option<(f64, u32)> {
-            let ray = crate::backend::triangle::RayPre::new(dir)?;
-            let mut best = (f64::INFINITY, u32::MAX);
-            for &(t, ref tri, cull) in triangles {
-                if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
-                    if crate::backend::triangle::better(h, t, best.0, best.1) {
-                        best = (h, t);
-                    }
-                }
-            }
-            (best.1 != u32::MAX).then_some(best)
-        };
+        let env = if searched { candidates(self.background, self.bg_hits, &|t| self.env_triangle(t, col).0) } else { Vec::new() };
         for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
-            let human = nearest(&people, dir);
-            let background = if searched { nearest(&env, dir) } else { self.background_near(b, dir) };
+            let human = nearest_hit(&people, dir);
+            let background = if searched { nearest_hit(&env, dir) } else { self.background_near(b, dir) };
             *o = match (human, background) {
                 (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
                 (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
