@@ -10,7 +10,7 @@
 use crate::backend::{self, Backend, BeamHits, Gpu, Layer, LayerKind};
 use crate::input::recording::is_recording;
 use crate::input::Recording;
-use crate::config::{CompressionChoice, Config, Format};
+use crate::config::{BackendChoice, CompressionChoice, Config, Format};
 use crate::error::{Error, Result};
 use crate::geometry::{Adjacency, FrameGeometry};
 use crate::human::{model_files, GaitStyle, HumanModel, MODEL_TO_BODY};
@@ -256,14 +256,19 @@ impl Generator {
         cfg.validate()?;
         let sensor = Sensor::from_name_or_file(&cfg.sensor)?;
         let needs_animation = cfg.humans.motion.animates();
-        let models = if cfg.humans.count[1] > 0 {
-            model_files(&cfg.humans.models)?
-                .iter()
-                .map(|f| HumanModel::load(f, needs_animation))
-                .collect::<Result<Vec<_>>>()?
-        } else {
-            Vec::new()
-        };
+        // The people load in parallel (~13 ms of CPU each, the bundled 15 in ~200 ms on one
+        // core), and a backend that needs the Vulkan device opens it meanwhile on its own
+        // thread. The first failing file in the list's order is the one reported.
+        let files = if cfg.humans.count[1] > 0 { model_files(&cfg.humans.models)? } else { Vec::new() };
+        let opens_device = cfg.render.backend != BackendChoice::Raycast;
+        let models = std::thread::scope(|scope| {
+            let opening = opens_device.then(|| scope.spawn(|| gpu.open_early()));
+            let loaded: Vec<Result<HumanModel>> = files.par_iter().map(|f| HumanModel::load(f, needs_animation)).collect();
+            if let Some(h) = opening {
+                h.join().map_err(|_| Error::Internal("opening the Vulkan device panicked".into()))?;
+            }
+            loaded.into_iter().collect::<Result<Vec<_>>>()
+        })?;
         let bg = &cfg.scene.background;
         let (environment, grid, recording) = if bg.as_os_str().is_empty() {
             (None, None, None)

@@ -150,26 +150,44 @@ pub fn cast_in_turn<B: Backend + ?Sized>(backend: &mut B, layers: [(Layer<'_>, &
     Ok(seconds)
 }
 
-/// The Vulkan context of a run, opened on first use and shared by its backends.
+/// The Vulkan context of a run, opened on first use (or ahead of it, [`Gpu::open_early`]) and
+/// shared by its backends.
 pub struct Gpu {
     options: ContextOptions,
     context: Option<Arc<Context>>,
+    /// Why an early open failed: returned by the next [`Gpu::context`] instead of trying again.
+    failed: Option<Error>,
 }
 
 impl Gpu {
     /// `device`: `auto`, an index or part of a name (see `pedscan devices`).
     pub fn new(device: &str, validation: bool) -> Gpu {
-        Gpu { options: ContextOptions { validation, device: device_choice(device) }, context: None }
+        Gpu { options: ContextOptions { validation, device: device_choice(device) }, context: None, failed: None }
     }
 
-    /// The context, opened now if it is not yet.
+    /// The context, opened now if it is not yet. After a failed [`Gpu::open_early`], its error.
     pub fn context(&mut self) -> Result<Arc<Context>> {
+        if let Some(e) = self.failed.take() {
+            return Err(e);
+        }
         if let Some(c) = &self.context {
             return Ok(c.clone());
         }
         let c = Arc::new(Context::new(&self.options)?);
         self.context = Some(c.clone());
         Ok(c)
+    }
+
+    /// Opens the context ahead of its first use (beside other start-up work: on lavapipe the
+    /// driver's libraries and threads take ~40 ms); a failure is kept for the next
+    /// [`Gpu::context`], where the backend that needs the device reports it (or `auto` falls
+    /// back to the ray caster).
+    pub fn open_early(&mut self) {
+        if self.context.is_none() && self.failed.is_none() {
+            if let Err(e) = self.context() {
+                self.failed = Some(e);
+            }
+        }
     }
 }
 
