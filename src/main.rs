@@ -216,6 +216,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut table = pedscan::commands::bench::markdown(&points);
             table += &bench_rates(&base, quick);
             table += &bench_terms(&base, quick);
+            table += &bench_shares(&base, quick);
             std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
             pedscan::commands::bench::plot(&points).save(&plot)?;
             print!("{table}");
@@ -279,6 +280,18 @@ fn bench_terms(base: &Config, quick: bool) -> String {
         }
     }
     terms_markdown(&rows, frames, repeats) + &notes
+}
+
+/// The bench's table of where the raster background's work runs, or a line saying why there
+/// is none.
+fn bench_shares(base: &Config, quick: bool) -> String {
+    use pedscan::commands::bench::{host_share_costs, shares_markdown};
+    let (frames, repeats) = if quick { (8, 3) } else { (32, 5) };
+    let device = pedscan::backend::Gpu::new(&base.device, false).context().map(|c| c.device_name());
+    match device.and_then(|d| Ok((d, host_share_costs(base, frames, repeats)?))) {
+        Ok((device, rows)) => shares_markdown(&device, &rows, frames, repeats),
+        Err(e) => format!("\nWhere the raster background's work runs: not measured ({e})\n"),
+    }
 }
 
 fn bench_rates(base: &Config, quick: bool) -> String {

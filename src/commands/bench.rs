@@ -519,37 +519,171 @@ pub fn sensor_model_costs(base: &Config, backends: &[crate::config::BackendChoic
     let variants = sensor_model_variants();
     let mut rows = Vec::new();
     for &backend in backends {
-        let mut gens = Vec::new();
-        for (_, m) in &variants {
-            let mut cfg = base.clone();
-            cfg.render.backend = backend;
-            cfg.sensor_model = m.clone();
-            cfg.frames = frames;
-            let gen = crate::generator::Generator::new(cfg)?;
-            let plan = gen.plan(0)?;
-            gens.push((gen, plan));
-        }
-        let mut times = vec![Vec::new(); variants.len()];
-        let mut out = crate::output::FrameOutput::default();
-        for _ in 0..repeats.max(1) {
-            for (v, (gen, plan)) in gens.iter_mut().enumerate() {
-                gen.begin_sequence(0, plan);
-                let t = Instant::now();
-                for k in 0..plan.times_s.len() {
-                    gen.frame(plan, k, &mut out)?;
-                }
-                times[v].push(t.elapsed().as_secs_f64() * 1e3 / plan.times_s.len() as f64);
-            }
-        }
+        let configs: Vec<Config> = variants
+            .iter()
+            .map(|(_, m)| {
+                let mut cfg = base.clone();
+                cfg.render.backend = backend;
+                cfg.sensor_model = m.clone();
+                cfg.frames = frames;
+                cfg
+            })
+            .collect();
+        let times = frame_costs(&configs, repeats)?;
         let name = if backend == crate::config::BackendChoice::Raycast { "raycast" } else { "raster" };
-        for ((variant, _), t) in variants.iter().zip(times.iter_mut()) {
-            rows.push(TermRow { backend: name.into(), variant: variant.to_string(), ms_per_frame: median(t) });
-        }
-        for (gen, _) in gens {
-            gen.finish()?;
+        for ((variant, _), ms) in variants.iter().zip(times) {
+            rows.push(TermRow { backend: name.into(), variant: variant.to_string(), ms_per_frame: ms });
         }
     }
     Ok(rows)
+}
+
+/// Milliseconds per frame (pose, cast and post; no writing) of sequence 0 of each of
+/// `configs` (its `frames` frames a round), `repeats` rounds interleaved over the configs;
+/// medians of the rounds.
+fn frame_costs(configs: &[Config], repeats: usize) -> Result<Vec<f64>> {
+    let mut gens = Vec::new();
+    for cfg in configs {
+        let gen = crate::generator::Generator::new(cfg.clone())?;
+        let plan = gen.plan(0)?;
+        gens.push((gen, plan));
+    }
+    let mut times = vec![Vec::new(); configs.len()];
+    let mut out = crate::output::FrameOutput::default();
+    for _ in 0..repeats.max(1) {
+        for (v, (gen, plan)) in gens.iter_mut().enumerate() {
+            gen.begin_sequence(0, plan);
+            let t = Instant::now();
+            for k in 0..plan.times_s.len() {
+                gen.frame(plan, k, &mut out)?;
+            }
+            times[v].push(t.elapsed().as_secs_f64() * 1e3 / plan.times_s.len() as f64);
+        }
+    }
+    for (gen, _) in gens {
+        gen.finish()?;
+    }
+    Ok(times.iter_mut().map(|t| median(t)).collect())
+}
+
+/// One row of [`host_share_costs`].
+#[derive(Clone, Debug, Serialize)]
+pub struct ShareRow {
+    /// `hall only, background cast` or `paper scenario, frame`.
+    pub workload: String,
+    /// The backend, and for the raster one its `render.host_cast_beams`.
+    pub variant: String,
+    /// Median milliseconds: per background cast, or per frame (pose, cast, post).
+    pub ms: f64,
+    /// The raster background's own figures (medians), where measured.
+    pub raster: Option<ShareDetail>,
+}
+
+/// Where a raster background cast's time went ([`crate::backend::raster::beam_exact::BeamExactStats`]).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ShareDetail {
+    /// Bounding, staging, submitting and the host's own cast.
+    pub host_ms: f64,
+    /// From the submit until the draw and read-back were done.
+    pub device_ms: f64,
+    /// The f64 confirmation of the drawn triangles.
+    pub confirm_ms: f64,
+    pub rectangles: f64,
+    pub texels: f64,
+}
+
+/// Where the raster backend's background work should run: the binned ray caster against the
+/// raster backend with the device drawing every triangle (`render.host_cast_beams = 0`), the
+/// default split, and the host casting every triangle (nothing drawn). First the fixed cost,
+/// the background alone (`base`'s environment, no person): `frames` posed frames, each cast
+/// `repeats` times by every variant in turn, medians. Then whole frames of `base` (pose, cast
+/// and post) on each variant, as [`frame_costs`]. Needs a Vulkan device.
+pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<Vec<ShareRow>> {
+    use crate::backend::raster::beam_exact::{BeamExact, HOST_BEAMS};
+    let shares = [(0, "0 (device draws all)".to_string()), (HOST_BEAMS, format!("{HOST_BEAMS} (default)")), (u64::MAX, "max (host casts all)".to_string())];
+    let mut rows = Vec::new();
+    let mut cfg = base.clone();
+    cfg.render.backend = BackendChoice::Raycast;
+    cfg.humans.count = [0, 0];
+    cfg.frames = frames;
+    let mut gen = Generator::new(cfg)?;
+    let ctx = crate::backend::Gpu::new(&base.device, false).context()?;
+    let mut caster = raycast::BeamCaster::new(gen.beam_dirs(), gen.sensor().rows(), gen.sensor().columns);
+    let mut rasters = shares.iter().map(|&(h, _)| BeamExact::new(&ctx, gen.sensor(), h)).collect::<Result<Vec<_>>>()?;
+    let plan = gen.plan(0)?;
+    let (mut cast, mut hits) = (Vec::new(), crate::backend::BeamHits::default());
+    let mut ms = vec![Vec::new(); 1 + shares.len()];
+    let mut stats = vec![Vec::new(); shares.len()];
+    for k in 0..plan.times_s.len() {
+        let state = gen.frame_state(&plan, k);
+        gen.pose_frame(&plan, &state)?;
+        let geom = gen.posed().background;
+        for _ in 0..repeats.max(1) {
+            let t = Instant::now();
+            caster.cast(geom, f64::MAX, &mut cast);
+            ms[0].push(t.elapsed().as_secs_f64() * 1e3);
+            for (v, raster) in rasters.iter_mut().enumerate() {
+                let t = Instant::now();
+                raster.cast(geom, &mut hits)?;
+                ms[v + 1].push(t.elapsed().as_secs_f64() * 1e3);
+                stats[v].push(raster.stats());
+            }
+        }
+    }
+    drop(rasters);
+    gen.finish()?;
+    let hall = "hall only, background cast";
+    rows.push(ShareRow { workload: hall.into(), variant: "raycast".into(), ms: median(&mut ms[0]), raster: None });
+    for (v, (_, name)) in shares.iter().enumerate() {
+        let m = |f: &dyn Fn(&crate::backend::raster::beam_exact::BeamExactStats) -> f64| median(&mut stats[v].iter().map(f).collect::<Vec<_>>());
+        let detail = ShareDetail {
+            host_ms: m(&|s| s.stage_s * 1e3),
+            device_ms: m(&|s| s.draw_s * 1e3),
+            confirm_ms: m(&|s| s.resolve_s * 1e3),
+            rectangles: m(&|s| s.instances as f64),
+            texels: m(&|s| s.texels as f64),
+        };
+        rows.push(ShareRow { workload: hall.into(), variant: format!("raster, host_cast_beams {name}"), ms: median(&mut ms[v + 1]), raster: Some(detail) });
+    }
+    let mut configs = Vec::new();
+    let mut names = vec!["raycast".to_string()];
+    let mut c = base.clone();
+    c.frames = frames;
+    c.render.backend = BackendChoice::Raycast;
+    configs.push(c.clone());
+    c.render.backend = BackendChoice::Raster;
+    for (h, name) in &shares {
+        c.render.host_cast_beams = *h;
+        configs.push(c.clone());
+        names.push(format!("raster, host_cast_beams {name}"));
+    }
+    for (name, ms) in names.into_iter().zip(frame_costs(&configs, repeats)?) {
+        rows.push(ShareRow { workload: "paper scenario, frame".into(), variant: name, ms, raster: None });
+    }
+    Ok(rows)
+}
+
+/// The Markdown table of [`host_share_costs`].
+pub fn shares_markdown(device: &str, rows: &[ShareRow], frames: usize, repeats: usize) -> String {
+    let mut s = format!(
+        "\nWhere the raster background's work runs on {device} (`render.host_cast_beams`; hall only: {frames} frames, each cast {repeats} times by every variant in turn; frames: {frames} frames x {repeats} interleaved rounds, pose + cast + post; medians; the time over the ray caster's):\n\n\
+         | workload | variant | ms | over raycast | raster background (host: bound, stage, submit, host cast) |\n|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        let rc = rows.iter().find(|o| o.workload == r.workload && o.variant == "raycast").map_or(r.ms, |o| o.ms);
+        let detail = r.raster.map_or_else(String::new, |d| {
+            if d.rectangles == 0.0 {
+                format!("host {:.2} ms (nothing drawn), confirm {:.2} ms", d.host_ms, d.confirm_ms)
+            } else {
+                format!(
+                    "host {:.2} ms, submit to read-back {:.2} ms, confirm {:.2} ms; {:.0} rectangles, {:.0} texels",
+                    d.host_ms, d.device_ms, d.confirm_ms, d.rectangles, d.texels
+                )
+            }
+        });
+        s += &format!("| {} | {} | {:.2} | {:.2}x | {} |\n", r.workload, r.variant, r.ms, r.ms / rc.max(1e-9), detail);
+    }
+    s
 }
 
 /// The Markdown table of [`sensor_model_costs`].

@@ -224,6 +224,11 @@ pub struct RenderConfig {
     /// their coarsest level of detail whose recorded error is at most this (metres), pushed
     /// outward to enclose the measured mesh (`src/human/proxy.rs`). 0 = the measured mesh itself.
     pub proxy_max_error_m: f64,
+    /// Raster backend, `projection = "beams"`: a background triangle whose beam-grid bound
+    /// holds at most this many beams is cast on the host beside the device's draw of the
+    /// others (`src/backend/raster/beam_exact.rs`); 0: the device draws every triangle; more
+    /// than the grid's beams: the host casts them all and the device draws nothing.
+    pub host_cast_beams: u64,
     /// Keep background holes (no return) even where a person stands in front (the paper's
     /// choice); by default the person is measured.
     pub keep_holes: bool,
@@ -443,6 +448,7 @@ impl Default for RenderConfig {
             refine: Refine::Exact,
             lod_max_error_mrad: 1.0,
             proxy_max_error_m: 0.04,
+            host_cast_beams: 8192,
             keep_holes: false,
         }
     }

@@ -5,7 +5,7 @@
 //! triangles meet at the beam). Zero validation errors.
 
 use crate::common::context;
-use pedscan::backend::raster::beam_exact::BeamExact;
+use pedscan::backend::raster::beam_exact::{self, BeamExact};
 use pedscan::backend::raycast::{BeamCaster, Hit};
 use pedscan::backend::{self, BeamHits, Gpu, Layer, NO_TRIANGLE};
 use pedscan::config::{BackendChoice, Config};
@@ -52,7 +52,7 @@ fn beam_raster_equals_the_ray_caster_on_the_hall_and_walking_people() {
     cfg.humans.count = [20, 20];
     let mut gen = Generator::new(cfg).expect("generator");
     let mut caster = BeamCaster::new(gen.beam_dirs(), gen.sensor().rows(), gen.sensor().columns);
-    let mut raster = BeamExact::new(&ctx, gen.sensor()).unwrap();
+    let mut raster = BeamExact::new(&ctx, gen.sensor(), beam_exact::HOST_BEAMS).unwrap();
     let (mut reference, mut got) = (Vec::new(), BeamHits::default());
     let (mut hits, mut differ, mut layers, mut fallback) = ([0usize; 2], 0, 0, 0);
     for index in 0..2 {
@@ -132,13 +132,22 @@ fn beam_raster_equals_the_ray_caster_on_large_awkward_and_wrapping_triangles() {
     geom.push_mesh(&odd, &(0..9).collect::<Vec<u32>>(), 3, true);
     let dirs = sensor.beam_dirs();
     let mut caster = BeamCaster::new(&dirs, sensor.rows(), sensor.columns);
-    let mut raster = BeamExact::new(&ctx, &sensor).unwrap();
     let (mut reference, mut got) = (Vec::new(), BeamHits::default());
     caster.cast(&geom, f64::MAX, &mut reference);
+    // Every share of the work (`render.host_cast_beams`): the device draws every triangle, the
+    // default split, the host casts them all and nothing is drawn.
+    let mut drawn = Vec::new();
+    for host_beams in [0, beam_exact::HOST_BEAMS, u64::MAX] {
+        let mut raster = BeamExact::new(&ctx, &sensor, host_beams).unwrap();
+        raster.cast(&geom, &mut got).unwrap();
+        let (hits, differ) = compare(&format!("awkward, host_cast_beams {host_beams}"), &got, &reference, &geom);
+        eprintln!("host_cast_beams {host_beams}: {hits} hits, other triangle on {differ}, {:?}", raster.stats());
+        assert!(hits > 30_000, "{hits}");
+        drawn.push(raster.stats().instances);
+    }
+    assert!(drawn[0] > drawn[1] && drawn[1] > 0 && drawn[2] == 0, "instances drawn per share: {drawn:?}");
+    let mut raster = BeamExact::new(&ctx, &sensor, beam_exact::HOST_BEAMS).unwrap();
     raster.cast(&geom, &mut got).unwrap();
-    let (hits, differ) = compare("awkward", &got, &reference, &geom);
-    eprintln!("{hits} hits, other triangle on {differ}, {:?}", raster.stats());
-    assert!(hits > 30_000, "{hits}");
     // Again, reusing every buffer: the same.
     let first = got.clone();
     raster.cast(&geom, &mut got).unwrap();

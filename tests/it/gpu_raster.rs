@@ -731,3 +731,19 @@ fn triangle_rate_probe_draws_and_casts_the_same_patches() {
     drop(ctx);
     assert_eq!(errors.load(std::sync::atomic::Ordering::SeqCst), 0, "validation errors (see stderr)");
 }
+
+/// `bench`'s table of where the raster background's work runs: the fixed cost (hall only) of
+/// the ray caster and of the raster backend at three shares, then whole frames; the share
+/// decides what the device draws (all, some, nothing).
+#[test]
+fn host_share_bench_draws_all_some_and_nothing() {
+    let mut base = pedscan::config::Config::default();
+    base.humans.count = [3, 3];
+    let rows = pedscan::commands::bench::host_share_costs(&base, 2, 1).unwrap();
+    assert_eq!(rows.len(), 8, "{rows:?}");
+    assert!(rows.iter().all(|r| r.ms > 0.0), "{rows:?}");
+    let drawn: Vec<f64> = rows.iter().filter_map(|r| r.raster.map(|d| d.rectangles)).collect();
+    assert!(drawn.len() == 3 && drawn[0] > drawn[1] && drawn[1] > 0.0 && drawn[2] == 0.0, "rectangles per share: {drawn:?}");
+    let table = pedscan::commands::bench::shares_markdown("lavapipe", &rows, 2, 1);
+    assert_eq!(table.matches("| hall only").count() + table.matches("| paper scenario").count(), 8, "{table}");
+}

@@ -6,7 +6,8 @@
 //! the watertight f64 test the ray caster uses and takes its range. A triangle whose bound
 //! holds at most `HOST_BEAMS` beams is not drawn: the host casts it through the beams of its
 //! bound as the ray caster does ([`BeamCaster::cast_bounds`]), while the device draws the
-//! others, and each beam keeps the nearer of the two answers.
+//! others, and each beam keeps the nearer of the two answers. (`HOST_BEAMS` is the default of
+//! `render.host_cast_beams`.)
 //!
 //! In: one layer's posed triangles (`FrameGeometry`, sensor frame). Out: per beam the range
 //! and triangle of the nearest hit ([`BeamHits`]).
@@ -56,11 +57,11 @@ const MIN_INSTANCES: u64 = 1024;
 /// Beams per tile of the coverage test (`BeamExact::stage`).
 const TILE_ROWS: usize = 4;
 const TILE_COLUMNS: usize = 8;
-/// A triangle whose bound holds at most this many beams is cast on the host instead of
-/// drawn. Hall only, 32 frames x 5 casts on lavapipe, medians: with nothing cast on the host
+/// The default of `render.host_cast_beams`: a triangle whose bound holds at most this many
+/// beams is cast on the host instead of drawn. Hall only, 32 frames x 5 casts on lavapipe, medians: with nothing cast on the host
 /// 2.9 ms (3.7 ms of CPU) a cast, with at most 128 beams 2.5 ms, 512: 2.4, 8,192: 2.1 ms
 /// (2.9 ms of CPU; only the triangles around the sensor are drawn).
-const HOST_BEAMS: i64 = 8192;
+pub const HOST_BEAMS: u64 = 8192;
 /// Texel coordinates are packed into 16 bits per bound.
 const MAX_GRID_SIDE: usize = 1 << 16;
 
@@ -145,7 +146,9 @@ pub struct BeamExact {
     /// bounding `|d - axis|` over its beams' f32 directions.
     tiles: Vec<[f32; 4]>,
     staged: Vec<Instance>,
-    /// The bounds of the triangles cast on the host (at most `HOST_BEAMS` beams), and the
+    /// Triangles whose bound holds at most this many beams are cast on the host.
+    host_beams: i64,
+    /// The bounds of the triangles cast on the host (at most `host_beams` beams), and the
     /// hits (beam, range, triangle) and per-beam nearest of that cast.
     host: Vec<GridBound>,
     host_hits: Vec<(u32, f64, u32)>,
@@ -165,8 +168,10 @@ impl Drop for BeamExact {
 }
 
 impl BeamExact {
-    /// The raster for `sensor`'s beam grid on `ctx`.
-    pub fn new(ctx: &Arc<Context>, sensor: &Sensor) -> Result<BeamExact> {
+    /// The raster for `sensor`'s beam grid on `ctx`; triangles whose bound holds at most
+    /// `host_beams` beams are cast on the host (`render.host_cast_beams`, default
+    /// [`HOST_BEAMS`]).
+    pub fn new(ctx: &Arc<Context>, sensor: &Sensor, host_beams: u64) -> Result<BeamExact> {
         let (rows, columns) = (sensor.rows(), sensor.columns);
         let limits = ctx.limits();
         let side = (limits.max_image_dimension2_d.min(limits.max_framebuffer_width).min(limits.max_framebuffer_height) as usize)
@@ -246,6 +251,7 @@ impl BeamExact {
             bounds: Vec::new(),
             tiles,
             staged: Vec::new(),
+            host_beams: i64::try_from(host_beams).unwrap_or(i64::MAX),
             host: Vec::new(),
             host_hits: Vec::new(),
             host_best: vec![(f64::INFINITY, NO_TRIANGLE); rows * columns],
@@ -300,7 +306,7 @@ impl BeamExact {
     }
 
     /// The second part of [`Self::begin`]: casts the small triangles (bounds of at most
-    /// `HOST_BEAMS` beams) on the host, while the device draws the others. One task: in
+    /// `host_beams` beams) on the host, while the device draws the others. One task: in
     /// parallel jobs it only took the cores the device draws on.
     pub fn cast_host(&mut self, geom: &FrameGeometry) {
         if self.submitted.is_some() {
@@ -352,7 +358,7 @@ impl BeamExact {
             while geom.meshes[mesh].first_triangle + geom.meshes[mesh].triangle_count <= g.triangle {
                 mesh += 1;
             }
-            if (g.r1 - g.r0) as i64 * (g.c1 - g.c0 + 1) <= HOST_BEAMS {
+            if (g.r1 - g.r0) as i64 * (g.c1 - g.c0 + 1) <= self.host_beams {
                 self.host.push(*g);
                 continue;
             }

@@ -90,7 +90,7 @@ impl RasterBackend {
                 Views::Resampled { lookup: BeamLookup::new_panorama(sensor, &pano), renderer: Renderer::new_panorama(&ctx, &pano)? }
             }
             // Exact by construction: `refine` only decides how the people are drawn.
-            Projection::Beams => Views::Beams(BeamExact::new(&ctx, sensor)?),
+            Projection::Beams => Views::Beams(BeamExact::new(&ctx, sensor, render.host_cast_beams)?),
         };
         let (people, proxies) = match render.refine {
             Refine::Exact if ctx.is_cpu() => {
