@@ -264,10 +264,12 @@ impl Generator {
         let models = std::thread::scope(|scope| {
             let opening = opens_device.then(|| scope.spawn(|| gpu.open_early()));
             let loaded: Vec<Result<HumanModel>> = files.par_iter().map(|f| HumanModel::load(f, needs_animation)).collect();
-            if let Some(h) = opening {
-                h.join().map_err(|_| Error::Internal("opening the Vulkan device panicked".into()))?;
+            let opened = opening.map(|h| h.join());
+            let models = loaded.into_iter().collect::<Result<Vec<_>>>()?;
+            match opened {
+                Some(Err(_)) => Err(Error::Internal("opening the Vulkan device panicked".into())),
+                _ => Ok(models),
             }
-            loaded.into_iter().collect::<Result<Vec<_>>>()
         })?;
         let bg = &cfg.scene.background;
         let (environment, grid, recording) = if bg.as_os_str().is_empty() {

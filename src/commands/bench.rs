@@ -569,7 +569,7 @@ fn frame_costs(configs: &[Config], repeats: usize) -> Result<Vec<f64>> {
 /// One row of [`host_share_costs`].
 #[derive(Clone, Debug, Serialize)]
 pub struct ShareRow {
-    /// `hall only, background cast` or `paper scenario, frame`.
+    /// `environment only, background cast` or `whole frame`.
     pub workload: String,
     /// The backend, and for the raster one its `render.host_cast_beams`.
     pub variant: String,
@@ -600,7 +600,9 @@ pub struct ShareDetail {
 /// and post) on each variant, as [`frame_costs`]. Needs a Vulkan device.
 pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<Vec<ShareRow>> {
     use crate::backend::raster::beam_exact::{BeamExact, HOST_BEAMS};
-    let shares = [(0, "0 (device draws all)".to_string()), (HOST_BEAMS, format!("{HOST_BEAMS} (default)")), (u64::MAX, "max (host casts all)".to_string())];
+    let own = base.render.host_cast_beams;
+    let own_name = if own == HOST_BEAMS { format!("{own} (default)") } else { format!("{own} (configured)") };
+    let shares = [(0, "0 (device draws all)".to_string()), (own, own_name), (i64::MAX as u64, "max (host casts all)".to_string())];
     let mut rows = Vec::new();
     let mut cfg = base.clone();
     cfg.render.backend = BackendChoice::Raycast;
@@ -631,8 +633,9 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
         }
     }
     drop(rasters);
+    drop(ctx);
     gen.finish()?;
-    let hall = "hall only, background cast";
+    let hall = "environment only, background cast";
     rows.push(ShareRow { workload: hall.into(), variant: "raycast".into(), ms: median(&mut ms[0]), raster: None });
     for (v, (_, name)) in shares.iter().enumerate() {
         let m = |f: &dyn Fn(&crate::backend::raster::beam_exact::BeamExactStats) -> f64| median(&mut stats[v].iter().map(f).collect::<Vec<_>>());
@@ -649,6 +652,7 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
     let mut names = vec!["raycast".to_string()];
     let mut c = base.clone();
     c.frames = frames;
+    c.render.projection = crate::config::Projection::Beams;
     c.render.backend = BackendChoice::Raycast;
     configs.push(c.clone());
     c.render.backend = BackendChoice::Raster;
@@ -658,7 +662,7 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
         names.push(format!("raster, host_cast_beams {name}"));
     }
     for (name, ms) in names.into_iter().zip(frame_costs(&configs, repeats)?) {
-        rows.push(ShareRow { workload: "paper scenario, frame".into(), variant: name, ms, raster: None });
+        rows.push(ShareRow { workload: "whole frame".into(), variant: name, ms, raster: None });
     }
     Ok(rows)
 }
@@ -666,7 +670,7 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
 /// The Markdown table of [`host_share_costs`].
 pub fn shares_markdown(device: &str, rows: &[ShareRow], frames: usize, repeats: usize) -> String {
     let mut s = format!(
-        "\nWhere the raster background's work runs on {device} (`render.host_cast_beams`; hall only: {frames} frames, each cast {repeats} times by every variant in turn; frames: {frames} frames x {repeats} interleaved rounds, pose + cast + post; medians; the time over the ray caster's):\n\n\
+        "\nWhere the raster background's work runs on {device} (`render.host_cast_beams`, the projection the beam grid; environment only, no person: {frames} frames, each background cast {repeats} times by every variant in turn; whole frames of the configuration: {frames} frames x {repeats} interleaved rounds, pose + cast + post; medians; the time over the ray caster's):\n\n\
          | workload | variant | ms | over raycast | raster background (host: bound, stage, submit, host cast) |\n|---|---|---|---|---|\n"
     );
     for r in rows {

@@ -226,8 +226,11 @@ pub struct RenderConfig {
     pub proxy_max_error_m: f64,
     /// Raster backend, `projection = "beams"`: a background triangle whose beam-grid bound
     /// holds at most this many beams is cast on the host beside the device's draw of the
-    /// others (`src/backend/raster/beam_exact.rs`); 0: the device draws every triangle; more
-    /// than the grid's beams: the host casts them all and the device draws nothing.
+    /// others (`src/backend/raster/beam_exact.rs`); 0: the device draws every triangle; the
+    /// grid's beams or more (32,768 for the HDL-32E): the host casts them all and the device
+    /// draws nothing. Recorded only when not the default, so the configuration hash of every
+    /// run that keeps it (and of every run written before the key existed) stays the same.
+    #[serde(skip_serializing_if = "RenderConfig::host_cast_beams_is_default")]
     pub host_cast_beams: u64,
     /// Keep background holes (no return) even where a person stands in front (the paper's
     /// choice); by default the person is measured.
@@ -439,6 +442,12 @@ impl Default for SceneConfig {
     }
 }
 
+impl RenderConfig {
+    fn host_cast_beams_is_default(n: &u64) -> bool {
+        *n == crate::backend::raster::beam_exact::HOST_BEAMS
+    }
+}
+
 impl Default for RenderConfig {
     fn default() -> Self {
         RenderConfig {
@@ -448,7 +457,7 @@ impl Default for RenderConfig {
             refine: Refine::Exact,
             lod_max_error_mrad: 1.0,
             proxy_max_error_m: 0.04,
-            host_cast_beams: 8192,
+            host_cast_beams: crate::backend::raster::beam_exact::HOST_BEAMS,
             keep_holes: false,
         }
     }
@@ -551,6 +560,9 @@ impl Config {
             return bad("render.oversample", format!("{} must be in [0.25, 16]", self.render.oversample));
         }
         non_negative("render.lod_max_error_mrad", self.render.lod_max_error_mrad)?;
+        if self.render.host_cast_beams > i64::MAX as u64 {
+            return bad("render.host_cast_beams", format!("{} is more than {} (a TOML integer)", self.render.host_cast_beams, i64::MAX));
+        }
         if !(self.render.proxy_max_error_m.is_finite() && (0.0..=0.5).contains(&self.render.proxy_max_error_m)) {
             return bad("render.proxy_max_error_m", format!("{} must be in [0, 0.5]", self.render.proxy_max_error_m));
         }
@@ -618,6 +630,22 @@ mod tests {
         assert!(!recorded.contains("debug") && !recorded.contains("caster"), "{recorded}");
         assert_eq!(recorded, Config::default().to_recorded_toml());
         assert!(toml::from_str::<Config>("[debug]\ncaster = \"embree\"\n").is_err());
+    }
+
+    #[test]
+    fn the_host_share_is_recorded_only_when_set_and_bounded() {
+        // The default is left out of the record: every earlier run's hash stays the same.
+        assert!(!Config::default().to_recorded_toml().contains("host_cast_beams"));
+        let c: Config = toml::from_str("[render]\nhost_cast_beams = 0\n").unwrap();
+        assert_eq!(c.render.host_cast_beams, 0);
+        c.validate().unwrap();
+        let recorded = c.to_recorded_toml();
+        assert!(recorded.contains("host_cast_beams = 0"), "{recorded}");
+        assert_eq!(toml::from_str::<Config>(&recorded).unwrap(), c);
+        let mut c = Config::default();
+        c.render.host_cast_beams = u64::MAX;
+        let e = c.validate().unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("render.host_cast_beams"), "{e}");
     }
 
     #[test]

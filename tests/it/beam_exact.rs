@@ -137,7 +137,7 @@ fn beam_raster_equals_the_ray_caster_on_large_awkward_and_wrapping_triangles() {
     // Every share of the work (`render.host_cast_beams`): the device draws every triangle, the
     // default split, the host casts them all and nothing is drawn.
     let mut drawn = Vec::new();
-    for host_beams in [0, beam_exact::HOST_BEAMS, u64::MAX] {
+    for host_beams in [0, beam_exact::HOST_BEAMS, i64::MAX as u64] {
         let mut raster = BeamExact::new(&ctx, &sensor, host_beams).unwrap();
         raster.cast(&geom, &mut got).unwrap();
         let (hits, differ) = compare(&format!("awkward, host_cast_beams {host_beams}"), &got, &reference, &geom);

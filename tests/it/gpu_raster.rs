@@ -745,5 +745,5 @@ fn host_share_bench_draws_all_some_and_nothing() {
     let drawn: Vec<f64> = rows.iter().filter_map(|r| r.raster.map(|d| d.rectangles)).collect();
     assert!(drawn.len() == 3 && drawn[0] > drawn[1] && drawn[1] > 0.0 && drawn[2] == 0.0, "rectangles per share: {drawn:?}");
     let table = pedscan::commands::bench::shares_markdown("lavapipe", &rows, 2, 1);
-    assert_eq!(table.matches("| hall only").count() + table.matches("| paper scenario").count(), 8, "{table}");
+    assert_eq!(table.matches("| environment only").count() + table.matches("| whole frame").count(), 8, "{table}");
 }
