@@ -287,8 +287,7 @@ fn bench_terms(base: &Config, quick: bool) -> String {
 fn bench_shares(base: &Config, quick: bool) -> String {
     use pedscan::commands::bench::{host_share_costs, shares_markdown};
     let (frames, repeats) = if quick { (8, 3) } else { (32, 5) };
-    let device = pedscan::backend::Gpu::new(&base.device, false).context().map(|c| c.device_name());
-    match device.and_then(|d| Ok((d, host_share_costs(base, frames, repeats)?))) {
+    match host_share_costs(base, frames, repeats) {
         Ok((device, rows)) => shares_markdown(&device, &rows, frames, repeats),
         Err(e) => format!("\nWhere the raster background's work runs: not measured ({e})\n"),
     }

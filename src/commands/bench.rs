@@ -597,8 +597,10 @@ pub struct ShareDetail {
 /// default split, and the host casting every triangle (nothing drawn). First the fixed cost,
 /// the background alone (`base`'s environment, no person): `frames` posed frames, each cast
 /// `repeats` times by every variant in turn, medians. Then whole frames of `base` (pose, cast
-/// and post) on each variant, as [`frame_costs`]. Needs a Vulkan device.
-pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<Vec<ShareRow>> {
+/// and post) on each variant, as [`frame_costs`]. Needs a Vulkan device; returns its name
+/// beside the rows. With `base.debug.validation`, fails if the validation layer reported
+/// anything.
+pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<(String, Vec<ShareRow>)> {
     use crate::backend::raster::beam_exact::{BeamExact, HOST_BEAMS};
     let own = base.render.host_cast_beams;
     let own_name = if own == HOST_BEAMS { format!("{own} (default)") } else { format!("{own} (configured)") };
@@ -609,7 +611,9 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
     cfg.humans.count = [0, 0];
     cfg.frames = frames;
     let mut gen = Generator::new(cfg)?;
-    let ctx = crate::backend::Gpu::new(&base.device, false).context()?;
+    let ctx = crate::backend::Gpu::new(&base.device, base.debug.validation).context()?;
+    let device = ctx.device_name();
+    let validation = ctx.validation_counter();
     let mut caster = raycast::BeamCaster::new(gen.beam_dirs(), gen.sensor().rows(), gen.sensor().columns);
     let mut rasters = shares.iter().map(|&(h, _)| BeamExact::new(&ctx, gen.sensor(), h)).collect::<Result<Vec<_>>>()?;
     let plan = gen.plan(0)?;
@@ -635,6 +639,10 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
     drop(rasters);
     drop(ctx);
     gen.finish()?;
+    match validation.load(std::sync::atomic::Ordering::SeqCst) {
+        0 => {}
+        n => return Err(Error::Gpu(format!("{n} Vulkan validation errors (see the messages above)"))),
+    }
     let hall = "environment only, background cast";
     rows.push(ShareRow { workload: hall.into(), variant: "raycast".into(), ms: median(&mut ms[0]), raster: None });
     for (v, (_, name)) in shares.iter().enumerate() {
@@ -664,7 +672,7 @@ pub fn host_share_costs(base: &Config, frames: usize, repeats: usize) -> Result<
     for (name, ms) in names.into_iter().zip(frame_costs(&configs, repeats)?) {
         rows.push(ShareRow { workload: "whole frame".into(), variant: name, ms, raster: None });
     }
-    Ok(rows)
+    Ok((device, rows))
 }
 
 /// The Markdown table of [`host_share_costs`].

@@ -734,16 +734,19 @@ fn triangle_rate_probe_draws_and_casts_the_same_patches() {
 
 /// `bench`'s table of where the raster background's work runs: the fixed cost (hall only) of
 /// the ray caster and of the raster backend at three shares, then whole frames; the share
-/// decides what the device draws (all, some, nothing).
+/// decides what the device draws (all, some, nothing). Validation on: the bench fails on
+/// any message.
 #[test]
 fn host_share_bench_draws_all_some_and_nothing() {
     let mut base = pedscan::config::Config::default();
     base.humans.count = [3, 3];
-    let rows = pedscan::commands::bench::host_share_costs(&base, 2, 1).unwrap();
+    base.debug.validation = true;
+    let (device, rows) = pedscan::commands::bench::host_share_costs(&base, 2, 1).unwrap();
+    assert!(!device.is_empty());
     assert_eq!(rows.len(), 8, "{rows:?}");
     assert!(rows.iter().all(|r| r.ms > 0.0), "{rows:?}");
     let drawn: Vec<f64> = rows.iter().filter_map(|r| r.raster.map(|d| d.rectangles)).collect();
     assert!(drawn.len() == 3 && drawn[0] > drawn[1] && drawn[1] > 0.0 && drawn[2] == 0.0, "rectangles per share: {drawn:?}");
-    let table = pedscan::commands::bench::shares_markdown("lavapipe", &rows, 2, 1);
+    let table = pedscan::commands::bench::shares_markdown(&device, &rows, 2, 1);
     assert_eq!(table.matches("| environment only").count() + table.matches("| whole frame").count(), 8, "{table}");
 }

@@ -58,9 +58,10 @@ const MIN_INSTANCES: u64 = 1024;
 const TILE_ROWS: usize = 4;
 const TILE_COLUMNS: usize = 8;
 /// The default of `render.host_cast_beams`: a triangle whose bound holds at most this many
-/// beams is cast on the host instead of drawn. Hall only, 32 frames x 5 casts on lavapipe, medians: with nothing cast on the host
-/// 2.9 ms (3.7 ms of CPU) a cast, with at most 128 beams 2.5 ms, 512: 2.4, 8,192: 2.1 ms
-/// (2.9 ms of CPU; only the triangles around the sensor are drawn).
+/// beams is cast on the host instead of drawn. Hall only, 32 frames x 5 casts on lavapipe,
+/// medians: with nothing cast on the host 2.9 ms (3.7 ms of CPU) a cast, with at most 128
+/// beams 2.5 ms, 512: 2.4, 8,192: 2.1 ms (2.9 ms of CPU; only the triangles around the
+/// sensor are drawn).
 pub const HOST_BEAMS: u64 = 8192;
 /// Texel coordinates are packed into 16 bits per bound.
 const MAX_GRID_SIDE: usize = 1 << 16;
@@ -147,7 +148,7 @@ pub struct BeamExact {
     tiles: Vec<[f32; 4]>,
     staged: Vec<Instance>,
     /// Triangles whose bound holds at most this many beams are cast on the host.
-    host_beams: i64,
+    host_beams: u64,
     /// The bounds of the triangles cast on the host (at most `host_beams` beams), and the
     /// hits (beam, range, triangle) and per-beam nearest of that cast.
     host: Vec<GridBound>,
@@ -251,7 +252,7 @@ impl BeamExact {
             bounds: Vec::new(),
             tiles,
             staged: Vec::new(),
-            host_beams: i64::try_from(host_beams).unwrap_or(i64::MAX),
+            host_beams,
             host: Vec::new(),
             host_hits: Vec::new(),
             host_best: vec![(f64::INFINITY, NO_TRIANGLE); rows * columns],
@@ -358,7 +359,7 @@ impl BeamExact {
             while geom.meshes[mesh].first_triangle + geom.meshes[mesh].triangle_count <= g.triangle {
                 mesh += 1;
             }
-            if (g.r1 - g.r0) as i64 * (g.c1 - g.c0 + 1) <= self.host_beams {
+            if u64::from(g.r1 - g.r0) * (g.c1 - g.c0 + 1) as u64 <= self.host_beams {
                 self.host.push(*g);
                 continue;
             }
