@@ -217,6 +217,7 @@ class Report:
     frames: int = 0
     velocity: bool = False
     notes: list[str] = field(default_factory=list)
+    from_frame: int = 0
     bins: list[Counts] = field(default_factory=lambda: [Counts() for _ in BINS])
 
     def as_dict(self) -> dict[str, Any]:
@@ -229,6 +230,7 @@ class Report:
             "format": self.format,
             "sequences": self.sequences,
             "frames": self.frames,
+            "from_frame": self.from_frame,
             "notes": self.notes,
             "overall": total.scores(self.velocity),
             "bins": [
@@ -260,8 +262,8 @@ def _score_frame(
             c.epe_beams += int(np.count_nonzero(t))
 
 
-def evaluate(ground_truth: str | Path, predictions: str | Path) -> Report:
-    """Scores ``predictions`` against ``ground_truth``.
+def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int = 0) -> Report:
+    """Scores ``predictions`` against ``ground_truth`` on frames ``from_frame`` onwards.
 
     Raises PedscanError for ground truth that is not pedscan's or predictions of an unknown
     format, MismatchError (naming every missing or mismatched file and frame, all of them at
@@ -271,8 +273,9 @@ def evaluate(ground_truth: str | Path, predictions: str | Path) -> Report:
     preds = open_predictions(Path(predictions))
     problems = preds.check(sequences)
     report = Report(str(ground_truth), str(predictions), preds.format, sequences=len(sequences))
+    report.from_frame = from_frame
     for seq in sequences:
-        for t in range(seq.frames):
+        for t in range(from_frame, seq.frames):
             if not preds.available(seq, t):
                 continue
             range_m = seq.read("range", t)
@@ -337,9 +340,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("ground_truth", type=Path, help="pedscan output folder or sequence file")
     parser.add_argument("predictions", type=Path, help="SemanticKITTI folder or HDF5 file(s)")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the scores as JSON")
+    parser.add_argument(
+        "--from-frame", type=int, default=0, metavar="K",
+        help="score frames K onwards of each sequence (an N-frame network's full windows: K = N-1)",
+    )
     args = parser.parse_args(argv)
     try:
-        report = evaluate(args.ground_truth, args.predictions).as_dict()
+        if args.from_frame < 0:
+            raise PedscanError(f"--from-frame {args.from_frame}: not a frame index")
+        report = evaluate(args.ground_truth, args.predictions, args.from_frame).as_dict()
     except (PedscanError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

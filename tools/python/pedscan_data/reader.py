@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 
 #: The per-beam datasets a sequence may hold, in the order pedscan writes them.
-BEAM_FIELDS: tuple[str, ...] = ("range", "xyz", "label", "instance", "velocity", "background/range")
+BEAM_FIELDS: tuple[str, ...] = ("range", "xyz", "label", "instance", "velocity", "background/range", "intensity")
 
 #: What :meth:`Sequence.frame` reads when no fields are named.
 DEFAULT_FIELDS: tuple[str, ...] = ("range", "label", "instance")
@@ -62,6 +62,7 @@ class Frame:
     instance: np.ndarray | None = None
     velocity: np.ndarray | None = None
     background_range: np.ndarray | None = None
+    intensity: np.ndarray | None = None
 
 
 def _attr_int(f: h5py.File, key: str, path: Path) -> int:
