@@ -31,8 +31,9 @@ case "$1" in
     shift
     # Lavapipe runs every GPU test; the validation layer is on in each of them.
     cargo test --locked "$@"
-    # The Python tools, in their own venv, on sequences made by the pedscan just built
-    # (without PyTorch, a ~200 MB download: its thin wrapper's test skips, the numpy core runs).
+    # The Python tools, in their own venv, on sequences made by the pedscan just built, with
+    # PyTorch, ONNX Runtime and matplotlib (the networks' tests; PyPI's torch wheel brings its
+    # CUDA libraries, a few GB, and runs on the CPU where there is no GPU).
     venv=tools/python/.venv
     [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
     "$venv/bin/pip" install --quiet --disable-pip-version-check -e "tools/python[test]"

@@ -1,0 +1,477 @@
+"""The paper's experiments (Kim et al. 2020, Tables 4 and 5) on pedscan sequences, as one
+resumable command.
+
+    python -m pedscan_data.experiments paper --work DIR [--scale small|full]
+        [--pedscan BIN] [--recorded FILE] [--device auto|cpu|cuda] [--only STAGE,...]
+
+Stages, each skipped when done (so the table survives interruptions and several sittings;
+run the same command again):
+
+1. **data**: ``pedscan generate`` makes, under ``DIR/data/``, the training, validation and
+   test sets of the paper's Table 2 scenario (HDL-32E, 1-30 people, 32 frames at 10 Hz,
+   sensor model on) from distinct seeds (training 101, validation 102, test 103: no test
+   sequence shares a seed with training or tuning), the three Table 5 ablations' training sets
+   (``--motion static``, ``sliding``, ``in-place``: the training set's seed, so the same people
+   and paths, only the motion differs) and, with ``--recorded FILE``, a test set of people
+   composited into that recording (seed 104). Generation resumes sequence by sequence.
+2. **train**: Table 4's networks (N = 16 first, then 1, 2, 4, 8) and the three ablations
+   (N = 16); each run resumes from its checkpoint.
+3. **test**: every network predicts the test set(s); scored from frame 15 on, the first frame
+   with a full 16-frame window, for *every* N, so all networks are scored on the same beams.
+4. **results**: ``DIR/results.md``, ``results.json`` and ``results.png``: IoU by distance bin
+   per N beside the paper's, Table 5, velocity, the recorded background, the time taken.
+
+Scales (``small`` is what two CPU cores train in hours; ``full`` is the paper's data):
+
+=========  ========  ===========  =====  =========================  ======
+scale      training  validation   test   steps per network (batch)  frames
+=========  ========  ===========  =====  =========================  ======
+small      200       12           36     4,000 (1)                  32
+full       1,000     24           108    150,000 (1): the paper's   32
+smoke      2         1            1      3 (1)                      17
+=========  ========  ===========  =====  =========================  ======
+
+``smoke`` checks the pipeline in a minute (the tests run it); its numbers mean nothing.
+``--pedscan-flag`` passes a flag to every ``pedscan generate`` (``--pedscan-flag=--sensor=vlp16``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .reader import PedscanError
+
+#: The paper's Table 4 (generated data): IoU over all, 0-4, 4-8, 8+ m per N.
+PAPER_TABLE4 = {
+    1: (0.4358, 0.6301, 0.2346, 0.0725),
+    2: (0.5869, 0.7774, 0.4054, 0.1323),
+    4: (0.5461, 0.7278, 0.3740, 0.1222),
+    8: (0.5523, 0.7250, 0.3831, 0.1272),
+    16: (0.6443, 0.8141, 0.4695, 0.1622),
+}
+#: The paper's Table 5 (16 frames, 100 training sequences each, scored on its real data).
+PAPER_TABLE5 = {"static": 0.2276, "sliding": 0.3318, "in-place": 0.3395, "full": 0.3814}
+#: Seeds of the data sets: never shared between training, validation and test.
+SEEDS = {"train": 101, "val": 102, "test": 103, "recorded": 104}
+#: The first frame scored in every sequence: the first with a full 16-frame window.
+SCORE_FROM = 15
+RECORDED_FRAMES = 17
+
+
+@dataclass(frozen=True)
+class Scale:
+    train: int
+    val: int
+    test: int
+    steps: int
+    recorded: int
+    val_every: int
+    frames: int = 32
+
+
+SCALES = {
+    "small": Scale(train=200, val=12, test=36, steps=4000, recorded=36, val_every=500),
+    "full": Scale(train=1000, val=24, test=108, steps=150_000, recorded=108, val_every=5000),
+    "smoke": Scale(train=2, val=1, test=1, steps=3, recorded=1, val_every=3, frames=17),
+}
+TABLE4_FRAMES = (16, 1, 2, 4, 8)
+ABLATIONS = ("static", "sliding", "in-place")
+
+
+def find_pedscan(given: Path | None) -> Path:
+    if given is not None:
+        if not given.is_file():
+            raise PedscanError(f"--pedscan {given}: no such file")
+        return given
+    root = Path(__file__).resolve().parents[3]
+    for p in (root / "target/release/pedscan", shutil.which("pedscan")):
+        if p and Path(p).is_file():
+            return Path(p)
+    raise PedscanError("no pedscan binary found: build it (cargo build --release) or give --pedscan BIN")
+
+
+class Experiment:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.work: Path = args.work
+        self.scale_name: str = args.scale
+        self.scale = SCALES[args.scale]
+        self.pedscan = find_pedscan(args.pedscan)
+        self.recorded: Path | None = args.recorded
+        self.device: str = args.device
+        self.workers: int = args.workers
+        self.python = sys.executable
+        self.extra: list[str] = list(args.pedscan_flag or [])
+        if self.recorded is not None and not self.recorded.exists():
+            raise PedscanError(f"--recorded {self.recorded}: no such file or folder")
+        self.state_path = self.work / "state.json"
+
+    # ---- bookkeeping -------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        if self.state_path.is_file():
+            return json.loads(self.state_path.read_text())
+        return {"scale": self.scale_name, "seconds": {}}
+
+    def add_time(self, key: str, seconds: float) -> None:
+        s = self.state()
+        s["seconds"][key] = s["seconds"].get(key, 0.0) + seconds
+        tmp = self.state_path.with_name("state.json.tmp")
+        tmp.write_text(json.dumps(s, indent=2) + "\n")
+        os.replace(tmp, self.state_path)
+
+    def check_scale(self) -> None:
+        self.work.mkdir(parents=True, exist_ok=True)
+        s = self.state()
+        if s.get("scale") != self.scale_name:
+            raise PedscanError(f"{self.work}: holds the {s.get('scale')} scale; give --scale {s.get('scale')} or another --work")
+        if not self.state_path.is_file():
+            self.add_time("data", 0.0)
+
+    def run(self, cmd: list[str], what: str) -> None:
+        print(f"[{what}] {' '.join(cmd)}", file=sys.stderr, flush=True)
+        done = subprocess.run(cmd, check=False)
+        if done.returncode == 130:
+            raise KeyboardInterrupt
+        if done.returncode != 0:
+            raise PedscanError(f"{what}: `{' '.join(cmd)}` exited {done.returncode}")
+
+    # ---- stage 1: data -----------------------------------------------------------------
+    def datasets(self) -> dict[str, dict[str, Any]]:
+        sc = self.scale
+        sets: dict[str, dict[str, Any]] = {
+            "train": {"sequences": sc.train, "seed": SEEDS["train"], "flags": []},
+            "val": {"sequences": sc.val, "seed": SEEDS["val"], "flags": []},
+            "test": {"sequences": sc.test, "seed": SEEDS["test"], "flags": []},
+        }
+        for m in ABLATIONS:
+            sets[f"train-{m}"] = {"sequences": sc.train, "seed": SEEDS["train"], "flags": ["--motion", m]}
+        if self.recorded is not None:
+            sets["test-recorded"] = {
+                "sequences": sc.recorded, "seed": SEEDS["recorded"],
+                "flags": ["--background", str(self.recorded.resolve()), "--frames", str(RECORDED_FRAMES)],
+            }
+        return sets
+
+    def data(self) -> None:
+        for name, d in self.datasets().items():
+            out = self.work / "data" / name
+            marker = out / ".complete"
+            if marker.is_file():
+                continue
+            t0 = time.perf_counter()
+            cmd = [
+                str(self.pedscan), "generate", "--out", str(out), "--sequences", str(d["sequences"]),
+                "--seed", str(d["seed"]), "--outputs", "range,label,instance,velocity", "--resume",
+                *(["--frames", str(self.scale.frames)] if "--frames" not in d["flags"] else []), *d["flags"], *self.extra,
+            ]
+            self.run(cmd, f"data {name}")
+            marker.write_text(" ".join(cmd[1:]) + "\n")
+            self.add_time("data", time.perf_counter() - t0)
+
+    # ---- stage 2: training -------------------------------------------------------------
+    def runs(self) -> dict[str, dict[str, Any]]:
+        r: dict[str, dict[str, Any]] = {f"frames{n}": {"frames": n, "data": "train"} for n in TABLE4_FRAMES}
+        for m in ABLATIONS:
+            r[f"motion-{m}"] = {"frames": 16, "data": f"train-{m}"}
+        return r
+
+    def trained_step(self, run: Path) -> int:
+        from .netio import load_file
+
+        ck = run / "checkpoint.pt"
+        return int(load_file(ck)["step"]) if ck.is_file() else 0
+
+    def train(self, only: set[str] | None = None) -> None:
+        for name, r in self.runs().items():
+            if only and name not in only:
+                continue
+            run = self.work / "runs" / name
+            if self.trained_step(run) >= self.scale.steps:
+                continue
+            t0 = time.perf_counter()
+            cmd = [
+                self.python, "-m", "pedscan_data.train", str(self.work / "data" / r["data"]),
+                "--frames", str(r["frames"]), "--out", str(run), "--steps", str(self.scale.steps),
+                "--val", str(self.work / "data" / "val"), "--score-from", str(SCORE_FROM),
+                "--val-every", str(self.scale.val_every), "--device", self.device, "--workers", str(self.workers),
+            ]
+            if (run / "run.json").is_file():
+                cmd.append("--resume")
+            try:
+                self.run(cmd, f"train {name}")
+            finally:
+                self.add_time(f"train {name}", time.perf_counter() - t0)
+
+    # ---- stage 3: test -----------------------------------------------------------------
+    def test_sets(self) -> list[str]:
+        return ["test"] + (["test-recorded"] if self.recorded is not None else [])
+
+    def zero_epe(self, ts: str) -> float | None:
+        """The end-point error of predicting zero velocity on the test set's human beams."""
+        import numpy as np
+
+        from .reader import open_sequences
+
+        path = self.work / "scores" / f"zero--{ts}.json"
+        if path.is_file():
+            return json.loads(path.read_text())["epe_mps"]
+        total, count = 0.0, 0
+        for seq in open_sequences(self.work / "data" / ts):
+            for t in range(SCORE_FROM, seq.frames):
+                human = (seq.read("label", t) == 1) & (seq.read("range", t) > 0)
+                total += float(np.linalg.norm(seq.read("velocity", t)[human].astype(np.float64), axis=-1).sum())
+                count += int(np.count_nonzero(human))
+        epe = total / count if count else None
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"epe_mps": epe, "human_beams": count}) + "\n")
+        return epe
+
+    def test(self) -> None:
+        from .evaluate import evaluate
+        from .predict import predict
+
+        for name in self.runs():
+            run = self.work / "runs" / name
+            if self.trained_step(run) < self.scale.steps:
+                continue
+            for ts in self.test_sets():
+                if name.startswith("motion-") and ts != "test":
+                    continue
+                score = self.work / "scores" / f"{name}--{ts}.json"
+                if score.is_file() and json.loads(score.read_text()).get("model_step") == self.scale.steps:
+                    continue
+                t0 = time.perf_counter()
+                pred = self.work / "pred" / name / ts
+                data = self.work / "data" / ts
+                print(f"[test {name} on {ts}]", file=sys.stderr, flush=True)
+                timing = predict(run, data, pred, device=self.device, first=SCORE_FROM, quiet=True)
+                rep = evaluate(data, pred, from_frame=SCORE_FROM).as_dict()
+                rep["model_step"] = self.scale.steps
+                rep["ms_per_frame"] = timing["ms_per_frame_median"]
+                rep["zero_epe_mps"] = self.zero_epe(ts)
+                score.parent.mkdir(parents=True, exist_ok=True)
+                tmp = score.with_name(score.name + ".tmp")
+                tmp.write_text(json.dumps(rep, indent=2) + "\n")
+                os.replace(tmp, score)
+                shutil.rmtree(pred, ignore_errors=True)  # the scores are what is kept
+                self.add_time("test", time.perf_counter() - t0)
+
+    # ---- stage 4: results --------------------------------------------------------------
+    def results(self) -> dict[str, Any]:
+        scores: dict[str, Any] = {}
+        for p in sorted((self.work / "scores").glob("*--*.json")) if (self.work / "scores").is_dir() else []:
+            if not p.stem.startswith("zero--"):
+                scores[p.stem] = json.loads(p.read_text())
+        runs_info = {}
+        for name in self.runs():
+            rj = self.work / "runs" / name / "run.json"
+            if rj.is_file():
+                info = json.loads(rj.read_text())
+                runs_info[name] = {"step": self.trained_step(self.work / "runs" / name),
+                                   "environment": info.get("environment"), "parameters": info.get("parameters"),
+                                   "network": info.get("network")}
+        res = {
+            "scale": self.scale_name, "steps": self.scale.steps, "score_from_frame": SCORE_FROM,
+            "datasets": {k: {**v, "flags": v["flags"]} for k, v in self.datasets().items()},
+            "runs": runs_info, "scores": scores, "seconds": self.state()["seconds"],
+            "paper": {"table4": {str(k): v for k, v in PAPER_TABLE4.items()}, "table5": PAPER_TABLE5},
+        }
+        tmp = self.work / "results.json.tmp"
+        tmp.write_text(json.dumps(res, indent=2) + "\n")
+        os.replace(tmp, self.work / "results.json")
+        md = render_markdown(res)
+        tmp = self.work / "results.md.tmp"
+        tmp.write_text(md)
+        os.replace(tmp, self.work / "results.md")
+        plot_results(res, self.work / "results.png")
+        self.example_png(self.work / "results-example.png")
+        return res
+
+    def example_png(self, path: Path, sequence: int = 0) -> None:
+        """One test frame (the last of a sequence): range, truth, and the 1- and 16-frame
+        networks' masks (green hit, red false alarm, blue miss)."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        import numpy as np
+
+        from .netio import load_net
+        from .predict import predict_sequence
+        from .reader import open_sequences
+
+        nets = [n for n in (1, 16) if self.trained_step(self.work / "runs" / f"frames{n}") >= self.scale.steps]
+        if not nets:
+            return
+        seq = open_sequences(self.work / "data" / "test")[sequence]
+        t = seq.frames - 1
+        r = seq.read("range", t)
+        truth = (seq.read("label", t) == 1) & (r > 0)
+        rows = [("range (log)", None)]
+        for n in nets:
+            net, _ = load_net(self.work / "runs" / f"frames{n}", "cpu")
+            labels, _, _ = predict_sequence(net, seq, "cpu", first=t)
+            rows.append((f"N={n}", labels[t] != 0))
+        fig, axes = plt.subplots(len(rows) + 1, 1, figsize=(16, 1.3 * (len(rows) + 1)))
+        axes[0].imshow(np.log1p(r), cmap="gray", aspect="auto", interpolation="nearest")
+        axes[0].set_title(f"{seq.path.name}, frame {t}: range (log)", fontsize=9, loc="left")
+        rgb = np.zeros(r.shape + (3,))
+        rgb[truth] = (1, 1, 1)
+        axes[1].imshow(rgb, aspect="auto", interpolation="nearest")
+        axes[1].set_title("ground truth (white: human)", fontsize=9, loc="left")
+        for ax, (name, pred) in zip(axes[2:], rows[1:]):
+            img = np.zeros(r.shape + (3,)) + 0.15 * (r > 0)[..., None]
+            img[truth & pred] = (0.1, 0.8, 0.2)
+            img[~truth & pred & (r > 0)] = (0.9, 0.1, 0.1)
+            img[truth & ~pred] = (0.2, 0.4, 1.0)
+            tp, fp, fn = int(np.sum(truth & pred)), int(np.sum(~truth & pred & (r > 0))), int(np.sum(truth & ~pred))
+            ax.imshow(img, aspect="auto", interpolation="nearest")
+            ax.set_title(f"{name}: green hit, red false alarm, blue miss (IoU {tp / max(tp + fp + fn, 1):.3f})",
+                         fontsize=9, loc="left")
+        for ax in axes:
+            ax.set_xticks([])
+            ax.set_yticks([])
+        fig.tight_layout()
+        tmp = path.with_name(path.name + ".tmp.png")
+        fig.savefig(tmp, dpi=80)
+        plt.close(fig)
+        os.replace(tmp, path)
+
+
+def _iou(scores: dict[str, Any], key: str) -> list[float | None]:
+    s = scores.get(key)
+    if s is None:
+        return [None] * 4
+    return [s["overall"]["iou"]] + [b["iou"] for b in s["bins"]]
+
+
+def _f(x: float | None, d: int = 4) -> str:
+    return "—" if x is None else f"{x:.{d}f}"
+
+
+def render_markdown(res: dict[str, Any]) -> str:
+    sc = res["scores"]
+    lines = [
+        f"# The paper's experiments on pedscan data ({res['scale']} scale)",
+        "",
+        f"Networks trained {res['steps']:,} steps each (batch 1); scored on the held-out test set "
+        f"(seed {SEEDS['test']}) from frame {res['score_from_frame']} of every sequence, the same "
+        "beams for every N. Paper: Kim et al. 2020, Table 4 (generated data) and Table 5.",
+        "",
+        "## Table 4: IoU of the human class by distance",
+        "",
+        "| range | " + " | ".join(f"N={n} (ours / paper)" for n in (1, 2, 4, 8, 16)) + " |",
+        "|---|" + "---|" * 5,
+    ]
+    for k, name in enumerate(("0-inf m", "0-4 m", "4-8 m", "8+ m")):
+        row = []
+        for n in (1, 2, 4, 8, 16):
+            ours = _iou(sc, f"frames{n}--test")[k]
+            row.append(f"{_f(ours)} / {PAPER_TABLE4[n][k]:.4f}")
+        lines.append(f"| {name} | " + " | ".join(row) + " |")
+    lines += ["", "Velocity end-point error on human beams (m/s), and predicting zero:", "",
+              "| N | EPE | zero | ms per frame (streaming) |", "|---|---|---|---|"]
+    for n in (1, 2, 4, 8, 16):
+        s = sc.get(f"frames{n}--test")
+        if s is not None:
+            lines.append(f"| {n} | {_f(s['overall'].get('epe_mps'), 3)} | {_f(s.get('zero_epe_mps'), 3)} | "
+                         f"{_f(s.get('ms_per_frame'), 1)} |")
+    lines += ["", "## Table 5: what the data's motion teaches (N = 16)", "",
+              "| training data | IoU ours (generated test set) | paper (its real data) |", "|---|---|---|"]
+    for m, label in (("static", "human model only (static)"), ("sliding", "+ trajectory (sliding)"),
+                     ("in-place", "+ walking model (in place)"), ("full", "+ both (full)")):
+        key = "frames16--test" if m == "full" else f"motion-{m}--test"
+        lines.append(f"| {label} | {_f(_iou(sc, key)[0])} | {PAPER_TABLE5[m]:.4f} |")
+    if any(k.endswith("--test-recorded") for k in sc):
+        lines += ["", "## A recorded background", "",
+                  "| N | IoU generated test | IoU recorded test | ratio |", "|---|---|---|---|"]
+        for n in (1, 2, 4, 8, 16):
+            g, r = _iou(sc, f"frames{n}--test")[0], _iou(sc, f"frames{n}--test-recorded")[0]
+            lines.append(f"| {n} | {_f(g)} | {_f(r)} | {_f(r / g if g and r is not None else None, 3)} |")
+    lines += ["", "## Time (this machine)", "", "| stage | minutes |", "|---|---|"]
+    for k, v in sorted(res["seconds"].items()):
+        lines.append(f"| {k} | {v / 60:.1f} |")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def plot_results(res: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    sc = res["scores"]
+    names = ("all", "0-4 m", "4-8 m", "8+ m")
+    ns = (1, 2, 4, 8, 16)
+    fig, axes = plt.subplots(1, 4, figsize=(15, 3.6), sharey=True)
+    for k, ax in enumerate(axes):
+        ours = [_iou(sc, f"frames{n}--test")[k] for n in ns]
+        x = np.arange(len(ns))
+        ax.bar(x - 0.2, [PAPER_TABLE4[n][k] for n in ns], 0.4, label="paper", color="#bbb")
+        ax.bar(x + 0.2, [v if v is not None else 0 for v in ours], 0.4, label="pedscan", color="#2a7")
+        ax.set_xticks(x, [f"N={n}" for n in ns])
+        ax.set_title(f"IoU, {names[k]}")
+        ax.set_ylim(0, 1)
+    axes[0].legend()
+    fig.suptitle(f"Table 4 on pedscan data ({res['scale']} scale, {res['steps']:,} steps per network)")
+    fig.tight_layout()
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+STAGES = ("data", "train", "test", "results")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pedscan_data.experiments", description=__doc__.split("\n\n")[0])
+    p.add_argument("experiment", choices=("paper",))
+    p.add_argument("--work", type=Path, required=True, help="folder for data, runs and results")
+    p.add_argument("--scale", choices=tuple(SCALES), default="small")
+    p.add_argument("--pedscan", type=Path, help="the pedscan binary (default: this repository's release build)")
+    p.add_argument("--recorded", type=Path, help="a recording (pcap, KITTI or PCD folder) for a recorded-background test set")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda")
+    p.add_argument("--workers", type=int, default=1, help="data-loading processes per training run")
+    p.add_argument("--only", default=",".join(STAGES), help=f"stages to run, of {','.join(STAGES)}")
+    p.add_argument("--runs", help="train only these runs (e.g. frames16,frames1)")
+    p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
+    args = p.parse_args(argv)
+    stages = [s.strip() for s in args.only.split(",") if s.strip()]
+    bad = [s for s in stages if s not in STAGES]
+    try:
+        if bad:
+            raise PedscanError(f"--only: unknown stage {', '.join(bad)} (of {', '.join(STAGES)})")
+        ex = Experiment(args)
+        ex.check_scale()
+        if "data" in stages:
+            ex.data()
+        if "train" in stages:
+            ex.train(set(args.runs.split(",")) if args.runs else None)
+        if "test" in stages:
+            ex.test()
+        if "results" in stages:
+            ex.results()
+            print(f"wrote {ex.work / 'results.md'}")
+    except KeyboardInterrupt:
+        print("stopped; run the same command again to continue", file=sys.stderr)
+        return 130
+    except (PedscanError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

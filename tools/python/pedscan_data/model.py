@@ -1,0 +1,256 @@
+"""The paper's sequence network (Kim et al., IEEE Access 2020, Section IV and Fig. 5), in PyTorch.
+
+Per frame, a **shared-weight encoder** turns the range image (H x W, the sensor's grid) into
+features at a quarter of the columns and half of the rows; the N frames' features are
+**concatenated along channels**; a **decoder** gives a 2-class softmax for the *last* frame's
+human mask; a **velocity branch** takes the concatenated features and the segmentation
+output through more convolutions to a linear per-beam velocity (m/s, sensor frame, the
+stored ``/velocity``).
+
+Inputs per beam (:func:`input_channels`): ``range / 10 m`` on returned beams and 0 elsewhere,
+and a **validity channel** (1 returned, 0 no return), so a hole is never confused with a
+near surface; with ``intensity`` also the return's intensity (0 on holes).
+
+Every 3x3 convolution pads **circularly along the columns** (azimuth wraps: column 0 and
+W-1 are neighbours) and with zeros along the rows (the top and bottom beams are not).
+
+What the paper's figure does not fix (channel widths, strides, the skips) is chosen here to
+train on two CPU cores in hours (see :func:`describe`); the last frame's full- and
+half-resolution encoder features skip to the decoder, so the mask keeps every column.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+#: Range scale of the input channel, metres (ranges of 0-70 m become 0-7).
+RANGE_SCALE_M = 10.0
+
+
+@dataclass(frozen=True)
+class NetConfig:
+    """What fixes the network's shape; stored in every run and model file."""
+
+    frames: int = 16
+    """N, the frames the network sees (the last one is labelled)"""
+    intensity: bool = False
+    """a third input channel: the return's intensity"""
+    width: int = 16
+    """channels of the encoder's first layer; the others are multiples of it"""
+
+    @property
+    def in_channels(self) -> int:
+        return 3 if self.intensity else 2
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def input_channels(range_m: np.ndarray, intensity: np.ndarray | None = None) -> np.ndarray:
+    """The network's input for frames ``range_m`` ([..., H, W], 0 = no return): f32 [..., C, H, W].
+
+    Channels: range / 10 m on returned beams (0 on holes), validity (1 returned, 0 not), and
+    intensity (0 on holes) when given. A NaN or negative range is a hole.
+    """
+    r = np.asarray(range_m, dtype=np.float32)
+    valid = np.isfinite(r) & (r > 0)
+    chans = [np.where(valid, r / RANGE_SCALE_M, 0.0), valid]
+    if intensity is not None:
+        i = np.asarray(intensity, dtype=np.float32)
+        chans.append(np.where(valid & np.isfinite(i), i, 0.0))
+    return np.stack(chans, axis=-3).astype(np.float32)
+
+
+class WrapConv(nn.Module):
+    """A 3x3 convolution (+ ReLU unless ``relu=False``): circular along W, zeros along H."""
+
+    def __init__(self, cin: int, cout: int, stride: tuple[int, int] = (1, 1), relu: bool = True) -> None:
+        super().__init__()
+        self.conv = nn.Conv2d(cin, cout, 3, stride=stride, padding=0)
+        self.relu = relu
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        # Slices and a concatenation: exported to ONNX as Slice + Concat, any opset.
+        x = torch.cat([x[..., -1:], x, x[..., :1]], dim=-1)
+        x = F.pad(x, (0, 0, 1, 1))
+        x = self.conv(x)
+        return F.relu(x) if self.relu else x
+
+
+class Encoder(nn.Module):
+    """Shared per frame: [B, C, H, W] -> full-res skip, half-column skip, features at H/2 x W/4."""
+
+    def __init__(self, cfg: NetConfig) -> None:
+        super().__init__()
+        w = cfg.width
+        self.e1 = WrapConv(cfg.in_channels, w)  # H x W
+        self.e2 = WrapConv(w, w * 3 // 2, stride=(1, 2))  # H x W/2
+        self.e3 = WrapConv(w * 3 // 2, 2 * w, stride=(2, 2))  # H/2 x W/4
+        self.e4 = WrapConv(2 * w, 2 * w)
+        self.channels = (w, w * 3 // 2, 2 * w)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        s1 = self.e1(x)
+        s2 = self.e2(s1)
+        f = self.e4(self.e3(s2))
+        return s1, s2, f
+
+
+def _up(x: torch.Tensor, factor: tuple[int, int]) -> torch.Tensor:
+    return F.interpolate(x, scale_factor=factor, mode="nearest")
+
+
+def column_azimuth(columns: int, device: Any = None) -> torch.Tensor:
+    """Azimuth of each column's centre, radians: pi (1 - 2 (col + 0.5) / W) (pedscan's grid)."""
+    col = torch.arange(columns, dtype=torch.float32, device=device)
+    return math.pi * (1.0 - 2.0 * (col + 0.5) / columns)
+
+
+def beam_to_sensor(local: torch.Tensor) -> torch.Tensor:
+    """[B, 3, H, W] velocities in each column's horizontal frame (radial, tangential, up) ->
+    the sensor frame (x, y, z): a fixed rotation by the column's azimuth, no weights."""
+    az = column_azimuth(local.shape[-1], local.device)
+    c, s = torch.cos(az), torch.sin(az)
+    vr, vt, vz = local[:, 0], local[:, 1], local[:, 2]
+    return torch.stack([vr * c - vt * s, vr * s + vt * c, vz], dim=1)
+
+
+class Decoder(nn.Module):
+    """The concatenated features of N frames and the last frame's skips -> logits and velocity.
+
+    Segmentation (the paper's black ink): a 1x1 fusion of the N frames' features at
+    H/2 x W/4, a context level at H/4 x W/8 added back, a 3x3 convolution, then up to
+    H x W/2 and H x W, each time beside the last frame's encoder features of that resolution,
+    and a 1x1 "Conv-2" with no activation (softmax).
+
+    Velocity (the red ink): its own 1x1 fusion of the concatenated features beside the
+    segmentation's features at H/2 x W/4, a 3x3 convolution, up to H x W, concatenated with
+    the segmentation's last features and its softmax, then 1x1 convolutions to a linear
+    3-vector per beam in the beam's horizontal frame (radial, tangential, up), turned into the
+    sensor frame by the column's azimuth (:func:`beam_to_sensor`). A convolution does not know
+    which azimuth its column has; in the beam's frame what it sees (range changing between
+    frames, a shift across columns) is the same at every azimuth.
+    """
+
+    def __init__(self, cfg: NetConfig, enc_channels: tuple[int, int, int]) -> None:
+        super().__init__()
+        c1, c2, cf = enc_channels
+        w = cfg.width
+        fused = 3 * w
+        self.fuse = nn.Conv2d(cfg.frames * cf, fused, 1)
+        self.down = WrapConv(fused, fused, stride=(2, 2))
+        self.context = WrapConv(fused, fused)
+        self.d1 = WrapConv(fused, fused)
+        self.d2 = WrapConv(fused + c2, w)
+        self.d3 = WrapConv(w + c1, w)
+        self.seg = nn.Conv2d(w, 2, 1)
+        self.vfuse = nn.Conv2d(cfg.frames * cf, fused, 1)
+        self.v1 = WrapConv(2 * fused, 2 * w)
+        self.v2 = nn.Conv2d(2 * w + w + 2, w, 1)
+        self.vel = nn.Conv2d(w, 3, 1)
+
+    def forward(
+        self, s1: torch.Tensor, s2: torch.Tensor, cat: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        f = F.relu(self.fuse(cat))
+        g1 = self.d1(f + _up(self.context(self.down(f)), (2, 2)))
+        g = self.d2(torch.cat([_up(g1, (2, 2)), s2], dim=1))
+        g = self.d3(torch.cat([_up(g, (1, 2)), s1], dim=1))
+        logits = self.seg(g)
+        v = self.v1(torch.cat([F.relu(self.vfuse(cat)), g1], dim=1))
+        v = torch.cat([_up(v, (2, 4)), g, torch.softmax(logits, dim=1)], dim=1)
+        velocity = beam_to_sensor(self.vel(F.relu(self.v2(v))))
+        return logits, velocity
+
+
+class SequenceNet(nn.Module):
+    """The whole network: ``forward(x)`` with x f32 [B, N, C, H, W] (see :func:`input_channels`)
+    gives the last frame's logits [B, 2, H, W] (softmax: background, human) and velocity
+    [B, 3, H, W] (m/s, sensor frame). H must be a multiple of 4 and W of 8.
+
+    For streaming, :meth:`encode` runs the shared encoder on single frames and
+    :meth:`decode` takes N frames' features, so a frame is encoded once and reused by the
+    next N-1 frames (``pedscan_data.predict``).
+    """
+
+    def __init__(self, cfg: NetConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.encoder = Encoder(cfg)
+        self.decoder = Decoder(cfg, self.encoder.channels)
+
+    def encode(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """[B, C, H, W] -> (s1, s2, features) of each frame."""
+        h, w = x.shape[-2:]
+        if h % 4 or w % 8:
+            raise ValueError(f"the grid must have a multiple of 4 rows and of 8 columns (got {h} x {w})")
+        return self.encoder(x)
+
+    def decode(
+        self, s1: torch.Tensor, s2: torch.Tensor, features: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The last frame's skips s1, s2 and features [B, N, Cf, h, w] of N frames, oldest first."""
+        b, n, c, h, w = features.shape
+        return self.decoder(s1, s2, features.reshape(b, n * c, h, w))
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        b, n, c, h, w = x.shape
+        if n != self.cfg.frames or c != self.cfg.in_channels:
+            raise ValueError(
+                f"input has {n} frames of {c} channels, the network takes {self.cfg.frames} of {self.cfg.in_channels}"
+            )
+        s1, s2, f = self.encode(x.reshape(b * n, c, h, w))
+        last = torch.arange(b, device=x.device) * n + (n - 1)
+        return self.decode(s1[last], s2[last], f.reshape(b, n, *f.shape[1:]))
+
+
+def count_parameters(net: nn.Module) -> int:
+    return sum(p.numel() for p in net.parameters())
+
+
+def multiply_adds(net: SequenceNet, rows: int, columns: int) -> dict[str, int]:
+    """Multiply-adds of the encoder (one frame) and the decoder (one window), from the layers."""
+    counts = {"encoder": 0, "decoder": 0}
+    hooks = []
+
+    def hook(name: str):
+        def f(mod: nn.Conv2d, inp: tuple[torch.Tensor], out: torch.Tensor) -> None:
+            k = mod.kernel_size[0] * mod.kernel_size[1] * (mod.in_channels // mod.groups)
+            counts[name] += int(out.numel() * k)
+
+        return f
+
+    for name, part in (("encoder", net.encoder), ("decoder", net.decoder)):
+        for m in part.modules():
+            if isinstance(m, nn.Conv2d):
+                hooks.append(m.register_forward_hook(hook(name)))
+    try:
+        with torch.no_grad():
+            x = torch.zeros(1, net.cfg.in_channels, rows, columns)
+            s1, s2, f = net.encode(x)
+            enc = counts["encoder"]
+            net.decode(s1, s2, f.unsqueeze(1).expand(1, net.cfg.frames, *f.shape[1:]))
+    finally:
+        for h in hooks:
+            h.remove()
+    return {"encoder_per_frame": enc, "decoder_per_window": counts["decoder"]}
+
+
+def describe(net: SequenceNet, rows: int = 32, columns: int = 1024) -> str:
+    """Parameters and multiply-adds per frame at a grid size (the README's table)."""
+    m = multiply_adds(net, rows, columns)
+    streaming = m["encoder_per_frame"] + m["decoder_per_window"]
+    return (
+        f"N={net.cfg.frames} width={net.cfg.width} inputs={net.cfg.in_channels}: "
+        f"{count_parameters(net):,} parameters; at {rows}x{columns}: encoder "
+        f"{m['encoder_per_frame'] / 1e6:.1f} M multiply-adds per frame, decoder "
+        f"{m['decoder_per_window'] / 1e6:.1f} M per window; streaming "
+        f"{streaming / 1e6:.1f} M per frame, training {(net.cfg.frames * m['encoder_per_frame'] + m['decoder_per_window']) / 1e6:.1f} M per window (forward)"
+    )

@@ -1,0 +1,229 @@
+"""Runs a trained network over pedscan sequences and writes its predictions.
+
+    python -m pedscan_data.predict MODEL DATA --out PRED [--format h5|semantickitti]
+                                    [--device auto|cpu|cuda] [--export-onnx FILE]
+
+MODEL is a run folder (its ``model.pt``) or a model file; DATA a pedscan output folder or one
+sequence file. Per sequence, PRED gets an HDF5 file named like the ground truth with
+``/label`` u8 [T,H,W] (1 human) and ``/velocity`` f32 [T,H,W,3] (m/s, sensor frame), so
+``python -m pedscan_data.evaluate DATA PRED`` scores it unchanged; or, with
+``--format semantickitti``, ``PRED/sequences/SS/labels/NNNNNN.label`` (uint32 per returned
+beam, class 30 person / 0 unlabeled) and ``PRED/sequences/SS/velocity/NNNNNN.bin`` (f32 x y z
+per returned beam).
+
+**Streaming.** Each frame is encoded once; frame t is decoded from the features of frames
+t-N+1 .. t. A frame with fewer than N-1 predecessors (the first N-1 of a sequence) is decoded
+with the first frame's features repeated in place of the missing ones, as a robot that has
+just started would; the files record ``full_window_from = N-1``, and training and the
+experiments score only frames from there on (``evaluate --from-frame``).
+
+``--export-onnx FILE`` writes the network (input [B, N, C, H, W]; outputs ``logits``
+[B,2,H,W] and ``velocity`` [B,3,H,W]) for ONNX Runtime, checked against PyTorch on a random
+window within 1e-4 before the file is kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from .reader import PedscanError, Sequence, open_sequences
+
+
+def _torch():
+    import torch
+
+    return torch
+
+
+def pick_device(name: str) -> Any:
+    torch = _torch()
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise PedscanError(f"--device {name}: no CUDA device is available (try --device cpu)")
+    return torch.device(name)
+
+
+def sequence_inputs(seq: Sequence, intensity: bool, frames: slice = slice(None)) -> np.ndarray:
+    """The network's input channels of a sequence's frames: f32 [T, C, H, W]."""
+    from .model import input_channels
+
+    if intensity and not seq.has("intensity"):
+        raise PedscanError(f"{seq.path}: no dataset /intensity, which this network takes as input")
+    r = seq.read("range", frames)
+    i = seq.read("intensity", frames) if intensity else None
+    return input_channels(r, i)
+
+
+def predict_sequence(
+    net: Any, seq: Sequence, device: Any, first: int = 0, chunk: int = 8
+) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """Streams ``net`` over ``seq``: labels u8 [T,H,W], velocity f32 [T,H,W,3] and ms per frame.
+
+    Frames before ``first`` are encoded (the later ones need them) but not decoded; their
+    outputs stay 0. A frame with fewer than N-1 predecessors uses frame 0's features in place
+    of the missing ones.
+    """
+    torch = _torch()
+    n = net.cfg.frames
+    t_total, h, w = seq.frames, seq.rows, seq.columns
+    labels = np.zeros((t_total, h, w), dtype=np.uint8)
+    velocity = np.zeros((t_total, h, w, 3), dtype=np.float32)
+    feats: list[Any] = []  # per frame, on the device: (s1, s2, f) of the last N frames only
+    ms: list[float] = []
+    with torch.inference_mode():
+        for t0 in range(0, t_total, chunk):
+            x = torch.from_numpy(sequence_inputs(seq, net.cfg.intensity, slice(t0, min(t0 + chunk, t_total))))
+            for k in range(x.shape[0]):
+                t = t0 + k
+                start = time.perf_counter()
+                s1, s2, f = net.encode(x[k : k + 1].to(device))
+                feats.append((s1, s2, f))
+                if len(feats) > n:
+                    feats.pop(0)
+                if t >= first:
+                    window = [feats[0][2]] * (n - len(feats)) + [e[2] for e in feats]
+                    logits, vel = net.decode(s1, s2, torch.stack(window, dim=1))
+                    labels[t] = (logits[0, 1] > logits[0, 0]).to("cpu").numpy()
+                    velocity[t] = vel[0].permute(1, 2, 0).to("cpu").numpy()
+                ms.append((time.perf_counter() - start) * 1e3)
+    return labels, velocity, ms
+
+
+def write_h5(path: Path, labels: np.ndarray, velocity: np.ndarray, attrs: dict[str, Any]) -> None:
+    """One prediction file, under a temporary name until complete."""
+    tmp = path.with_name(path.name + ".tmp")
+    t, h, w = labels.shape
+    with h5py.File(tmp, "w") as f:
+        f.create_dataset("label", data=labels, chunks=(1, h, w), compression="gzip", compression_opts=1, shuffle=True)
+        f.create_dataset(
+            "velocity", data=velocity, chunks=(1, h, w, 3), compression="gzip", compression_opts=1, shuffle=True
+        )
+        for k, v in attrs.items():
+            f.attrs[k] = v
+    os.replace(tmp, path)
+
+
+def write_kitti(root: Path, seq: Sequence, labels: np.ndarray, velocity: np.ndarray) -> None:
+    """SemanticKITTI labels (and velocities) of one sequence, one file per frame, each renamed
+    into place when complete."""
+    base = root / "sequences" / f"{seq.index:02d}"
+    (base / "labels").mkdir(parents=True, exist_ok=True)
+    (base / "velocity").mkdir(parents=True, exist_ok=True)
+    for t in range(seq.frames):
+        returned = seq.read("range", t).ravel() > 0
+        cls = np.where(labels[t].ravel()[returned] != 0, 30, 0).astype("<u4")
+        vel = velocity[t].reshape(-1, 3)[returned].astype("<f4")
+        for path, data in ((base / "labels" / f"{t:06d}.label", cls), (base / "velocity" / f"{t:06d}.bin", vel)):
+            tmp = path.with_name(path.name + ".tmp")
+            data.tofile(tmp)
+            os.replace(tmp, path)
+
+
+def export_onnx(net: Any, path: Path, rows: int, columns: int, atol: float = 1e-4) -> float:
+    """Writes the network as ONNX and checks ONNX Runtime against PyTorch on a random window;
+    returns the largest difference. The file appears only once it is checked."""
+    torch = _torch()
+    import onnxruntime as ort
+
+    cfg = net.cfg
+    net = net.to("cpu").eval()
+    g = torch.Generator().manual_seed(0)
+    rng = torch.rand(1, cfg.frames, 1, rows, columns, generator=g) * 30.0
+    valid = (torch.rand(1, cfg.frames, 1, rows, columns, generator=g) > 0.1).float()
+    chans = [rng * valid / 10.0, valid]
+    if cfg.intensity:
+        chans.append(torch.rand(1, cfg.frames, 1, rows, columns, generator=g) * valid)
+    x = torch.cat(chans, dim=2)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.onnx.export(
+        net, (x,), str(tmp), input_names=["input"], output_names=["logits", "velocity"],
+        dynamic_axes={"input": {0: "batch"}, "logits": {0: "batch"}, "velocity": {0: "batch"}},
+        opset_version=17, dynamo=False,
+    )
+    with torch.no_grad():
+        ref = [o.numpy() for o in net(x)]
+    sess = ort.InferenceSession(str(tmp), providers=["CPUExecutionProvider"])
+    out = sess.run(None, {"input": x.numpy()})
+    diff = max(float(np.max(np.abs(a - b))) for a, b in zip(ref, out))
+    if not diff <= atol:
+        tmp.unlink(missing_ok=True)
+        raise PedscanError(f"{path}: ONNX Runtime differs from PyTorch by {diff:.3g} (> {atol:g}); not written")
+    os.replace(tmp, path)
+    return diff
+
+
+def predict(
+    model: str | os.PathLike[str], data: str | os.PathLike[str], out: Path, fmt: str = "h5",
+    device: str = "auto", first: int = 0, quiet: bool = False,
+) -> dict[str, Any]:
+    """Predicts every sequence of ``data`` into ``out``; returns timing figures."""
+    from .netio import load_net
+
+    dev = pick_device(device)
+    net, obj = load_net(model, dev)
+    sequences = open_sequences(data)
+    for seq in sequences:
+        if net.cfg.intensity and not seq.has("intensity"):
+            raise PedscanError(f"{seq.path}: no dataset /intensity, which this network takes as input")
+    out.mkdir(parents=True, exist_ok=True)
+    all_ms: list[float] = []
+    for k, seq in enumerate(sequences):
+        labels, velocity, ms = predict_sequence(net, seq, dev, first=first)
+        all_ms += ms[1:] if len(ms) > 1 else ms  # the first frame pays for warm-up
+        if fmt == "h5":
+            write_h5(
+                out / seq.path.name, labels, velocity,
+                {"frames_seen": net.cfg.frames, "full_window_from": net.cfg.frames - 1, "model": str(model)},
+            )
+        else:
+            write_kitti(out, seq, labels, velocity)
+        if not quiet:
+            print(f"\r{k + 1}/{len(sequences)} sequences, {np.median(all_ms):.1f} ms per frame", end="", file=sys.stderr)
+    if not quiet:
+        print(file=sys.stderr)
+    return {"sequences": len(sequences), "ms_per_frame_median": float(np.median(all_ms)) if all_ms else None}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m pedscan_data.predict", description=__doc__.split("\n\n")[0])
+    parser.add_argument("model", type=Path, help="run folder or model file (.pt)")
+    parser.add_argument("data", type=Path, nargs="?", help="pedscan output folder or sequence file")
+    parser.add_argument("--out", type=Path, help="folder for the predictions")
+    parser.add_argument("--format", choices=("h5", "semantickitti"), default="h5")
+    parser.add_argument("--device", default="auto", help="auto | cpu | cuda (default auto)")
+    parser.add_argument("--export-onnx", type=Path, metavar="FILE", help="write the network as ONNX")
+    parser.add_argument("--onnx-grid", default="32x1024", metavar="HxW", help="grid of the ONNX check (default 32x1024)")
+    args = parser.parse_args(argv)
+    from .netio import load_net
+
+    try:
+        if args.export_onnx is not None:
+            net, _ = load_net(args.model)
+            h, w = (int(v) for v in args.onnx_grid.lower().split("x"))
+            diff = export_onnx(net, args.export_onnx, h, w)
+            print(f"wrote {args.export_onnx} (ONNX Runtime against PyTorch: max difference {diff:.2g})")
+            if args.data is None:
+                return 0
+        if args.data is None or args.out is None:
+            parser.error("DATA and --out are needed to predict (or give --export-onnx FILE alone)")
+        if args.out.exists() and args.out.resolve() == args.data.resolve():
+            raise PedscanError(f"--out {args.out}: the same folder as the data; give another")
+        res = predict(args.model, args.data, args.out, args.format, args.device)
+    except (PedscanError, FileNotFoundError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {res['sequences']} sequences to {args.out}; {res['ms_per_frame_median']:.1f} ms per frame (median)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,464 @@
+"""Trains the paper's sequence network on pedscan sequences.
+
+    python -m pedscan_data.train DATA --frames N --out RUN [--steps S] [--val DATA2]
+                                 [--device auto|cpu|cuda] [--resume]
+
+The paper's policy (Kim et al. 2020, Section V-B) by default:
+
+- each step draws a random training sequence and a random window of N consecutive frames in
+  it (all N frames real: the window ends at frame N-1 or later); the target is the last
+  frame's label and velocity; batch size 1;
+- Adam, learning rate 1e-3 with the paper's "decay = 1e-3" read as Keras' time decay:
+  lr_k = 1e-3 / (1 + 1e-3 k) at step k;
+- loss = 10,000 x weighted cross-entropy + 1 x squared velocity error on background beams +
+  1,001 x on human beams, each summed over the window's returned beams and divided by their
+  number (no-return beams count nowhere); a human beam's cross-entropy weight is the frame's
+  background beams / human beams (1 where it has none).
+
+Every deviation is a flag (``--batch``, ``--lr``, ``--decay``, ``--loss-weights``).
+Reproducible: step k's window is drawn from (seed, k) alone, so data-loading workers and
+``--resume`` change nothing; on CPU a resumed run ends with the same weights as an
+uninterrupted one.
+
+RUN gets ``run.json`` (configuration, data, device and versions), ``checkpoint.pt`` every
+``--checkpoint-every`` steps (model, optimizer, step), ``model.pt`` (the weights, for
+``predict``), ``metrics.jsonl`` (training loss; with ``--val``, IoU per distance bin and the
+human velocity end-point error) and ``curves.png``. Exit 0 done, 2 bad input, 130 stopped by
+Ctrl-C (the last checkpoint stays).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .reader import PedscanError, Sequence, open_sequences, sequence_paths
+
+#: The paper's loss weights: cross-entropy, background velocity, human velocity.
+PAPER_LOSS_WEIGHTS = (10_000.0, 1.0, 1_001.0)
+
+
+@dataclass
+class TrainConfig:
+    """Everything that fixes the trained weights (``run.json``'s ``config``)."""
+
+    frames: int = 16
+    width: int = 16
+    intensity: bool = False
+    seed: int = 0
+    batch: int = 1
+    lr: float = 1e-3
+    decay: float = 1e-3
+    loss_weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS
+    data: list[dict[str, Any]] = field(default_factory=list)
+    """the training sequences: file name, bytes, index, seed"""
+
+
+def describe_data(paths: list[Path]) -> list[dict[str, Any]]:
+    out = []
+    for p in paths:
+        with Sequence(p) as s:
+            out.append({"file": p.name, "bytes": p.stat().st_size, "index": s.index, "seed": s.seed, "frames": s.frames})
+    return out
+
+
+class StepWindows:
+    """Item i is the i-th training window of the run: a sequence and an end frame drawn from
+    ``numpy.random.default_rng([seed, i])`` alone (a map-style dataset: workers and resume do
+    not change what step k sees)."""
+
+    def __init__(self, sequences: list[Sequence], frames: int, seed: int, intensity: bool) -> None:
+        self.sequences = sequences
+        self.frames = frames
+        self.seed = seed
+        self.intensity = intensity
+
+    def pick(self, i: int) -> tuple[int, int]:
+        rng = np.random.default_rng([self.seed, i])
+        s = int(rng.integers(len(self.sequences)))
+        t = int(rng.integers(self.frames - 1, self.sequences[s].frames))
+        return s, t
+
+    def __len__(self) -> int:
+        return 2**62
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        import torch
+
+        from .model import input_channels
+
+        s, t = self.pick(i)
+        seq = self.sequences[s]
+        window = slice(t - self.frames + 1, t + 1)
+        r = seq.read("range", window)
+        x = input_channels(r, seq.read("intensity", window) if self.intensity else None)
+        label = seq.read("label", t)
+        velocity = seq.read("velocity", t)
+        return {
+            "x": torch.from_numpy(x),
+            "label": torch.from_numpy(label.astype(np.int64)),
+            "velocity": torch.from_numpy(np.ascontiguousarray(velocity.transpose(2, 0, 1))),
+            "valid": torch.from_numpy(r[-1] > 0),
+            "sequence": s,
+            "frame": t,
+        }
+
+
+def paper_loss(
+    logits: Any, velocity: Any, label: Any, v_true: Any, valid: Any,
+    weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS,
+) -> tuple[Any, dict[str, float]]:
+    """The paper's loss over a batch; no-return beams (``valid`` False) count in no term.
+
+    logits [B,2,H,W], velocity and v_true [B,3,H,W], label [B,H,W] (1 human), valid [B,H,W].
+    Returns the loss and its three terms (unweighted) for the log.
+    """
+    import torch
+    from torch.nn import functional as F
+
+    valid_f = valid.to(logits.dtype)
+    human = (label == 1) & valid
+    n_valid = valid_f.sum(dim=(1, 2)).clamp(min=1.0)
+    n_human = human.to(logits.dtype).sum(dim=(1, 2))
+    class_w = torch.where(n_human > 0, (n_valid - n_human) / n_human.clamp(min=1.0), torch.ones_like(n_human))
+    ce = F.cross_entropy(logits, label.clamp(0, 1), reduction="none")  # [B,H,W]
+    w = torch.where(human, class_w[:, None, None], torch.ones_like(ce)) * valid_f
+    seg = (w * ce).sum(dim=(1, 2)) / n_valid
+    se = (velocity - v_true).square().mean(dim=1)  # mean over x, y, z: [B,H,W]
+    bg = (se * (valid & ~human).to(se.dtype)).sum(dim=(1, 2)) / n_valid
+    hu = (se * human.to(se.dtype)).sum(dim=(1, 2)) / n_valid
+    a, b, c = weights
+    loss = (a * seg + b * bg + c * hu).mean()
+    return loss, {"ce": seg.mean().item(), "mse_bg": bg.mean().item(), "mse_human": hu.mean().item()}
+
+
+def validate(net: Any, sequences: list[Sequence], device: Any, score_from: int) -> dict[str, Any]:
+    """IoU per distance bin and the human velocity EPE on frames ``score_from`` onwards."""
+    from .evaluate import Report, _score_frame
+    from .predict import predict_sequence
+
+    report = Report("validation", "network", "network", sequences=len(sequences), velocity=True)
+    net.eval()
+    ms: list[float] = []
+    for seq in sequences:
+        labels, vel, frame_ms = predict_sequence(net, seq, device, first=score_from)
+        ms += frame_ms
+        for t in range(score_from, seq.frames):
+            _score_frame(
+                report, seq.read("range", t), seq.read("label", t) == 1, labels[t] != 0,
+                seq.read("velocity", t), vel[t],
+            )
+            report.frames += 1
+    net.train()
+    d = report.as_dict()
+    return {"overall": d["overall"], "bins": d["bins"], "frames": d["frames"], "ms_per_frame": float(np.median(ms))}
+
+
+def check_sequences(paths: list[Path], frames: int, what: str, intensity: bool) -> list[Sequence]:
+    """Opens the sequences; PedscanError naming every file that cannot give an N-frame window."""
+    seqs = [Sequence(p) for p in paths]
+    problems = []
+    for s in seqs:
+        need = ["range", "label", "velocity"] + (["intensity"] if intensity else [])
+        missing = [k for k in need if not s.has(k)]
+        if missing:
+            problems.append(f"{s.path}: no dataset {', '.join('/' + k for k in missing)} (train needs it)")
+        if s.frames < frames:
+            problems.append(f"{s.path}: {s.frames} frames, shorter than the network's window of {frames}")
+    if problems:
+        raise PedscanError(f"{what}: " + ("\n  ".join([""] + problems) if len(problems) > 1 else problems[0]))
+    return seqs
+
+
+def plot_curves(metrics: list[dict[str, Any]], path: Path, title: str) -> None:
+    """Training loss and validation IoU per bin against steps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    train = [m for m in metrics if m["kind"] == "train"]
+    val = [m for m in metrics if m["kind"] == "val"]
+    fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
+    if train:
+        axes[0].plot([m["step"] for m in train], [m["loss"] for m in train])
+        axes[0].set_yscale("log")
+    axes[0].set(title="training loss", xlabel="step")
+    if val:
+        steps = [m["step"] for m in val]
+        axes[1].plot(steps, [m["overall"]["iou"] or 0 for m in val], "k-", label="all")
+        for k, name in enumerate(("0-4 m", "4-8 m", "8+ m")):
+            axes[1].plot(steps, [m["bins"][k]["iou"] or 0 for m in val], label=name)
+        axes[1].legend()
+        axes[2].plot(steps, [m["overall"].get("epe_mps") or 0 for m in val])
+    axes[1].set(title="validation IoU (human)", xlabel="step", ylim=(0, 1))
+    axes[2].set(title="validation EPE on human beams (m/s)", xlabel="step")
+    fig.suptitle(title)
+    fig.tight_layout()
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+class Stop(Exception):
+    pass
+
+
+def train(args: argparse.Namespace) -> int:
+    import torch
+
+    from .model import NetConfig, SequenceNet, count_parameters, describe
+    from .netio import MODEL_FORMAT, RunError, atomic_save, atomic_write_text, environment, load_file, read_json
+    from .predict import pick_device
+
+    run: Path = args.out
+    cfg = TrainConfig(
+        frames=args.frames, width=args.width, intensity=args.intensity, seed=args.seed, batch=args.batch,
+        lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights),
+    )
+    if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
+        raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
+    if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, *cfg.loss_weights)):
+        raise PedscanError("--lr, --decay and --loss-weights must be finite and not negative")
+    paths = sequence_paths(args.data)
+    seqs = check_sequences(paths, cfg.frames, str(args.data), cfg.intensity)
+    val_seqs = check_sequences(sequence_paths(args.val), 1, str(args.val), cfg.intensity) if args.val else []
+    score_from = cfg.frames - 1 if args.score_from is None else args.score_from
+    for s in val_seqs:
+        if s.frames <= score_from:
+            raise PedscanError(f"{s.path}: {s.frames} frames, none scored from frame {score_from} (--score-from)")
+    cfg.data = describe_data(paths)
+    device = pick_device(args.device)
+    config = asdict(cfg)
+    config["loss_weights"] = list(cfg.loss_weights)
+
+    ckpt_path = run / "checkpoint.pt"
+    metrics_path = run / "metrics.jsonl"
+    start = 0
+    torch.manual_seed(cfg.seed)
+    torch.use_deterministic_algorithms(True)
+    net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width)).to(device)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
+    if args.resume:
+        if not (run / "run.json").is_file():
+            raise RunError(f"{run}: no run.json to resume (start it without --resume)")
+        before = read_json(run / "run.json")
+        if before.get("config") != json.loads(json.dumps(config)):
+            old = before.get("config", {})
+            diff = sorted(k for k in set(old) | set(config) if old.get(k) != json.loads(json.dumps(config)).get(k))
+            raise RunError(f"{run}: a run of another configuration (differs in: {', '.join(diff)}); "
+                           "give the same flags and data, or another --out")
+        if ckpt_path.exists():
+            ck = load_file(ckpt_path)
+            try:
+                net.load_state_dict(ck["state_dict"])
+                opt.load_state_dict(ck["optimizer"])
+                sched.load_state_dict(ck["scheduler"])
+                torch.set_rng_state(ck["torch_rng"])
+                start = int(ck["step"])
+            except (KeyError, RuntimeError, ValueError, TypeError) as e:
+                raise RunError(f"{ckpt_path}: a damaged checkpoint ({e})") from e
+    elif run.exists() and any(run.iterdir()):
+        raise RunError(f"{run}: not empty; --resume continues the run in it, or give another --out")
+    run.mkdir(parents=True, exist_ok=True)
+    env = environment(device)
+    if not args.resume or not (run / "run.json").is_file():
+        atomic_write_text(run / "run.json", json.dumps({
+            "config": config, "val": str(args.val) if args.val else None, "score_from": score_from,
+            "parameters": count_parameters(net), "network": describe(net, seqs[0].rows, seqs[0].columns),
+            "environment": env,
+        }, indent=2) + "\n")
+    # Metrics logged after the checkpoint resumed from are dropped: the run writes them again.
+    metrics: list[dict[str, Any]] = []
+    if metrics_path.exists():
+        for line in metrics_path.read_text().splitlines():
+            try:
+                m = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if m.get("step", 0) <= start and start > 0:
+                metrics.append(m)
+    atomic_write_text(metrics_path, "".join(json.dumps(m) + "\n" for m in metrics))
+
+    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity)
+    sampler = range(start * cfg.batch, args.steps * cfg.batch)
+    loader = torch.utils.data.DataLoader(
+        data, batch_size=cfg.batch, sampler=sampler, num_workers=args.workers,
+        prefetch_factor=4 if args.workers else None, persistent_workers=False,
+    )
+    title = f"{run.name}: N={cfg.frames}, {len(seqs)} training sequences"
+
+    def save(step: int) -> None:
+        weights = {k: v.detach().cpu() for k, v in net.state_dict().items()}
+        training = {"step": step, "config": config, "environment": env}
+        atomic_save({
+            "format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": weights, "optimizer": opt.state_dict(),
+            "scheduler": sched.state_dict(), "torch_rng": torch.get_rng_state(), "step": step, "training": training,
+        }, ckpt_path)
+        atomic_save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": weights, "training": training},
+                    run / "model.pt")
+
+    def log(m: dict[str, Any]) -> None:
+        metrics.append(m)
+        with metrics_path.open("a") as f:
+            f.write(json.dumps(m) + "\n")
+
+    stop: list[int] = []
+    old_handler = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+    net.train()
+    step = start
+    t_start = time.perf_counter()
+    t_wait = 0.0
+    acc: list[float] = []
+    terms: dict[str, float] = {}
+    last_log = time.perf_counter()
+    try:
+        it = iter(loader)
+        while step < args.steps:
+            if stop:
+                raise Stop
+            t0 = time.perf_counter()
+            try:
+                batch = next(it)
+            except RuntimeError:
+                if stop:  # Ctrl-C reached the loader's worker too
+                    raise Stop from None
+                raise
+            t_wait += time.perf_counter() - t0
+            logits, vel = net(batch["x"].to(device))
+            loss, parts = paper_loss(
+                logits, vel, batch["label"].to(device), batch["velocity"].to(device), batch["valid"].to(device),
+                cfg.loss_weights,
+            )
+            if not torch.isfinite(loss):
+                raise PedscanError(f"step {step}: the loss is {float(loss)} (window {batch['sequence'].tolist()}, "
+                                   f"frame {batch['frame'].tolist()}); lower --lr")
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            sched.step()
+            step += 1
+            acc.append(loss.item())
+            for k, v in parts.items():
+                terms[k] = terms.get(k, 0.0) + v
+            done = step - start
+            rate = done / (time.perf_counter() - t_start)
+            if not args.quiet and (time.perf_counter() - last_log > 1.0 or step == args.steps):
+                last_log = time.perf_counter()
+                bar = int(30 * step / args.steps)
+                eta = (args.steps - step) / rate if rate > 0 else 0
+                print(f"\r[{'#' * bar}{'.' * (30 - bar)}] {step}/{args.steps} {rate:.2f} steps/s "
+                      f"loss {np.mean(acc[-50:]):.4g} data wait {100 * t_wait / (time.perf_counter() - t_start):.0f}% "
+                      f"eta {eta / 60:.0f} min ", end="", file=sys.stderr)
+            if step % args.log_every == 0 or step == args.steps:
+                log({"kind": "train", "step": step, "loss": float(np.mean(acc)),
+                     **{k: v / len(acc) for k, v in terms.items()}, "lr": sched.get_last_lr()[0],
+                     "steps_per_s": rate, "data_wait_share": t_wait / (time.perf_counter() - t_start),
+                     "wall_s": time.perf_counter() - t_start})
+                acc, terms = [], {}
+            if val_seqs and (step % args.val_every == 0 or step == args.steps):
+                v = validate(net, val_seqs, device, score_from)
+                log({"kind": "val", "step": step, **v})
+                if not args.quiet:
+                    o = v["overall"]
+                    print(f"\n  step {step}: validation IoU {o['iou'] or 0:.4f} "
+                          f"({' / '.join(format(b['iou'] or 0, '.3f') for b in v['bins'])} at 0-4/4-8/8+ m), "
+                          f"EPE {o['epe_mps'] or 0:.3f} m/s", file=sys.stderr)
+            if step % args.checkpoint_every == 0 or step == args.steps:
+                save(step)
+                plot_curves(metrics, run / "curves.png", title)
+            if step == args.stop_at_step:
+                stop.append(1)
+    except Stop:
+        print(f"\nstopped at step {step}; the checkpoint of step "
+              f"{load_file(ckpt_path)['step'] if ckpt_path.exists() else 0} stays (--resume continues)", file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGINT, old_handler)
+    if start == args.steps and not (run / "model.pt").exists():
+        save(step)
+    if not args.quiet:
+        print(file=sys.stderr)
+    print(f"{run}: {step} steps; model {run / 'model.pt'}")
+    return 0
+
+
+def bench_loader(args: argparse.Namespace) -> int:
+    """Windows per second the loader delivers alone (no training), with the run's workers."""
+    import torch
+
+    seqs = check_sequences(sequence_paths(args.data), args.frames, str(args.data), args.intensity)
+    data = StepWindows(seqs, args.frames, args.seed, args.intensity)
+    n = args.bench_loader
+    loader = torch.utils.data.DataLoader(
+        data, batch_size=1, sampler=range(n + 8), num_workers=args.workers, prefetch_factor=4 if args.workers else None
+    )
+    it = iter(loader)
+    for _ in range(8):
+        next(it)
+    t0 = time.perf_counter()
+    for _ in range(n):
+        next(it)
+    rate = n / (time.perf_counter() - t0)
+    print(json.dumps({"frames": args.frames, "workers": args.workers, "windows_per_s": rate}))
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m pedscan_data.train", description=__doc__.split("\n\n")[0])
+    p.add_argument("data", type=Path, help="pedscan output folder with the training sequences")
+    p.add_argument("--frames", type=int, required=True, help="N, frames per window (1, 2, 4, 8, 16)")
+    p.add_argument("--out", type=Path, help="run folder")
+    p.add_argument("--steps", type=int, default=4000, help="training steps (default 4000)")
+    p.add_argument("--val", type=Path, help="pedscan output folder with validation sequences")
+    p.add_argument("--device", default="auto", help="auto | cpu | cuda (default auto)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--width", type=int, default=16, help="channels of the encoder's first layer (default 16)")
+    p.add_argument("--intensity", action="store_true", help="also take the return intensity as input")
+    p.add_argument("--batch", type=int, default=1, help="windows per step (paper: 1)")
+    p.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (paper: 1e-3)")
+    p.add_argument("--decay", type=float, default=1e-3, help="time decay: lr / (1 + decay * step) (paper: 1e-3)")
+    p.add_argument("--loss-weights", type=float, nargs=3, default=list(PAPER_LOSS_WEIGHTS),
+                   metavar=("CE", "BG", "HUMAN"), help="paper: 10000 1 1001")
+    p.add_argument("--workers", type=int, default=1, help="data-loading processes (default 1; 0: in the trainer)")
+    p.add_argument("--val-every", type=int, default=500)
+    p.add_argument("--checkpoint-every", type=int, default=250)
+    p.add_argument("--log-every", type=int, default=50)
+    p.add_argument("--score-from", type=int, help="validation scores frames from this one (default N-1)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--stop-at-step", type=int, metavar="K",
+                   help="stop after step K as Ctrl-C would (exit 130; --resume continues): for tests of resuming")
+    p.add_argument("--bench-loader", type=int, metavar="WINDOWS", help="only time the loader over this many windows")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        if args.bench_loader:
+            return bench_loader(args)
+        if args.out is None:
+            parser().error("--out RUN is needed")
+        if args.steps < 0:
+            raise PedscanError(f"--steps {args.steps}: not a number of steps")
+        return train(args)
+    except (PedscanError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,199 @@
+"""The paper's network: shapes, the azimuth wrap, the loss, streaming, ONNX parity."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from pedscan_data.model import NetConfig, SequenceNet, WrapConv, count_parameters, input_channels
+from pedscan_data.reader import Sequence
+from pedscan_data.train import paper_loss
+
+
+def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False) -> SequenceNet:
+    torch.manual_seed(seed)
+    net = SequenceNet(NetConfig(frames=frames, width=width, intensity=intensity)).eval()
+    # Random, not trained weights: make the biases nonzero so that zero padding would show.
+    with torch.no_grad():
+        for p in net.parameters():
+            if p.ndim == 1:
+                p.uniform_(-0.2, 0.2)
+    return net
+
+
+@pytest.mark.parametrize("frames", [1, 2, 16])
+def test_shapes(frames: int) -> None:
+    net = net_for(frames)
+    x = torch.rand(2, frames, 2, 16, 64)
+    logits, velocity = net(x)
+    assert logits.shape == (2, 2, 16, 64)
+    assert velocity.shape == (2, 3, 16, 64)
+    with pytest.raises(ValueError, match="frames"):
+        net(torch.rand(1, frames + 1, 2, 16, 64))
+    with pytest.raises(ValueError, match="multiple of 4 rows and of 8 columns"):
+        net(torch.rand(1, frames, 2, 16, 60))
+
+
+def test_wrap_conv_pads_circularly_along_columns_and_with_zeros_along_rows() -> None:
+    conv = WrapConv(1, 1, relu=False)
+    with torch.no_grad():
+        conv.conv.weight.zero_()
+        conv.conv.bias.zero_()
+        conv.conv.weight[0, 0, 1, 0] = 1.0  # output(h, w) = input(h, w-1)
+    x = torch.zeros(1, 1, 4, 8)
+    x[0, 0, 2, 7] = 1.0
+    y = conv(x)
+    assert y[0, 0, 2, 0] == 1.0, "column 0 must see column W-1"
+    assert float(y.abs().sum()) == 1.0
+    with torch.no_grad():
+        conv.conv.weight.zero_()
+        conv.conv.weight[0, 0, 0, 1] = 1.0  # output(h, w) = input(h-1, w)
+    x = torch.zeros(1, 1, 4, 8)
+    x[0, 0, 3, 5] = 1.0
+    assert float(conv(x).abs().sum()) == 0.0, "the last row must not wrap to the first"
+
+
+@pytest.mark.parametrize("frames", [1, 2, 16])
+def test_the_network_commutes_with_a_turn_of_the_sensor(frames: int) -> None:
+    """Rolling every input frame by 8 columns (a multiple of the strides) turns the scene by
+    delta = 2 pi 8 / W: the mask rolls by 8 columns, and the velocities roll and turn by
+    -delta about z (they are in the sensor frame). True only if every layer wraps; zero padding
+    at the seam, or a velocity head blind to the column's azimuth, breaks it."""
+    net = net_for(frames)
+    w = 32
+    x = torch.rand(1, frames, 2, 8, w)
+    with torch.no_grad():
+        logits, vel = net(x)
+        logits_r, vel_r = net(torch.roll(x, 8, dims=-1))
+    torch.testing.assert_close(torch.roll(logits, 8, dims=-1), logits_r, rtol=1e-5, atol=1e-5)
+    d = -2 * np.pi * 8 / w
+    v = torch.roll(vel, 8, dims=-1)
+    turned = torch.stack([v[:, 0] * np.cos(d) - v[:, 1] * np.sin(d), v[:, 0] * np.sin(d) + v[:, 1] * np.cos(d), v[:, 2]], 1)
+    torch.testing.assert_close(turned, vel_r, rtol=1e-4, atol=1e-5)
+    assert float(vel.abs().max()) > 1e-3  # not vacuous
+
+
+def test_velocity_head_turns_the_beam_frame_by_the_column_azimuth() -> None:
+    from pedscan_data.model import beam_to_sensor, column_azimuth
+
+    az = column_azimuth(8)
+    # pedscan's grid: column 0 looks just left of straight back (+180 deg), W/2 just right of ahead.
+    assert float(az[0]) == pytest.approx(np.pi * (1 - 1 / 8))
+    assert float(az[4]) == pytest.approx(-np.pi / 8)
+    local = torch.zeros(1, 3, 1, 8)
+    local[0, 0] = 1.0  # 1 m/s away from the sensor along each column
+    v = beam_to_sensor(local)[0, :, 0]
+    np.testing.assert_allclose(v[0].numpy(), np.cos(az.numpy()), atol=1e-6)
+    np.testing.assert_allclose(v[1].numpy(), np.sin(az.numpy()), atol=1e-6)
+
+
+def test_input_channels_mark_holes_with_a_validity_channel() -> None:
+    r = np.array([[0.0, 5.0], [np.nan, 25.0]], dtype=np.float32)
+    x = input_channels(r)
+    assert x.shape == (2, 2, 2)
+    np.testing.assert_allclose(x[0], [[0.0, 0.5], [0.0, 2.5]])
+    np.testing.assert_array_equal(x[1], [[0, 1], [0, 1]])
+    xi = input_channels(r, np.array([[9.0, 0.3], [7.0, 0.8]], dtype=np.float32))
+    np.testing.assert_allclose(xi[2], [[0.0, 0.3], [0.0, 0.8]])
+
+
+def test_paper_loss_counts_returned_beams_only_and_matches_a_hand_count() -> None:
+    torch.manual_seed(1)
+    h, w = 4, 8
+    logits = torch.randn(1, 2, h, w)
+    velocity = torch.randn(1, 3, h, w)
+    v_true = torch.randn(1, 3, h, w)
+    label = torch.zeros(1, h, w, dtype=torch.int64)
+    label[0, 1, 2:5] = 1
+    valid = torch.ones(1, h, w, dtype=torch.bool)
+    valid[0, 3, :] = False
+    valid[0, 1, 4] = False  # one human beam without a return
+    loss, terms = paper_loss(logits, velocity, label, v_true, valid)
+
+    # By hand, beam by beam.
+    lp = torch.log_softmax(logits, dim=1)[0]
+    n_valid = int(valid.sum())
+    n_human = int(((label == 1) & valid).sum())
+    cw = (n_valid - n_human) / n_human
+    ce = se_bg = se_h = 0.0
+    for i in range(h):
+        for j in range(w):
+            if not valid[0, i, j]:
+                continue
+            k = int(label[0, i, j])
+            ce += (cw if k == 1 else 1.0) * -float(lp[k, i, j])
+            se = float((velocity[0, :, i, j] - v_true[0, :, i, j]).square().mean())
+            if k == 1:
+                se_h += se
+            else:
+                se_bg += se
+    expected = 10_000 * ce / n_valid + se_bg / n_valid + 1001 * se_h / n_valid
+    assert float(loss) == pytest.approx(expected, rel=1e-5)
+    assert terms["ce"] == pytest.approx(ce / n_valid, rel=1e-5)
+
+    # Anything on the no-return beams changes nothing.
+    logits2, velocity2, label2 = logits.clone(), velocity.clone(), label.clone()
+    logits2[0][:, ~valid[0]] = 50.0
+    velocity2[0][:, ~valid[0]] = -30.0
+    label2[0][~valid[0]] = 1
+    loss2, _ = paper_loss(logits2, velocity2, label2, v_true, valid)
+    assert float(loss2) == pytest.approx(float(loss), rel=1e-6)
+
+
+def test_paper_loss_weights_human_beams_by_the_frames_class_ratio() -> None:
+    h, w = 2, 4
+    logits = torch.zeros(1, 2, h, w)  # cross-entropy log 2 everywhere
+    label = torch.zeros(1, h, w, dtype=torch.int64)
+    label[0, 0, 0] = 1
+    valid = torch.ones(1, h, w, dtype=torch.bool)
+    v = torch.zeros(1, 3, h, w)
+    loss, terms = paper_loss(logits, v, label, v, valid)
+    # 7 background beams of weight 1 and 1 human beam of weight 7: 14 log 2 over 8 beams.
+    assert terms["ce"] == pytest.approx(14 * np.log(2) / 8, rel=1e-6)
+    no_human = torch.zeros_like(label)
+    _, t2 = paper_loss(logits, v, no_human, v, valid)
+    assert t2["ce"] == pytest.approx(np.log(2), rel=1e-6)
+
+
+def test_streaming_prediction_equals_whole_windows(sample: Path) -> None:
+    from pedscan_data.predict import predict_sequence, sequence_inputs
+
+    n = 2
+    net = net_for(n)
+    seq = Sequence(sample / "seq_000000.h5")
+    labels, velocity, _ = predict_sequence(net, seq, "cpu", chunk=3)
+    x = torch.from_numpy(sequence_inputs(seq, False))
+    with torch.no_grad():
+        for t in range(seq.frames):
+            idx = [max(k, 0) for k in range(t - n + 1, t + 1)]  # frame 0 in place of missing ones
+            logits, vel = net(x[idx].unsqueeze(0))
+            np.testing.assert_array_equal(labels[t], (logits[0, 1] > logits[0, 0]).numpy())
+            np.testing.assert_allclose(velocity[t], vel[0].permute(1, 2, 0).numpy(), rtol=1e-4, atol=1e-5)
+
+
+def test_parameters_are_counted_and_fit_a_small_file() -> None:
+    net = SequenceNet(NetConfig(frames=16))
+    assert 50_000 < count_parameters(net) < 500_000  # about 0.5 MB of f32
+
+
+def test_onnx_export_matches_pytorch(tmp_path: Path) -> None:
+    import onnxruntime as ort
+
+    from pedscan_data.predict import export_onnx
+
+    net = net_for(2, intensity=True)
+    diff = export_onnx(net, tmp_path / "net.onnx", 16, 64)
+    assert diff <= 1e-4
+    # Independently of the export's own check: a second input through both.
+    x = torch.rand(3, 2, 3, 16, 64)
+    with torch.no_grad():
+        ref = [o.numpy() for o in net(x)]
+    out = ort.InferenceSession(str(tmp_path / "net.onnx"), providers=["CPUExecutionProvider"]).run(
+        None, {"input": x.numpy()}
+    )
+    for a, b in zip(ref, out):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
+    assert not list(tmp_path.glob("*.tmp"))

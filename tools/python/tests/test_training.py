@@ -1,0 +1,207 @@
+"""Training, resuming, predicting and scoring end to end on tiny pedscan sequences; bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import torch
+
+from pedscan_data import evaluate as ev
+from pedscan_data import predict as pr
+from pedscan_data import train as tr
+from pedscan_data.netio import load_file, load_net
+
+from conftest import SENSOR_TOML, generate
+
+
+@pytest.fixture(scope="module")
+def two_frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One sequence of two frames on the 16 x 512 test sensor, five people."""
+    tmp = tmp_path_factory.mktemp("two")
+    (tmp / "sensor.toml").write_text(SENSOR_TOML)
+    return generate(
+        tmp / "out", "--sequences", "1", "--frames", "2", "--humans", "5..5", "--seed", "4",
+        "--sensor", str(tmp / "sensor.toml"), "--outputs", "range,label,instance,velocity",
+    )
+
+
+def run_train(*args: str) -> int:
+    return tr.main([*map(str, args), "--quiet", "--workers", "0"])
+
+
+def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    assert run_train(two_frames, "--frames", "2", "--out", run, "--steps", "300", "--width", "8",
+                     "--val", two_frames, "--val-every", "300", "--checkpoint-every", "300", "--lr", "1e-2",
+                     "--decay", "0") == 0
+    val = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    last = [m for m in val if m["kind"] == "val"][-1]
+    assert last["step"] == 300
+    assert last["overall"]["human_beams"] > 100
+    assert last["overall"]["iou"] >= 0.9, last["overall"]
+    # The run's files: configuration with the environment, weights, curves.
+    info = json.loads((run / "run.json").read_text())
+    assert info["environment"]["device"] == "cpu" and info["environment"]["torch"] == torch.__version__
+    assert info["config"]["frames"] == 2 and info["config"]["data"][0]["file"] == "seq_000000.h5"
+    assert (run / "curves.png").stat().st_size > 1000
+    assert load_file(run / "model.pt")["training"]["step"] == 300
+
+
+def weights(run: Path) -> dict[str, torch.Tensor]:
+    return load_file(run / "checkpoint.pt")["state_dict"]
+
+
+def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path, tmp_path: Path) -> None:
+    common = ["--frames", "2", "--steps", "7", "--width", "4", "--checkpoint-every", "2", "--log-every", "1"]
+    assert run_train(sample, "--out", tmp_path / "a", *common) == 0
+    # Stopped as Ctrl-C would at step 5: the checkpoint of step 4 stays, step 5 is done again.
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--stop-at-step", "5") == 130
+    assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 4
+    assert tr.main([str(sample), "--out", str(tmp_path / "b"), *common, "--resume", "--quiet", "--workers", "1"]) == 0
+    a, b = weights(tmp_path / "a"), weights(tmp_path / "b")
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+    la = (tmp_path / "a" / "metrics.jsonl").read_text().splitlines()
+    lb = (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()
+    strip = lambda lines: [{k: v for k, v in json.loads(x).items() if k in ("step", "loss", "ce")} for x in lines]
+    assert strip(la) == strip(lb)
+    # A longer --steps extends a finished run.
+    assert run_train(sample, "--out", tmp_path / "b", *common[:2], "--steps", "9", *common[4:], "--resume") == 0
+    assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 9
+
+
+def test_predict_then_evaluate_round_trip(sample: Path, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "20", "--width", "4") == 0
+    pred = tmp_path / "pred"
+    assert pr.main([str(run), str(sample), "--out", str(pred), "--device", "cpu"]) == 0
+    files = sorted(p.name for p in pred.iterdir())
+    assert files == sorted(p.name for p in sample.glob("seq_*.h5"))
+    report = ev.evaluate(sample, pred, from_frame=1).as_dict()
+    assert report["frames"] == 2 * 3
+    # The same IoU counted here from the files.
+    tp = fp = fn = 0
+    for name in files:
+        with h5py.File(sample / name, "r") as g, h5py.File(pred / name, "r") as p:
+            assert p.attrs["full_window_from"] == 1
+            r, truth, guess = g["range"][1:], g["label"][1:] == 1, p["label"][1:] != 0
+            ok = r > 0
+            tp += int(np.sum(truth & guess & ok))
+            fp += int(np.sum(~truth & guess & ok))
+            fn += int(np.sum(truth & ~guess & ok))
+            assert p["velocity"].shape == g["velocity"].shape
+    assert report["overall"]["tp"] == tp and report["overall"]["fp"] == fp and report["overall"]["fn"] == fn
+    assert report["overall"]["epe_mps"] is not None
+    # SemanticKITTI output: one label per returned beam.
+    kitti = tmp_path / "kitti"
+    assert pr.main([str(run / "model.pt"), str(sample), "--out", str(kitti), "--format", "semantickitti"]) == 0
+    k = ev.evaluate(sample, kitti, from_frame=1).as_dict()
+    assert (k["overall"]["tp"], k["overall"]["fp"], k["overall"]["fn"]) == (tp, fp, fn)
+
+
+def test_training_refuses_bad_input_with_exit_2_and_writes_nothing(
+    sample: Path, sample_minimal: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    run = tmp_path / "run"
+
+    def refused(*args: str | Path, match: str) -> None:
+        assert run_train(*args) == 2
+        err = capsys.readouterr().err
+        assert match in err, err
+        assert not run.exists(), "a refused run must leave no folder"
+
+    refused(empty, "--frames", "2", "--out", run, match=f"{empty}: no seq_*.h5")
+    refused(sample, "--frames", "5", "--out", run, match="seq_000000.h5: 4 frames, shorter than")
+    refused(sample_minimal, "--frames", "1", "--out", run, match="no dataset /velocity")
+    refused(sample, "--frames", "2", "--out", run, "--val", empty, match="no seq_*.h5")
+
+
+def test_resume_refuses_another_configuration_and_a_corrupt_checkpoint(
+    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "2", "--width", "4") == 0
+    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    assert run_train(sample, "--frames", "3", "--out", run, "--steps", "4", "--width", "4", "--resume") == 2
+    assert "another configuration (differs in: frames)" in capsys.readouterr().err
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "4", "--width", "4") == 2
+    assert "not empty" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+    (run / "checkpoint.pt").write_bytes(b"PK\x03\x04 not a checkpoint")
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "4", "--width", "4", "--resume") == 2
+    assert f"{run / 'checkpoint.pt'}: not a readable" in capsys.readouterr().err
+    # A model file that is not one, for predict: exit 2, no predictions.
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"\x80\x04junk")
+    assert pr.main([str(bad), str(sample), "--out", str(tmp_path / "pred")]) == 2
+    assert f"{bad}: not a readable" in capsys.readouterr().err
+    assert not (tmp_path / "pred").exists()
+
+
+def test_predict_refuses_data_the_network_cannot_take(sample_minimal: Path, tmp_path: Path, capsys) -> None:
+    from pedscan_data.model import NetConfig, SequenceNet
+    from pedscan_data.netio import MODEL_FORMAT
+
+    net_file = tmp_path / "n.pt"
+    net = SequenceNet(NetConfig(frames=2, width=4, intensity=True))
+    torch.save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": {}},
+               net_file)
+    assert load_net(net_file)[0].cfg.intensity
+    data = tmp_path / "data"
+    data.mkdir()
+    shutil.copy(sample_minimal / "seq_000000.h5", data)
+    with h5py.File(data / "seq_000000.h5", "a") as f:
+        if "intensity" in f:
+            del f["intensity"]
+    assert pr.main([str(net_file), str(data), "--out", str(tmp_path / "p")]) == 2
+    assert f"{data / 'seq_000000.h5'}: no dataset /intensity" in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
+
+
+def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> None:
+    """The whole pipeline at the smoke scale, a recorded background included (a KITTI folder
+    that pedscan itself wrote); a second run finds everything done and changes nothing."""
+    from conftest import find_pedscan
+
+    from pedscan_data import experiments as exp
+
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    rec = generate(tmp_path / "rec", "--sequences", "1", "--frames", "18", "--humans", "0..0",
+                   "--sensor", str(tmp_path / "sensor.toml"), "--formats", "semantickitti")
+    velodyne = rec / "semantickitti" / "sequences" / "00" / "velodyne"
+    assert len(list(velodyne.glob("*.bin"))) == 18
+    work = tmp_path / "work"
+    args = ["paper", "--work", str(work), "--scale", "smoke", "--pedscan", str(find_pedscan()),
+            "--recorded", str(velodyne), "--device", "cpu", "--workers", "0",
+            f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}", "--pedscan-flag=--humans=2..3"]
+    assert exp.main(args) == 0
+    res = json.loads((work / "results.json").read_text())
+    runs = [f"frames{n}" for n in (1, 2, 4, 8, 16)] + [f"motion-{m}" for m in ("static", "sliding", "in-place")]
+    assert sorted(res["runs"]) == sorted(runs)
+    assert all(r["step"] == 3 for r in res["runs"].values())
+    expected = {f"{r}--test" for r in runs} | {f"frames{n}--test-recorded" for n in (1, 2, 4, 8, 16)}
+    assert set(res["scores"]) == expected
+    for key, s in res["scores"].items():
+        assert s["from_frame"] == exp.SCORE_FROM and s["frames"] == 2, key
+        assert s["overall"]["human_beams"] > 0, key
+    # Table 5's ablations were trained on data made with their own motion.
+    static = json.loads((work / "runs" / "motion-static" / "run.json").read_text())
+    assert static["config"]["data"][0]["seed"] == exp.SEEDS["train"]
+    assert "--motion static" in (work / "data" / "train-static" / ".complete").read_text()
+    md = (work / "results.md").read_text()
+    assert "| 8+ m |" in md and "0.1622" in md and "A recorded background" in md
+    assert (work / "results.png").stat().st_size > 1000
+    assert (work / "results-example.png").stat().st_size > 1000
+    stamp = {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")}
+    assert exp.main(args) == 0
+    assert {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")} == stamp
+    # Another scale in the same folder is refused.
+    assert exp.main([*args[:4], "small", *args[5:]]) == 2
