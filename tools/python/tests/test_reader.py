@@ -82,7 +82,7 @@ def test_frame_reads_only_what_is_asked(sample: Path, monkeypatch: pytest.Monkey
 def test_missing_dataset_names_the_file(sample_minimal: Path) -> None:
     path = sample_minimal / "seq_000000.h5"
     seq = Sequence(path)
-    assert seq.fields == ("range", "label", "instance")
+    assert seq.fields == ("range", "label", "instance", "intensity")  # the sensor model adds intensity
     assert not seq.has("velocity")
     with pytest.raises(PedscanError, match=r"seq_000000\.h5: no dataset /velocity"):
         seq.read("velocity", 0)
