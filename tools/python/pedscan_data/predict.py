@@ -25,6 +25,7 @@ window within 1e-4 before the file is kept.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -66,7 +67,9 @@ def sequence_inputs(seq: Sequence, intensity: bool, frames: slice = slice(None))
 def predict_sequence(
     net: Any, seq: Sequence, device: Any, first: int = 0, chunk: int = 8
 ) -> tuple[np.ndarray, np.ndarray, list[float]]:
-    """Streams ``net`` over ``seq``: labels u8 [T,H,W], velocity f32 [T,H,W,3] and ms per frame.
+    """Streams ``net`` over ``seq``: the human margin f32 [T,H,W] (logit of human minus logit of
+    background; human where it exceeds the model's threshold, :func:`human_margin`), velocity
+    f32 [T,H,W,3] and ms per frame.
 
     Frames before ``first`` are encoded (the later ones need them) but not decoded; their
     outputs stay 0. A frame with fewer than N-1 predecessors uses frame 0's features in place
@@ -75,7 +78,7 @@ def predict_sequence(
     torch = _torch()
     n = net.cfg.frames
     t_total, h, w = seq.frames, seq.rows, seq.columns
-    labels = np.zeros((t_total, h, w), dtype=np.uint8)
+    margin = np.zeros((t_total, h, w), dtype=np.float32)
     velocity = np.zeros((t_total, h, w, 3), dtype=np.float32)
     feats: list[Any] = []  # per frame, on the device: (s1, s2, f) of the last N frames only
     ms: list[float] = []
@@ -92,10 +95,17 @@ def predict_sequence(
                 if t >= first:
                     window = [feats[0][2]] * (n - len(feats)) + [e[2] for e in feats]
                     logits, vel = net.decode(s1, s2, torch.stack(window, dim=1))
-                    labels[t] = (logits[0, 1] > logits[0, 0]).to("cpu").numpy()
+                    margin[t] = (logits[0, 1] - logits[0, 0]).to("cpu").numpy()
                     velocity[t] = vel[0].permute(1, 2, 0).to("cpu").numpy()
                 ms.append((time.perf_counter() - start) * 1e3)
-    return labels, velocity, ms
+    return margin, velocity, ms
+
+
+def human_margin(model: dict[str, Any]) -> float:
+    """The margin above which a beam is human: log(p / (1 - p)) of the model file's
+    ``human_threshold`` p (0.5, the softmax's argmax, unless calibrated on validation data)."""
+    p = float(model.get("human_threshold", 0.5))
+    return math.log(p / (1.0 - p))
 
 
 def write_h5(path: Path, labels: np.ndarray, velocity: np.ndarray, attrs: dict[str, Any]) -> None:
@@ -128,9 +138,12 @@ def write_kitti(root: Path, seq: Sequence, labels: np.ndarray, velocity: np.ndar
             os.replace(tmp, path)
 
 
-def export_onnx(net: Any, path: Path, rows: int, columns: int, atol: float = 1e-4) -> float:
+def export_onnx(
+    net: Any, path: Path, rows: int, columns: int, atol: float = 1e-4, human_threshold: float = 0.5
+) -> float:
     """Writes the network as ONNX and checks ONNX Runtime against PyTorch on a random window;
-    returns the largest difference. The file appears only once it is checked."""
+    returns the largest difference. The file appears only once it is checked. Its metadata
+    ``human_threshold`` is the softmax probability above which a beam is human."""
     torch = _torch()
     import onnxruntime as ort
 
@@ -149,6 +162,13 @@ def export_onnx(net: Any, path: Path, rows: int, columns: int, atol: float = 1e-
         dynamic_axes={"input": {0: "batch"}, "logits": {0: "batch"}, "velocity": {0: "batch"}},
         opset_version=17, dynamo=False,
     )
+    import onnx
+
+    m = onnx.load(str(tmp))
+    for key, value in (("human_threshold", repr(float(human_threshold))), ("frames", str(cfg.frames)),
+                       ("inputs", "range/10m, valid" + (", intensity" if cfg.intensity else ""))):
+        onnx.helper.set_model_props(m, {**{p.key: p.value for p in m.metadata_props}, key: value})
+    onnx.save(m, str(tmp))
     with torch.no_grad():
         ref = [o.numpy() for o in net(x)]
     sess = ort.InferenceSession(str(tmp), providers=["CPUExecutionProvider"])
@@ -170,19 +190,26 @@ def predict(
 
     dev = pick_device(device)
     net, obj = load_net(model, dev)
+    cut = human_margin(obj)
     sequences = open_sequences(data)
     for seq in sequences:
         if net.cfg.intensity and not seq.has("intensity"):
             raise PedscanError(f"{seq.path}: no dataset /intensity, which this network takes as input")
+        if seq.rows % 4 or seq.columns % 8:
+            raise PedscanError(
+                f"{seq.path}: a {seq.rows} x {seq.columns} grid; the network takes a multiple of 4 rows and of 8 columns"
+            )
     out.mkdir(parents=True, exist_ok=True)
     all_ms: list[float] = []
     for k, seq in enumerate(sequences):
-        labels, velocity, ms = predict_sequence(net, seq, dev, first=first)
+        margin, velocity, ms = predict_sequence(net, seq, dev, first=first)
+        labels = (margin > cut).astype(np.uint8)
         all_ms += ms[1:] if len(ms) > 1 else ms  # the first frame pays for warm-up
         if fmt == "h5":
             write_h5(
                 out / seq.path.name, labels, velocity,
-                {"frames_seen": net.cfg.frames, "full_window_from": net.cfg.frames - 1, "model": str(model)},
+                {"frames_seen": net.cfg.frames, "full_window_from": net.cfg.frames - 1,
+                 "human_threshold": float(obj.get("human_threshold", 0.5)), "model": Path(model).name},
             )
         else:
             write_kitti(out, seq, labels, velocity)
@@ -207,9 +234,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         if args.export_onnx is not None:
-            net, _ = load_net(args.model)
+            net, obj = load_net(args.model)
             h, w = (int(v) for v in args.onnx_grid.lower().split("x"))
-            diff = export_onnx(net, args.export_onnx, h, w)
+            diff = export_onnx(net, args.export_onnx, h, w, human_threshold=float(obj.get("human_threshold", 0.5)))
             print(f"wrote {args.export_onnx} (ONNX Runtime against PyTorch: max difference {diff:.2g})")
             if args.data is None:
                 return 0

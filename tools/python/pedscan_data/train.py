@@ -142,26 +142,93 @@ def paper_loss(
     return loss, {"ce": seg.mean().item(), "mse_bg": bg.mean().item(), "mse_human": hu.mean().item()}
 
 
-def validate(net: Any, sequences: list[Sequence], device: Any, score_from: int) -> dict[str, Any]:
-    """IoU per distance bin and the human velocity EPE on frames ``score_from`` onwards."""
+def validate(
+    net: Any, sequences: list[Sequence], device: Any, score_from: int, cuts: tuple[float, ...] = (0.0,)
+) -> list[dict[str, Any]]:
+    """Per margin cut (0: the softmax's argmax), IoU per distance bin and the human velocity
+    EPE on frames ``score_from`` onwards; one pass of the network serves every cut."""
     from .evaluate import Report, _score_frame
     from .predict import predict_sequence
 
-    report = Report("validation", "network", "network", sequences=len(sequences), velocity=True)
+    reports = [Report("validation", "network", "network", sequences=len(sequences), velocity=True) for _ in cuts]
     net.eval()
     ms: list[float] = []
     for seq in sequences:
-        labels, vel, frame_ms = predict_sequence(net, seq, device, first=score_from)
-        ms += frame_ms
+        margin, vel, frame_ms = predict_sequence(net, seq, device, first=score_from)
+        ms += frame_ms[1:]  # the first frame pays for warm-up
         for t in range(score_from, seq.frames):
-            _score_frame(
-                report, seq.read("range", t), seq.read("label", t) == 1, labels[t] != 0,
-                seq.read("velocity", t), vel[t],
-            )
-            report.frames += 1
+            r, truth, v = seq.read("range", t), seq.read("label", t) == 1, seq.read("velocity", t)
+            for cut, report in zip(cuts, reports):
+                _score_frame(report, r, truth, margin[t] > cut, v, vel[t])
+                report.frames += 1
     net.train()
-    d = report.as_dict()
-    return {"overall": d["overall"], "bins": d["bins"], "frames": d["frames"], "ms_per_frame": float(np.median(ms))}
+    out = []
+    for cut, report in zip(cuts, reports):
+        d = report.as_dict()
+        out.append({"margin": cut, "overall": d["overall"], "bins": d["bins"], "frames": d["frames"],
+                    "ms_per_frame": float(np.median(ms))})
+    return out
+
+
+def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int) -> dict[str, Any]:
+    """The human threshold that maximizes the IoU over the validation beams (frames
+    ``score_from`` onwards), found exactly by sorting the beams' margins.
+
+    The paper's class weight (background / human beams, ~25) makes the softmax's argmax call a
+    beam human when it is about 1 in 25 likely: recall near 1, precision low. The threshold is
+    chosen on validation data, never on the test set.
+    """
+    from .predict import predict_sequence
+
+    net.eval()
+    margins, truth = [], []
+    for seq in sequences:
+        m, _, _ = predict_sequence(net, seq, device, first=score_from)
+        for t in range(score_from, seq.frames):
+            ok = seq.read("range", t) > 0
+            margins.append(m[t][ok])
+            truth.append(seq.read("label", t)[ok] == 1)
+    net.train()
+    m, y = np.concatenate(margins).astype(np.float64), np.concatenate(truth)
+    if not y.any():
+        raise PedscanError("the validation frames hold no human beam: no threshold to calibrate")
+    cut, iou = best_cut(m, y)
+    called = m > 0
+    argmax_iou = int(np.sum(y & called)) / int(np.sum(y | called))
+    return {
+        "human_threshold": float(1.0 / (1.0 + np.exp(-cut))), "margin": cut, "beams": int(len(m)),
+        "human_beams": int(y.sum()), "iou_argmax": argmax_iou, "iou_calibrated": iou,
+    }
+
+
+def best_cut(margin: np.ndarray, human: np.ndarray) -> tuple[float, float]:
+    """The cut c (within +-15) maximizing the IoU of ``margin > c`` against ``human``, and that
+    IoU; exact: the beams sorted by margin, every cut between two distinct margins tried."""
+    positives = int(human.sum())
+    order = np.argsort(-margin, kind="stable")
+    ms, ys = margin[order], human[order]
+    tp = np.cumsum(ys)
+    iou = tp / (positives + np.cumsum(~ys))  # TP / (TP + FP + FN) when the first k are called human
+    cut_ok = np.r_[ms[:-1] > ms[1:], True]  # a cut can fall only between different margins
+    k = int(np.argmax(np.where(cut_ok, iou, -1.0)))
+    cut = float((ms[k] + ms[k + 1]) / 2) if k + 1 < len(ms) else float(ms[k] - 1.0)
+    cut = min(max(cut, -15.0), 15.0)
+    called = margin > cut
+    return cut, int(np.sum(human & called)) / int(np.sum(human | called))
+
+
+def calibrate_model(model: Path, val: Path, device: Any, score_from: int) -> dict[str, Any]:
+    """Calibrates a model file's human threshold on validation sequences and writes it in."""
+    from .netio import atomic_save, load_file, load_net
+
+    net, _ = load_net(model, device)
+    seqs = check_sequences(sequence_paths(val), 1, str(val), net.cfg.intensity)
+    c = calibrate(net, seqs, device, score_from)
+    obj = load_file(model)
+    obj["human_threshold"] = c["human_threshold"]
+    obj.setdefault("training", {})["calibration"] = {**c, "score_from": score_from, "val": [s.path.name for s in seqs]}
+    atomic_save(obj, model)
+    return c
 
 
 def check_sequences(paths: list[Path], frames: int, what: str, intensity: bool) -> list[Sequence]:
@@ -175,6 +242,8 @@ def check_sequences(paths: list[Path], frames: int, what: str, intensity: bool) 
             problems.append(f"{s.path}: no dataset {', '.join('/' + k for k in missing)} (train needs it)")
         if s.frames < frames:
             problems.append(f"{s.path}: {s.frames} frames, shorter than the network's window of {frames}")
+        if s.rows % 4 or s.columns % 8:
+            problems.append(f"{s.path}: a {s.rows} x {s.columns} grid; the network takes a multiple of 4 rows and of 8 columns")
     if problems:
         raise PedscanError(f"{what}: " + ("\n  ".join([""] + problems) if len(problems) > 1 else problems[0]))
     return seqs
@@ -369,7 +438,7 @@ def train(args: argparse.Namespace) -> int:
                      "wall_s": time.perf_counter() - t_start})
                 acc, terms = [], {}
             if val_seqs and (step % args.val_every == 0 or step == args.steps):
-                v = validate(net, val_seqs, device, score_from)
+                v = validate(net, val_seqs, device, score_from)[0]
                 log({"kind": "val", "step": step, **v})
                 if not args.quiet:
                     o = v["overall"]
@@ -389,6 +458,12 @@ def train(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGINT, old_handler)
     if start == args.steps and not (run / "model.pt").exists():
         save(step)
+    if val_seqs and not args.no_calibrate and start < args.steps:
+        c = calibrate_model(run / "model.pt", args.val, device, score_from)
+        log({"kind": "calibration", "step": step, **c})
+        if not args.quiet:
+            print(f"\n  human threshold {c['human_threshold']:.4f} (calibrated on validation): IoU "
+                  f"{c['iou_argmax']:.4f} at the argmax -> {c['iou_calibrated']:.4f}", file=sys.stderr)
     if not args.quiet:
         print(file=sys.stderr)
     print(f"{run}: {step} steps; model {run / 'model.pt'}")
@@ -438,6 +513,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-every", type=int, default=250)
     p.add_argument("--log-every", type=int, default=50)
     p.add_argument("--score-from", type=int, help="validation scores frames from this one (default N-1)")
+    p.add_argument("--no-calibrate", action="store_true",
+                   help="keep the softmax's argmax (by default, with --val, the human threshold that "
+                   "maximizes validation IoU is written into model.pt at the end)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--stop-at-step", type=int, metavar="K",
                    help="stop after step K as Ctrl-C would (exit 130; --resume continues): for tests of resuming")

@@ -164,13 +164,13 @@ def test_streaming_prediction_equals_whole_windows(sample: Path) -> None:
     n = 2
     net = net_for(n)
     seq = Sequence(sample / "seq_000000.h5")
-    labels, velocity, _ = predict_sequence(net, seq, "cpu", chunk=3)
+    margin, velocity, _ = predict_sequence(net, seq, "cpu", chunk=3)
     x = torch.from_numpy(sequence_inputs(seq, False))
     with torch.no_grad():
         for t in range(seq.frames):
             idx = [max(k, 0) for k in range(t - n + 1, t + 1)]  # frame 0 in place of missing ones
             logits, vel = net(x[idx].unsqueeze(0))
-            np.testing.assert_array_equal(labels[t], (logits[0, 1] > logits[0, 0]).numpy())
+            np.testing.assert_allclose(margin[t], (logits[0, 1] - logits[0, 0]).numpy(), rtol=1e-4, atol=1e-4)
             np.testing.assert_allclose(velocity[t], vel[0].permute(1, 2, 0).numpy(), rtol=1e-4, atol=1e-5)
 
 
@@ -197,3 +197,18 @@ def test_onnx_export_matches_pytorch(tmp_path: Path) -> None:
     for a, b in zip(ref, out):
         np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_the_calibrated_cut_is_the_best_of_every_cut() -> None:
+    from pedscan_data.train import best_cut
+
+    rng = np.random.default_rng(5)
+    human = rng.random(4000) < 0.05
+    margin = np.round(rng.normal(0, 1, 4000) + 2.5 * human, 1)  # ties on purpose
+    cut, iou = best_cut(margin, human)
+    candidates = np.unique(margin)
+    brute = max(np.sum(human & (margin > c)) / np.sum(human | (margin > c)) for c in np.r_[candidates, candidates[0] - 1])
+    assert iou == pytest.approx(brute)
+    called = margin > cut
+    assert iou == pytest.approx(np.sum(human & called) / np.sum(human | called))
+    assert iou > np.sum(human & (margin > 0)) / np.sum(human | (margin > 0))  # better than the argmax here

@@ -64,7 +64,12 @@ def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) ->
     assert info["config"]["frames"] == 2 and info["config"]["data"][0]["file"] == "seq_000000.h5"
     assert info["config"]["loss_weights"] == [10000.0, 0.0, 0.0]
     assert (seg / "curves.png").stat().st_size > 1000
-    assert load_file(seg / "model.pt")["training"]["step"] == 250
+    model = load_file(seg / "model.pt")
+    assert model["training"]["step"] == 250
+    # With --val, the human threshold is calibrated on it at the end, never worse than the argmax.
+    cal = [json.loads(x) for x in (seg / "metrics.jsonl").read_text().splitlines() if '"calibration"' in x][-1]
+    assert 0 < model["human_threshold"] < 1 and model["human_threshold"] == cal["human_threshold"]
+    assert cal["iou_calibrated"] >= cal["iou_argmax"] == pytest.approx(last["overall"]["iou"])
 
 
 def weights(run: Path) -> dict[str, torch.Tensor]:
@@ -207,6 +212,7 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     for key, s in res["scores"].items():
         assert s["from_frame"] == exp.SCORE_FROM and s["frames"] == 2, key
         assert s["overall"]["human_beams"] > 0, key
+        assert 0 < s["human_threshold"] < 1 and s["argmax"]["overall"]["human_beams"] == s["overall"]["human_beams"]
     # Table 5's ablations were trained on data made with their own motion.
     static = json.loads((work / "runs" / "motion-static" / "run.json").read_text())
     assert static["config"]["data"][0]["seed"] == exp.SEEDS["train"]
