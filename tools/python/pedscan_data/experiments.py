@@ -257,11 +257,13 @@ class Experiment:
                 if name.startswith("motion-") and ts != "test":
                     continue
                 score = self.work / "scores" / f"{name}--{ts}.json"
-                if score.is_file() and json.loads(score.read_text()).get("model_step") == self.scale.steps:
-                    continue
+                net, obj = load_net(run, dev)
+                if score.is_file():
+                    done = json.loads(score.read_text())
+                    if (done.get("model_step"), done.get("human_threshold")) == (self.scale.steps, obj["human_threshold"]):
+                        continue
                 t0 = time.perf_counter()
                 print(f"[test {name} on {ts}]", file=sys.stderr, flush=True)
-                net, obj = load_net(run, dev)
                 cal, arg = validate(net, open_sequences(self.work / "data" / ts), dev, SCORE_FROM,
                                     (human_margin(obj), 0.0))
                 rep = {**cal, "from_frame": SCORE_FROM, "human_threshold": obj["human_threshold"],

@@ -29,6 +29,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -157,11 +158,13 @@ def export_onnx(
         chans.append(torch.rand(1, cfg.frames, 1, rows, columns, generator=g) * valid)
     x = torch.cat(chans, dim=2)
     tmp = path.with_name(path.name + ".tmp")
-    torch.onnx.export(
-        net, (x,), str(tmp), input_names=["input"], output_names=["logits", "velocity"],
-        dynamic_axes={"input": {0: "batch"}, "logits": {0: "batch"}, "velocity": {0: "batch"}},
-        opset_version=17, dynamo=False,
-    )
+    with warnings.catch_warnings():  # the tracer's notes on shape checks it folds into constants
+        warnings.simplefilter("ignore")
+        torch.onnx.export(
+            net, (x,), str(tmp), input_names=["input"], output_names=["logits", "velocity"],
+            dynamic_axes={"input": {0: "batch"}, "logits": {0: "batch"}, "velocity": {0: "batch"}},
+            opset_version=17, dynamo=False,
+        )
     import onnx
 
     m = onnx.load(str(tmp))

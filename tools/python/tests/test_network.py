@@ -212,3 +212,29 @@ def test_the_calibrated_cut_is_the_best_of_every_cut() -> None:
     called = margin > cut
     assert iou == pytest.approx(np.sum(human & called) / np.sum(human | called))
     assert iou > np.sum(human & (margin > 0)) / np.sum(human | (margin > 0))  # better than the argmax here
+
+
+@pytest.mark.parametrize("name", ["frames1", "frames16"])
+def test_the_shipped_networks_load_predict_and_match_their_onnx(name: str, sample: Path, tmp_path: Path) -> None:
+    import onnxruntime as ort
+
+    from pedscan_data.netio import load_net
+    from pedscan_data.predict import main as predict_main
+
+    models = Path(__file__).resolve().parents[3] / "data" / "models"
+    net, obj = load_net(models / f"{name}.pt")
+    assert net.cfg.frames == int(name[len("frames"):]) and 0.5 < obj["human_threshold"] < 1
+    sess = ort.InferenceSession(str(models / f"{name}.onnx"), providers=["CPUExecutionProvider"])
+    meta = sess.get_modelmeta().custom_metadata_map
+    assert float(meta["human_threshold"]) == obj["human_threshold"]
+    rng = np.random.default_rng(0)
+    r = rng.uniform(0.5, 40, (net.cfg.frames, 32, 1024)).astype(np.float32)
+    r[rng.random(r.shape) < 0.1] = 0
+    x = torch.from_numpy(input_channels(r)).unsqueeze(0)
+    with torch.no_grad():
+        ref = [o.numpy() for o in net(x)]
+    for a, b in zip(ref, sess.run(None, {"input": x.numpy()})):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
+    # Out of the box on a pedscan output of another sensor (16 x 512).
+    assert predict_main([str(models / f"{name}.pt"), str(sample), "--out", str(tmp_path / "p")]) == 0
+    assert sorted(p.name for p in (tmp_path / "p").iterdir()) == sorted(p.name for p in sample.glob("seq_*.h5"))
