@@ -309,8 +309,7 @@ def train(args: argparse.Namespace) -> int:
             raise PedscanError(f"{s.path}: {s.frames} frames, none scored from frame {score_from} (--score-from)")
     cfg.data = describe_data(paths)
     device = pick_device(args.device)
-    config = asdict(cfg)
-    config["loss_weights"] = list(cfg.loss_weights)
+    config = json.loads(json.dumps(asdict(cfg)))  # as run.json holds it (tuples become lists)
 
     ckpt_path = run / "checkpoint.pt"
     metrics_path = run / "metrics.jsonl"
@@ -324,9 +323,9 @@ def train(args: argparse.Namespace) -> int:
         if not (run / "run.json").is_file():
             raise RunError(f"{run}: no run.json to resume (start it without --resume)")
         before = read_json(run / "run.json")
-        if before.get("config") != json.loads(json.dumps(config)):
+        if before.get("config") != config:
             old = before.get("config", {})
-            diff = sorted(k for k in set(old) | set(config) if old.get(k) != json.loads(json.dumps(config)).get(k))
+            diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
             raise RunError(f"{run}: a run of another configuration (differs in: {', '.join(diff)}); "
                            "give the same flags and data, or another --out")
         if ckpt_path.exists():
