@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .reader import PedscanError, Sequence, open_sequences, sequence_paths
+from .reader import PedscanError, Sequence, sequence_paths
 
 #: The paper's loss weights: cross-entropy, background velocity, human velocity.
 PAPER_LOSS_WEIGHTS = (10_000.0, 1.0, 1_001.0)
