@@ -168,9 +168,10 @@ def export_onnx(
     import onnx
 
     m = onnx.load(str(tmp))
-    for key, value in (("human_threshold", repr(float(human_threshold))), ("frames", str(cfg.frames)),
-                       ("inputs", "range/10m, valid" + (", intensity" if cfg.intensity else ""))):
-        onnx.helper.set_model_props(m, {**{p.key: p.value for p in m.metadata_props}, key: value})
+    onnx.helper.set_model_props(m, {
+        "human_threshold": repr(float(human_threshold)), "frames": str(cfg.frames),
+        "inputs": "range/10m, valid" + (", intensity" if cfg.intensity else ""),
+    })
     onnx.save(m, str(tmp))
     with torch.no_grad():
         ref = [o.numpy() for o in net(x)]
