@@ -166,14 +166,17 @@ class Experiment:
         for name, d in self.datasets().items():
             out = self.work / "data" / name
             marker = out / ".complete"
-            if marker.is_file():
-                continue
-            t0 = time.perf_counter()
             cmd = [
                 str(self.pedscan), "generate", "--out", str(out), "--sequences", str(d["sequences"]),
                 "--seed", str(d["seed"]), "--outputs", "range,label,instance,velocity", "--resume",
                 *(["--frames", str(self.scale.frames)] if "--frames" not in d["flags"] else []), *d["flags"], *self.extra,
             ]
+            if marker.is_file():
+                if marker.read_text() != " ".join(cmd[1:]) + "\n":
+                    raise PedscanError(f"{out}: made by another command ({marker.read_text().strip()}); "
+                                       "remove the folder to make it again, or give another --work")
+                continue
+            t0 = time.perf_counter()
             self.run(cmd, f"data {name}")
             marker.write_text(" ".join(cmd[1:]) + "\n")
             self.add_time("data", time.perf_counter() - t0)

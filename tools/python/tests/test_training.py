@@ -224,5 +224,6 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     stamp = {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")}
     assert exp.main(args) == 0
     assert {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")} == stamp
-    # Another scale in the same folder is refused.
+    # Another scale in the same folder is refused, and so is data made by another command.
     assert exp.main([*args[:4], "small", *args[5:]]) == 2
+    assert exp.main([*args, "--pedscan-flag=--sensor-model=off"]) == 2
