@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -50,6 +49,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .netio import atomic_write_text, save_figure
 from .reader import PedscanError
 
 #: The paper's Table 4 (generated data): IoU over all, 0-4, 4-8, 8+ m per N.
@@ -125,9 +125,7 @@ class Experiment:
     def add_time(self, key: str, seconds: float) -> None:
         s = self.state()
         s["seconds"][key] = s["seconds"].get(key, 0.0) + seconds
-        tmp = self.state_path.with_name("state.json.tmp")
-        tmp.write_text(json.dumps(s, indent=2) + "\n")
-        os.replace(tmp, self.state_path)
+        atomic_write_text(self.state_path, json.dumps(s, indent=2) + "\n")
 
     def check_scale(self) -> None:
         self.work.mkdir(parents=True, exist_ok=True)
@@ -272,9 +270,7 @@ class Experiment:
                        "argmax": {"overall": arg["overall"], "bins": arg["bins"]},
                        "model_step": self.scale.steps, "zero_epe_mps": self.zero_epe(ts)}
                 score.parent.mkdir(parents=True, exist_ok=True)
-                tmp = score.with_name(score.name + ".tmp")
-                tmp.write_text(json.dumps(rep, indent=2) + "\n")
-                os.replace(tmp, score)
+                atomic_write_text(score, json.dumps(rep, indent=2) + "\n")
                 self.add_time("test", time.perf_counter() - t0)
 
     # ---- stage 4: results --------------------------------------------------------------
@@ -297,13 +293,8 @@ class Experiment:
             "runs": runs_info, "scores": scores, "seconds": self.state()["seconds"],
             "paper": {"table4": {str(k): v for k, v in PAPER_TABLE4.items()}, "table5": PAPER_TABLE5},
         }
-        tmp = self.work / "results.json.tmp"
-        tmp.write_text(json.dumps(res, indent=2) + "\n")
-        os.replace(tmp, self.work / "results.json")
-        md = render_markdown(res)
-        tmp = self.work / "results.md.tmp"
-        tmp.write_text(md)
-        os.replace(tmp, self.work / "results.md")
+        atomic_write_text(self.work / "results.json", json.dumps(res, indent=2) + "\n")
+        atomic_write_text(self.work / "results.md", render_markdown(res))
         plot_results(res, self.work / "results.png")
         self.example_png(self.work / "results-example.png")
         return res
@@ -353,10 +344,7 @@ class Experiment:
             ax.set_xticks([])
             ax.set_yticks([])
         fig.tight_layout()
-        tmp = path.with_name(path.name + ".tmp.png")
-        fig.savefig(tmp, dpi=80)
-        plt.close(fig)
-        os.replace(tmp, path)
+        save_figure(fig, path)
 
 
 def _iou(scores: dict[str, Any], key: str, argmax: bool = False) -> list[float | None]:
@@ -457,10 +445,7 @@ def plot_results(res: dict[str, Any], path: Path) -> None:
     axes[0].legend()
     fig.suptitle(f"Table 4 on pedscan data ({res['scale']} scale, {res['steps']:,} steps per network)")
     fig.tight_layout()
-    tmp = path.with_name(path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=80)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path)
 
 
 STAGES = ("data", "train", "test", "results")

@@ -64,6 +64,16 @@ def atomic_write_text(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def save_figure(fig: Any, path: Path) -> None:
+    """A matplotlib figure as PNG under a temporary name, renamed when written; closes it."""
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=80)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
 def load_file(path: Path) -> dict[str, Any]:
     """A model file or checkpoint, read without running pickled code; RunError if unreadable."""
     import torch

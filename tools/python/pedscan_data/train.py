@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import signal
 import sys
 import time
@@ -256,6 +255,8 @@ def plot_curves(metrics: list[dict[str, Any]], path: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .netio import save_figure
+
     train = [m for m in metrics if m["kind"] == "train"]
     val = [m for m in metrics if m["kind"] == "val"]
     fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
@@ -274,10 +275,7 @@ def plot_curves(metrics: list[dict[str, Any]], path: Path, title: str) -> None:
     axes[2].set(title="validation EPE on human beams (m/s)", xlabel="step")
     fig.suptitle(title)
     fig.tight_layout()
-    tmp = path.with_name(path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=80)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path)
 
 
 class Stop(Exception):
