@@ -53,7 +53,7 @@ impl ErrorStats {
             return ErrorStats::default();
         }
         errors.sort_by(|a, b| a.total_cmp(b));
-        let q = |p: f64| errors[((p * (errors.len() - 1) as f64).round() as usize).min(errors.len() - 1)];
+        let q = |p: f64| quantile_sorted(errors, p);
         let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
         let over = errors.iter().filter(|e| **e > 1e-3).count() as f64 / errors.len() as f64;
         ErrorStats { count: errors.len(), median: q(0.5), p99: q(0.99), max: *errors.last().unwrap(), rms, over_1mm: over }
@@ -269,13 +269,29 @@ impl ModeAcc {
     }
 }
 
-/// The median (upper for even counts) of `v`, sorting it; 0 when empty.
+/// The `p`-quantile of ascending `sorted`, interpolated linearly between the two order
+/// statistics around position `p (n - 1)` (numpy's default, so the Python tools agree): the
+/// median of an even count is the mean of the middle two. NaN when empty.
+pub fn quantile_sorted(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let pos = p.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
+    let (lo, frac) = (pos.floor() as usize, pos.fract());
+    match sorted.get(lo + 1) {
+        Some(hi) if frac > 0.0 => sorted[lo] + frac * (hi - sorted[lo]),
+        _ => sorted[lo],
+    }
+}
+
+/// The median of `v` (the mean of the middle two for an even count), sorting it; 0 when
+/// empty (a run with nothing to time or compare).
 pub fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
     v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
+    quantile_sorted(v, 0.5)
 }
 
 /// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames. What is checked is the
@@ -529,11 +545,26 @@ mod tests {
         let s = ErrorStats::from(&mut v);
         assert_eq!(s.count, 100);
         assert_eq!(s.max, 100.0);
-        assert_eq!(s.median, 51.0);
-        assert_eq!(s.p99, 99.0);
+        // numpy.quantile(range(1, 101), [0.5, 0.99]) = 50.5, 99.01.
+        assert_eq!(s.median, 50.5);
+        assert!((s.p99 - 99.01).abs() < 1e-12, "{}", s.p99);
         assert!((s.rms - (338350.0f64 / 100.0).sqrt()).abs() < 1e-9);
         assert_eq!(s.over_1mm, 1.0);
         assert_eq!(ErrorStats::from(&mut [0.0, 0.002]).over_1mm, 0.5);
         assert_eq!(ErrorStats::from(&mut []), ErrorStats::default());
+    }
+
+    #[test]
+    fn medians_and_quantiles_match_numpy() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(&mut [7.0]), 7.0);
+        assert_eq!(median(&mut []), 0.0);
+        let v = [0.0, 10.0, 20.0, 40.0];
+        // numpy.quantile([0, 10, 20, 40], [0, 0.25, 0.9, 1]) = 0, 7.5, 34, 40.
+        for (p, want) in [(0.0, 0.0), (0.25, 7.5), (0.9, 34.0), (1.0, 40.0)] {
+            assert!((quantile_sorted(&v, p) - want).abs() < 1e-12, "p {p}: {}", quantile_sorted(&v, p));
+        }
+        assert!(quantile_sorted(&[], 0.5).is_nan());
     }
 }

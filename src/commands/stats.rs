@@ -202,7 +202,7 @@ impl Stats {
 fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
-    s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
+    crate::commands::crosscheck::quantile_sorted(&s, 0.5)
 }
 
 impl fmt::Display for Stats {

@@ -660,7 +660,7 @@ fn panorama_matches_the_ray_cast_reference_on_posed_people() {
         assert_eq!(errors.load(Ordering::SeqCst), 0);
     }
     let (a, p99, mixups) = rows[1];
-    assert!(a >= 0.995, "cylinder agreement {a}");
+    assert_eq!(a, 1.0, "cylinder agreement {a}");
     assert!(p99 <= 1e-3, "cylinder p99 {p99} m");
     assert_eq!(mixups, 0);
     assert_eq!(Arc::strong_count(&ctx), 1);
