@@ -21,6 +21,12 @@ fn pose_at(t: f64) -> DMat4 {
     DMat4::from_translation(DVec3::new(x - 3.0, y - 2.0, SENSOR_Z)) * DMat4::from_rotation_z(h)
 }
 
+/// Frame k's time in the recording: 10 Hz with a 0-8 ms jitter, as a real capture's clock has,
+/// so a reader that replaced `times.txt` by `k / rate_hz` would be off by up to 8 ms.
+fn frame_time(k: usize) -> f64 {
+    k as f64 / RATE_HZ + 0.004 * (k % 3) as f64
+}
+
 fn velocity_at(t: f64) -> DVec3 {
     let h = YAW_RATE * t;
     DVec3::new(SPEED * h.cos(), SPEED * h.sin(), 0.0)
@@ -57,7 +63,7 @@ fn write_recording(dir: &Path, n: usize) -> Vec<Vec<f32>> {
     let mut times = String::new();
     let mut all = Vec::new();
     for k in 0..n {
-        let t = k as f64 / RATE_HZ;
+        let t = frame_time(k);
         let pose = pose_at(t);
         let o = pose.w_axis.truncate();
         let mut bytes = Vec::new();
@@ -126,9 +132,10 @@ fn people_are_composited_into_a_recorded_kitti_sequence() {
     let hw = 32 * 1024;
     let mut human_beams = 0;
     for k in 0..6 {
-        let t_rec = (start + k) as f64 / RATE_HZ;
-        // Frame times are the recording's, from its first frame.
-        assert!((time[k] - k as f64 / RATE_HZ).abs() < 1e-9, "time {} vs {}", time[k], k as f64 / RATE_HZ);
+        let t_rec = frame_time(start + k);
+        // Frame times are the recording's, from the sequence's first frame.
+        let want_t = t_rec - frame_time(start);
+        assert!((time[k] - want_t).abs() < 1e-9, "time {} vs {want_t}", time[k]);
         // The sensor's pose is the recorded pose.
         let want = pose_at(t_rec).transpose().to_cols_array();
         for i in 0..16 {

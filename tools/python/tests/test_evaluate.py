@@ -81,7 +81,8 @@ def test_ground_truth_as_prediction_scores_one(sample: Path, tmp_path: Path, cap
 
 def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Every human beam at 8 m or more missed, 50 background beams under 4 m per frame taken
-    for human, velocities off by (0.3, 0.4, 0) m/s: IoU, precision, recall and EPE follow."""
+    for human, velocities off by (0.3, 0.4, 0) m/s on human beams and by (3, 0, 0) m/s elsewhere:
+    IoU, precision, recall and EPE (over the true human beams alone) follow."""
     gt = ground_truth(sample)
     preds = tmp_path / "preds"
     human = {b: 0 for b in BINS}
@@ -96,7 +97,8 @@ def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, c
             near_background = np.flatnonzero((r[t] > 0) & (r[t] < 4) & ~truth[t])[:50]
             label[t].flat[near_background] = 1
             false_pos += near_background.size
-        write_h5(preds, name, label, g["velocity"] + np.array([0.3, 0.4, 0.0], np.float32))
+        off = np.where(truth[..., None], np.array([0.3, 0.4, 0.0], np.float32), np.array([3.0, 0.0, 0.0], np.float32))
+        write_h5(preds, name, label, g["velocity"] + off)
     code, out, err = run(capsys, sample, preds, "--json", tmp_path / "scores.json")
     assert (code, err) == (0, "")
     report = json.loads((tmp_path / "scores.json").read_text())
