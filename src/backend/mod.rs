@@ -229,7 +229,7 @@ pub fn create(cfg: &Config, sensor: &Sensor, models: &[HumanModel], gpu: &mut Gp
             let ctx = gpu.context().map_err(|e| {
                 Error::Gpu(format!("the raster backend needs a Vulkan device ({e}); install a driver (mesa-vulkan-drivers for lavapipe) or run --backend raycast"))
             })?;
-            Box::new(raster::RasterBackend::new(ctx, sensor, &cfg.render, models)?)
+            Box::new(raster::RasterBackend::new(ctx, sensor, &cfg.render, cfg.debug.people, models)?)
         }
     })
 }

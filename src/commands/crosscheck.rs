@@ -118,6 +118,10 @@ pub struct Report {
     pub oversample: f64,
     pub lod_max_error_mrad: f64,
     pub device: String,
+    /// How the checked backend cast the people with exact refinement: `proxies` (drawn into
+    /// the beam panorama, covered beams cast exactly: a GPU's path, or `debug.people`) or
+    /// `cpu` (binned or ray cast on the CPU).
+    pub people_path: String,
     /// Top level (flattened): no refinement.
     #[serde(flatten)]
     pub unrefined: ModeReport,
@@ -395,6 +399,7 @@ pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
         oversample: cfg.render.oversample,
         lod_max_error_mrad: cfg.render.lod_max_error_mrad,
         device: gen.backend().device_name(),
+        people_path: if gen.backend().proxies().is_some() { "proxies" } else { "cpu" }.into(),
         unrefined: none.finish(),
         plane: plane.finish(),
         refined: exact.finish(),

@@ -97,6 +97,21 @@ pub enum Caster {
     Bvh,
 }
 
+/// How the raster backend casts the people with exact refinement (`debug.people`): the same
+/// hits either way; the choice only moves the work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PeoplePath {
+    /// Proxies on a GPU, the binned CPU caster on a CPU device (lavapipe).
+    #[default]
+    Auto,
+    /// The binned CPU caster on any device.
+    Binned,
+    /// Conservative proxies drawn into the beam panorama, covered beams cast exactly, on any
+    /// device: the GPU's path, so a CPU device (lavapipe, in CI) can check it.
+    Proxies,
+}
+
 /// HDF5 compression of the per-frame chunks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -371,11 +386,13 @@ pub struct DebugConfig {
     pub overlap_write: bool,
     /// The Vulkan validation layer (slow; also `--validation`).
     pub validation: bool,
+    /// Raster backend, exact refinement: how the people are cast (`auto`, `binned`, `proxies`).
+    pub people: PeoplePath,
 }
 
 impl Default for DebugConfig {
     fn default() -> Self {
-        DebugConfig { caster: Caster::Beams, bvh_refit: true, overlap_write: true, validation: false }
+        DebugConfig { caster: Caster::Beams, bvh_refit: true, overlap_write: true, validation: false, people: PeoplePath::Auto }
     }
 }
 
@@ -623,13 +640,15 @@ mod tests {
 
     #[test]
     fn debug_keys_are_read_but_never_recorded() {
-        let c: Config = toml::from_str("[debug]\ncaster = \"bvh\"\nbvh_refit = false\noverlap_write = false\nvalidation = true\n").unwrap();
-        assert_eq!(c.debug, DebugConfig { caster: Caster::Bvh, bvh_refit: false, overlap_write: false, validation: true });
+        let c: Config =
+            toml::from_str("[debug]\ncaster = \"bvh\"\nbvh_refit = false\noverlap_write = false\nvalidation = true\npeople = \"proxies\"\n").unwrap();
+        assert_eq!(c.debug, DebugConfig { caster: Caster::Bvh, bvh_refit: false, overlap_write: false, validation: true, people: PeoplePath::Proxies });
         assert!(c.to_toml().contains("[debug]"));
         let recorded = c.to_recorded_toml();
         assert!(!recorded.contains("debug") && !recorded.contains("caster"), "{recorded}");
         assert_eq!(recorded, Config::default().to_recorded_toml());
         assert!(toml::from_str::<Config>("[debug]\ncaster = \"embree\"\n").is_err());
+        assert!(toml::from_str::<Config>("[debug]\npeople = \"gpu\"\n").is_err());
     }
 
     #[test]

@@ -181,3 +181,31 @@ fn crowded_crosscheck_is_exact_on_every_projection() {
         assert_eq!(j["background_beam_agreement"].as_f64().unwrap(), 1.0, "{projection}: background agreement");
     }
 }
+
+/// The GPU's people path, forced on lavapipe (`debug.people = "proxies"`): conservative proxies
+/// drawn into the beam panorama and every covered beam cast exactly. Crowded (30 people, so
+/// proxies overlap and occlude each other), validation on: every human and background beam
+/// agrees with the reference and no instance is mixed up, on every projection. Without the key
+/// the same run takes the CPU path, so `people_path` shows which one was checked.
+#[test]
+fn the_gpu_people_path_forced_on_a_cpu_device_is_exact() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("proxies.toml"), "[debug]\npeople = \"proxies\"\n").unwrap();
+    for (projection, config) in [("beams", Some("proxies.toml")), ("cube", Some("proxies.toml")), ("beams", None)] {
+        let mut args = vec!["crosscheck", "--projection", projection, "--sequences", "1", "--frames", "2", "--humans", "30", "--seed", "3", "--json", "cc.json"];
+        if let Some(c) = config {
+            args.extend(["--config", c]);
+        }
+        ok(&pedscan(&args, dir));
+        let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("cc.json")).unwrap()).unwrap();
+        let refined = &j["refined"]["overall"];
+        eprintln!("{projection} {config:?}: {} {refined}", j["people_path"]);
+        assert_eq!(j["people_path"], if config.is_some() { "proxies" } else { "cpu" }, "{projection}");
+        assert!(refined["both_human"].as_u64().unwrap() > 2000, "{projection}: people were seen");
+        assert_eq!(refined["human_beam_agreement"].as_f64().unwrap(), 1.0, "{projection}: {refined}");
+        assert_eq!(refined["instance_mixups"].as_u64().unwrap(), 0, "{projection}: {refined}");
+        assert_eq!(refined["range_error_m"]["over_1mm"].as_f64().unwrap(), 0.0, "{projection}: {refined}");
+        assert_eq!(j["background_beam_agreement"].as_f64().unwrap(), 1.0, "{projection}: background");
+    }
+}

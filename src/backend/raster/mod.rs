@@ -25,7 +25,7 @@ pub mod resample;
 
 use super::{cast_in_turn, Backend, BeamHits, FrameSeconds, Layer};
 use crate::backend::raycast::{BeamCaster, Hit};
-use crate::config::{BackendChoice, Projection, Refine, RenderConfig};
+use crate::config::{BackendChoice, PeoplePath, Projection, Refine, RenderConfig};
 use crate::error::Result;
 use crate::gpu::Context;
 use crate::human::HumanModel;
@@ -54,6 +54,7 @@ enum Views {
 /// binned caster settles all 32,768 beams with integer tests on most triangles (paper
 /// scenario, per frame: proxy draw ~9 ms and cluster casts ~11 ms against ~8 ms binned, and no
 /// proxies to skin). There the people are binned; on a GPU the draw is nearly free.
+/// `debug.people` forces either path on any device (the proxies' path is tested on lavapipe).
 // One per backend: the variants' sizes do not matter.
 #[allow(clippy::large_enum_variant)]
 enum People {
@@ -78,8 +79,15 @@ pub struct RasterBackend {
 impl RasterBackend {
     /// The views of `render.projection` at `render.oversample` for `sensor` on `ctx`; with
     /// exact refinement on a GPU, the people's proxies (`render.proxy_max_error_m`) for
-    /// `models`, on a CPU device the binned caster (see [`People`]).
-    pub fn new(ctx: Arc<Context>, sensor: &crate::sensor::Sensor, render: &RenderConfig, models: &[HumanModel]) -> Result<RasterBackend> {
+    /// `models`, on a CPU device the binned caster (see [`People`]); `people` overrides the
+    /// device's choice (`debug.people`).
+    pub fn new(
+        ctx: Arc<Context>,
+        sensor: &crate::sensor::Sensor,
+        render: &RenderConfig,
+        people: PeoplePath,
+        models: &[HumanModel],
+    ) -> Result<RasterBackend> {
         let views = match render.projection {
             Projection::Cube => {
                 let cube = CubeFaces::new(sensor, render.oversample);
@@ -92,8 +100,13 @@ impl RasterBackend {
             // Exact by construction: `refine` only decides how the people are drawn.
             Projection::Beams => Views::Beams(BeamExact::new(&ctx, sensor, render.host_cast_beams)?),
         };
+        let binned = match people {
+            PeoplePath::Auto => ctx.is_cpu(),
+            PeoplePath::Binned => true,
+            PeoplePath::Proxies => false,
+        };
         let (people, proxies) = match render.refine {
-            Refine::Exact if ctx.is_cpu() => {
+            Refine::Exact if binned => {
                 let caster = BeamCaster::new(&sensor.beam_dirs(), sensor.rows(), sensor.columns);
                 (Some(People::Binned { caster, cast: Vec::new() }), Vec::new())
             }
