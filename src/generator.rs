@@ -1185,6 +1185,7 @@ impl Generator {
             h5: self.cfg.output.formats.contains(&Format::H5),
             semantickitti: self.cfg.output.formats.contains(&Format::Semantickitti),
             mcap: self.cfg.output.formats.contains(&Format::Mcap),
+            kill: self.cfg.debug.kill.filter(|k| k.sequence == index).map(|k| k.at),
         };
         let mut writer = SequenceWriter::create(out_dir, &meta, &opts)?;
         // `debug.overlap_write = false` writes each frame on this thread (to measure the

@@ -112,6 +112,67 @@ pub enum PeoplePath {
     Proxies,
 }
 
+/// Where a run kills itself with SIGKILL (`debug.kill`), to test `--resume` at every stage of
+/// a sequence without timing a kill from outside. Written `S:frame-K` (sequence S's frame K
+/// is in its temporary files), `S:rename-N` (the N-th of sequence S's final renames is done:
+/// PNG folder, SemanticKITTI folder, bag folder, XML, HDF5, those written, in that order) or
+/// `S:manifest` (sequence S's files have their names, its manifest line is not written).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct KillPoint {
+    pub sequence: usize,
+    pub at: KillStage,
+}
+
+/// The stage of a sequence a [`KillPoint`] names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KillStage {
+    /// Frame K (0-based) written to the temporary files.
+    Frame(usize),
+    /// N (1-based) of the sequence's final renames done.
+    Rename(usize),
+    /// Every file renamed, the manifest line not yet written.
+    Manifest,
+}
+
+impl TryFrom<String> for KillPoint {
+    type Error = String;
+    fn try_from(s: String) -> std::result::Result<KillPoint, String> {
+        let bad = || format!("`{s}` is not S:frame-K, S:rename-N or S:manifest");
+        let (seq, stage) = s.split_once(':').ok_or_else(bad)?;
+        let sequence = seq.parse().map_err(|_| bad())?;
+        let at = match stage.split_once('-') {
+            Some(("frame", k)) => KillStage::Frame(k.parse().map_err(|_| bad())?),
+            Some(("rename", n)) => KillStage::Rename(n.parse().ok().filter(|n| *n >= 1).ok_or_else(bad)?),
+            None if stage == "manifest" => KillStage::Manifest,
+            _ => return Err(bad()),
+        };
+        Ok(KillPoint { sequence, at })
+    }
+}
+
+impl From<KillPoint> for String {
+    fn from(k: KillPoint) -> String {
+        match k.at {
+            KillStage::Frame(f) => format!("{}:frame-{f}", k.sequence),
+            KillStage::Rename(n) => format!("{}:rename-{n}", k.sequence),
+            KillStage::Manifest => format!("{}:manifest", k.sequence),
+        }
+    }
+}
+
+/// Kills this process with SIGKILL, as `kill -9` from outside would: no destructor runs,
+/// nothing is flushed or removed (`debug.kill`).
+pub fn kill_self() -> ! {
+    // SAFETY: kill(2) on this process's own id; it does not return for SIGKILL.
+    unsafe {
+        libc::kill(libc::getpid(), libc::SIGKILL);
+    }
+    loop {
+        std::thread::park();
+    }
+}
+
 /// HDF5 compression of the per-frame chunks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -388,11 +449,13 @@ pub struct DebugConfig {
     pub validation: bool,
     /// Raster backend, exact refinement: how the people are cast (`auto`, `binned`, `proxies`).
     pub people: PeoplePath,
+    /// Kill the run with SIGKILL at this stage of a sequence ([`KillPoint`]; unset: never).
+    pub kill: Option<KillPoint>,
 }
 
 impl Default for DebugConfig {
     fn default() -> Self {
-        DebugConfig { caster: Caster::Beams, bvh_refit: true, overlap_write: true, validation: false, people: PeoplePath::Auto }
+        DebugConfig { caster: Caster::Beams, bvh_refit: true, overlap_write: true, validation: false, people: PeoplePath::Auto, kill: None }
     }
 }
 
@@ -641,14 +704,25 @@ mod tests {
     #[test]
     fn debug_keys_are_read_but_never_recorded() {
         let c: Config =
-            toml::from_str("[debug]\ncaster = \"bvh\"\nbvh_refit = false\noverlap_write = false\nvalidation = true\npeople = \"proxies\"\n").unwrap();
-        assert_eq!(c.debug, DebugConfig { caster: Caster::Bvh, bvh_refit: false, overlap_write: false, validation: true, people: PeoplePath::Proxies });
+            toml::from_str("[debug]\ncaster = \"bvh\"\nbvh_refit = false\noverlap_write = false\nvalidation = true\npeople = \"proxies\"\nkill = \"3:rename-2\"\n").unwrap();
+        let kill = Some(KillPoint { sequence: 3, at: KillStage::Rename(2) });
+        assert_eq!(c.debug, DebugConfig { caster: Caster::Bvh, bvh_refit: false, overlap_write: false, validation: true, people: PeoplePath::Proxies, kill });
         assert!(c.to_toml().contains("[debug]"));
         let recorded = c.to_recorded_toml();
         assert!(!recorded.contains("debug") && !recorded.contains("caster"), "{recorded}");
         assert_eq!(recorded, Config::default().to_recorded_toml());
         assert!(toml::from_str::<Config>("[debug]\ncaster = \"embree\"\n").is_err());
         assert!(toml::from_str::<Config>("[debug]\npeople = \"gpu\"\n").is_err());
+        for (text, want) in [("0:frame-0", KillStage::Frame(0)), ("7:frame-12", KillStage::Frame(12)), ("1:manifest", KillStage::Manifest)] {
+            let k = KillPoint::try_from(text.to_string()).unwrap();
+            assert_eq!(k.at, want);
+            assert_eq!(String::from(k), text);
+        }
+        for bad in ["", "1", "x:manifest", "1:rename-0", "1:frame", "1:frame-x", "1:write-2", "-1:manifest"] {
+            let e = KillPoint::try_from(bad.to_string()).unwrap_err();
+            assert!(e.contains("S:frame-K"), "{bad}: {e}");
+            assert!(toml::from_str::<Config>(&format!("[debug]\nkill = \"{bad}\"\n")).is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -10,6 +10,7 @@ use super::ros2bag::Ros2BagWriter;
 use super::semantickitti::SemanticKittiWriter;
 use super::xml::XmlWriter;
 use super::{FrameOutput, SequenceMeta};
+use crate::config::{kill_self, KillStage};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -40,11 +41,13 @@ pub struct WriterOptions {
     pub semantickitti: bool,
     /// Write a ROS 2 bag (`seq_NNNNNN_bag/`).
     pub mcap: bool,
+    /// Kill the process with SIGKILL at this stage of the sequence (`debug.kill`).
+    pub kill: Option<crate::config::KillStage>,
 }
 
 impl Default for WriterOptions {
     fn default() -> Self {
-        WriterOptions { png: false, compression: Compression::default(), h5: true, semantickitti: false, mcap: false }
+        WriterOptions { png: false, compression: Compression::default(), h5: true, semantickitti: false, mcap: false, kill: None }
     }
 }
 
@@ -77,6 +80,8 @@ pub struct SequenceWriter {
     frames_written: usize,
     /// Set once everything is renamed; `Drop` then leaves the files alone.
     done: bool,
+    /// `debug.kill` for this sequence.
+    kill: Option<KillStage>,
     /// The sensor's unit beam directions, shared by the formats that write points.
     beam_dirs: std::sync::Arc<[glam::DVec3]>,
     beams: Vec<u32>,
@@ -142,6 +147,7 @@ impl SequenceWriter {
             bag: None,
             frames_written: 0,
             done: false,
+            kill: opts.kill,
             beam_dirs: if opts.png || opts.semantickitti || opts.mcap { meta.sensor.beam_dirs().into() } else { Vec::new().into() },
             beams: vec![0; meta.humans.len()],
         };
@@ -197,6 +203,9 @@ impl SequenceWriter {
             self.write_pngs(dir, index, frame)?;
         }
         self.frames_written += 1;
+        if self.kill == Some(KillStage::Frame(index)) {
+            kill_self();
+        }
         Ok(())
     }
 
@@ -371,23 +380,36 @@ impl SequenceWriter {
         // the earlier ones are undone.
         let mut done = Finished::default();
         let mut undo: Vec<PathBuf> = Vec::new();
+        let kill = self.kill;
+        let mut renames = 0;
+        let mut renamed_one = || {
+            renames += 1;
+            if kill == Some(KillStage::Rename(renames)) {
+                kill_self();
+            }
+        };
         let renamed = (|| -> Result<()> {
             if let Some((tmp, fin)) = &self.png_dir {
                 replace_dir(tmp, fin)?;
                 undo.push(fin.clone());
+                renamed_one();
             }
             if let Some(sk) = self.semantickitti.take() {
                 let (fin, counts) = sk.finish()?;
                 undo.push(fin);
                 done.class_points = Some(counts);
+                renamed_one();
             }
             if let Some(bag) = self.bag.take() {
                 undo.push(bag.finish()?);
+                renamed_one();
             }
             if h5 {
                 rename(&self.xml_path.0, &self.xml_path.1)?;
                 undo.push(self.xml_path.1.clone());
+                renamed_one();
                 rename(&self.h5_path.0, &self.h5_path.1)?;
+                renamed_one();
             }
             Ok(())
         })();
