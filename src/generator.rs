@@ -62,6 +62,8 @@ pub struct WrittenSequence {
 /// Everything loaded once for a run, and the per-frame buffers.
 pub struct Generator {
     cfg: Config,
+    /// The configuration every output records (inputs by name and content digest).
+    recorded_config: String,
     sensor: Sensor,
     /// The sensor's beam directions (row-major).
     dirs: Vec<DVec3>,
@@ -361,8 +363,11 @@ impl Generator {
         let intensity_scale = cfg.sensor_model.intensity_scale.unwrap_or(if recording.is_some() && pcap { 100.0 } else { 1.0 });
         let elevation_rad = sensor.elevation_deg.iter().map(|e| e.to_radians()).collect();
         let azimuth_rad = (0..sensor.columns).map(|c| sensor.azimuth_rad(c)).collect();
+        // Every input was read above, so each one is there to be digested.
+        let recorded_config = cfg.to_recorded_toml_with_inputs()?;
         Ok(Generator {
             dirs: sensor.beam_dirs(),
+            recorded_config,
             cfg,
             sensor,
             models,
@@ -387,6 +392,11 @@ impl Generator {
     /// The checked configuration.
     pub fn config(&self) -> &Config {
         &self.cfg
+    }
+
+    /// The configuration every output records: [`Config::to_recorded_toml_with_inputs`].
+    pub fn recorded_config(&self) -> &str {
+        &self.recorded_config
     }
 
     /// The sensor.
@@ -1112,7 +1122,7 @@ impl Generator {
             index,
             seed: self.cfg.seed,
             sensor: self.sensor.clone(),
-            config_toml: self.cfg.to_recorded_toml(),
+            config_toml: self.recorded_config.clone(),
             rigid_velocity: self.cfg.output.velocity != crate::config::VelocityModel::Paper,
             frames: plan.times_s.len(),
             humans: plan

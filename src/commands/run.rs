@@ -187,7 +187,7 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     std::fs::create_dir_all(&out).map_err(|e| Error::input(out.display(), format!("cannot create output folder: {e}")))?;
     gen.set_export_geometry(opts.export_geometry.clone());
     let cfg = gen.config().clone();
-    let hash = config_hash(&cfg.to_recorded_toml());
+    let hash = config_hash(gen.recorded_config());
     let mut manifest = Manifest::load(&out)?;
     let indices: Vec<usize> = (cfg.first_sequence..cfg.first_sequence + cfg.sequences).filter(|&i| opts.shard.takes(i)).collect();
     let total = (indices.len() * cfg.frames) as u64;

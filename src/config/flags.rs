@@ -6,7 +6,7 @@ use super::{BackendChoice, CompressionChoice, Config, Format, Projection, Refine
 use crate::error::{Error, Result};
 use crate::human::MotionMode;
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Flags override the config file, which overrides the defaults.
 #[derive(Args, Clone, Debug, Default)]
@@ -260,6 +260,16 @@ impl Flags {
         }
         cfg.debug.validation |= a.validation;
         cfg.validate()?;
+        // `bundled:<name>` given as a flag names the bundled data as it does in a file.
+        for m in &mut cfg.humans.models {
+            *m = super::resolve_bundled(m);
+        }
+        for p in [&mut cfg.scene.background, &mut cfg.scene.poses, &mut cfg.humans.tracks] {
+            *p = super::resolve_bundled(p);
+        }
+        if cfg.sensor.starts_with(super::BUNDLED) {
+            cfg.sensor = super::resolve_bundled(Path::new(&cfg.sensor)).display().to_string();
+        }
         Ok(cfg)
     }
 }

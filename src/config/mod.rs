@@ -11,10 +11,53 @@ use crate::input::tracks::{TrackFormat, Transform2};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Where the bundled data (humans, default scene) lives: the `data/` folder of the source
-/// tree pedscan was built from (`humans.models` and `scene.background` point elsewhere).
+/// Where the bundled data (humans, default scene) lives, found at run time: the first
+/// `data/` folder holding `humans/` and `scene/hall.glb` beside the binary or up to three
+/// folders above it (an install's `bin/../data`, a clone's `target/release/../../data`), else
+/// the `data/` of the source tree the binary was built from. A copied clone or install finds
+/// its own data wherever it lies (`humans.models` and `scene.background` point elsewhere).
 pub fn data_dir() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/data"))
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let holds_data = |d: &Path| d.join("humans").is_dir() && d.join("scene").join("hall.glb").is_file();
+        let exe = std::env::current_exe().ok().and_then(|e| e.canonicalize().ok());
+        exe.iter()
+            .flat_map(|e| e.ancestors().skip(1).take(4))
+            .map(|d| d.join("data"))
+            .find(|d| holds_data(d))
+            .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/data")))
+    })
+    .clone()
+}
+
+/// The prefix of a bundled input's recorded name: `bundled:humans` is [`data_dir`]`/humans`.
+pub const BUNDLED: &str = "bundled:";
+
+/// How an input path is recorded in outputs: a path inside the bundled data as
+/// `bundled:<path inside data/>`, so the record does not depend on where pedscan lies; any
+/// other path as given.
+pub fn recorded_path(p: &Path) -> PathBuf {
+    let named = |rel: &Path| PathBuf::from(format!("{BUNDLED}{}", rel.display()));
+    let data = data_dir();
+    if let Ok(rel) = p.strip_prefix(&data) {
+        return named(rel);
+    }
+    // The same folder reached another way (a symbolic link, `..`).
+    if let (Ok(d), Ok(c)) = (data.canonicalize(), p.canonicalize()) {
+        if let Ok(rel) = c.strip_prefix(&d) {
+            return named(rel);
+        }
+    }
+    p.to_path_buf()
+}
+
+/// The inverse of [`recorded_path`]: `bundled:<rel>` is `<data_dir>/<rel>`; anything else is
+/// returned as it is.
+pub fn resolve_bundled(p: &Path) -> PathBuf {
+    match p.to_str().and_then(|s| s.strip_prefix(BUNDLED)) {
+        Some(rel) => data_dir().join(rel.trim_start_matches('/')),
+        None => p.to_path_buf(),
+    }
 }
 
 /// How synthetic people choose where to walk.
@@ -563,7 +606,9 @@ impl Config {
         let mut cfg: Config = toml::from_str(&text).map_err(|e| Error::input(path.display(), e))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let fix = |p: &mut PathBuf| {
-            if p.is_relative() && !p.as_os_str().is_empty() {
+            if p.to_str().is_some_and(|s| s.starts_with(BUNDLED)) {
+                *p = resolve_bundled(p);
+            } else if p.is_relative() && !p.as_os_str().is_empty() {
                 *p = dir.join(&*p);
             }
         };
@@ -593,12 +638,78 @@ impl Config {
     /// `device`, `sequences` and `first_sequence` are left at their defaults: a sequence
     /// depends on the seed and its own index only), so the same seed and config give the same
     /// bytes wherever they run, whether one run writes the job or many shards of it.
+    /// Inputs inside the bundled data are recorded by name (`bundled:humans`), not by where
+    /// this copy of pedscan keeps them.
     pub fn to_recorded_toml(&self) -> String {
         let mut c = self.clone();
         let d = Config::default();
         (c.out, c.device, c.sequences, c.first_sequence) = (d.out, d.device, d.sequences, d.first_sequence);
         c.debug = DebugConfig::default();
+        for m in &mut c.humans.models {
+            *m = recorded_path(m);
+        }
+        for p in [&mut c.scene.background, &mut c.scene.poses, &mut c.humans.tracks] {
+            if !p.as_os_str().is_empty() {
+                *p = recorded_path(p);
+            }
+        }
+        if c.sensor.ends_with(".toml") {
+            c.sensor = recorded_path(Path::new(&c.sensor)).display().to_string();
+        }
         c.to_toml()
+    }
+
+    /// Every input file this configuration reads, by its recorded name ([`recorded_path`]),
+    /// with the SHA-256 of its content, in name order: the human models (unless no person is
+    /// asked for), the background (a file, or a folder's files and the KITTI `times.txt`
+    /// beside it), the poses, the tracks and a sensor file.
+    pub fn input_digests(&self) -> Result<Vec<(String, String)>> {
+        let mut files: Vec<PathBuf> = Vec::new();
+        if self.humans.count[1] > 0 {
+            files.extend(crate::human::model_files(&self.humans.models)?);
+        }
+        let bg = &self.scene.background;
+        if bg.is_dir() {
+            let mut inside: Vec<PathBuf> = std::fs::read_dir(bg)
+                .map_err(|e| Error::io(bg, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.is_file())
+                .collect();
+            inside.sort();
+            files.extend(inside);
+            files.extend(bg.parent().map(|p| p.join("times.txt")).filter(|t| t.is_file()));
+        } else if !bg.as_os_str().is_empty() {
+            files.push(bg.clone());
+        }
+        for p in [&self.scene.poses, &self.humans.tracks] {
+            if !p.as_os_str().is_empty() {
+                files.push(p.clone());
+            }
+        }
+        if self.sensor.ends_with(".toml") {
+            files.push(PathBuf::from(&self.sensor));
+        }
+        let mut out = Vec::with_capacity(files.len());
+        for f in files {
+            let (digest, _) = crate::output::manifest::sha256_file(&f).map_err(|e| Error::io(&f, e))?;
+            out.push((recorded_path(&f).display().to_string(), digest));
+        }
+        out.sort();
+        out.dedup();
+        Ok(out)
+    }
+
+    /// [`Config::to_recorded_toml`] with the inputs' content digests ([`Config::input_digests`])
+    /// as closing comments: what every output records and what the manifest's config hash
+    /// covers, so a changed model or recording is another configuration, and the same inputs
+    /// are the same configuration wherever they lie.
+    pub fn to_recorded_toml_with_inputs(&self) -> Result<String> {
+        let mut text = self.to_recorded_toml();
+        text.push_str("\n# inputs, SHA-256 of their content\n");
+        for (name, digest) in self.input_digests()? {
+            text.push_str(&format!("# {name} {digest}\n"));
+        }
+        Ok(text)
     }
 
     /// Rejects impossible values with a message naming the key.
@@ -702,6 +813,27 @@ mod tests {
     }
 
     #[test]
+    fn bundled_inputs_are_recorded_by_name_and_resolved_back() {
+        let humans = data_dir().join("humans");
+        assert_eq!(recorded_path(&humans), PathBuf::from("bundled:humans"));
+        assert_eq!(recorded_path(&data_dir().join("scene/hall.glb")), PathBuf::from("bundled:scene/hall.glb"));
+        assert_eq!(resolve_bundled(Path::new("bundled:humans")), humans);
+        assert_eq!(recorded_path(Path::new("/elsewhere/people")), PathBuf::from("/elsewhere/people"));
+        assert_eq!(resolve_bundled(Path::new("people/bundled:x")), PathBuf::from("people/bundled:x"));
+        let recorded = Config::default().to_recorded_toml();
+        assert!(recorded.contains("models = [\"bundled:humans\"]") && recorded.contains("background = \"bundled:scene/hall.glb\""), "{recorded}");
+        // A recorded configuration read back names the same bundled files.
+        let dir = std::env::temp_dir().join(format!("pedscan-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("c.toml"), &recorded).unwrap();
+        let back = Config::from_file(&dir.join("c.toml")).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(back.humans.models, vec![humans]);
+        assert_eq!(back.scene.background, data_dir().join("scene/hall.glb"));
+        assert_eq!(back.to_recorded_toml(), recorded);
+    }
+
+    #[test]
     fn debug_keys_are_read_but_never_recorded() {
         let c: Config =
             toml::from_str("[debug]\ncaster = \"bvh\"\nbvh_refit = false\noverlap_write = false\nvalidation = true\npeople = \"proxies\"\nkill = \"3:rename-2\"\n").unwrap();
@@ -734,7 +866,9 @@ mod tests {
         c.validate().unwrap();
         let recorded = c.to_recorded_toml();
         assert!(recorded.contains("host_cast_beams = 0"), "{recorded}");
-        assert_eq!(toml::from_str::<Config>(&recorded).unwrap(), c);
+        let back = toml::from_str::<Config>(&recorded).unwrap();
+        assert_eq!(back.render.host_cast_beams, 0);
+        assert_eq!(back.to_recorded_toml(), recorded);
         let mut c = Config::default();
         c.render.host_cast_beams = u64::MAX;
         let e = c.validate().unwrap_err();

@@ -325,3 +325,57 @@ fn stats_count_what_the_files_hold() {
     std::fs::create_dir(dir.join("empty")).unwrap();
     expect_input_error(&["stats", "empty"], dir, "no seq_*.h5");
 }
+
+/// Two copies of pedscan, binary and bundled data, at different paths (two clones, or two
+/// nodes that install it in different places) write the same bytes and the same config hash
+/// for the same seed and configuration: bundled inputs are recorded by name and content
+/// digest (`bundled:humans/...`), never by where they lie. A changed model is another
+/// configuration.
+#[test]
+fn copies_at_different_paths_write_the_same_bytes_and_config_hash() {
+    let tmp = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let install = |root: &Path| {
+        for sub in ["humans", "scene"] {
+            std::fs::create_dir_all(root.join("data").join(sub)).unwrap();
+            for e in std::fs::read_dir(data.join(sub)).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_file() {
+                    std::fs::copy(&p, root.join("data").join(sub).join(p.file_name().unwrap())).unwrap();
+                }
+            }
+        }
+        std::fs::create_dir_all(root.join("bin")).unwrap();
+        std::fs::copy(env!("CARGO_BIN_EXE_pedscan"), root.join("bin/pedscan")).unwrap();
+    };
+    let generate = |root: &Path| {
+        let o = std::process::Command::new(root.join("bin/pedscan"))
+            .args(["generate", "--backend", "raycast", "--frames", "2", "--humans", "3", "--seed", "7", "--out", "out"])
+            .current_dir(root)
+            .output()
+            .unwrap();
+        ok(&o);
+        let h5 = std::fs::read(root.join("out/seq_000000.h5")).unwrap();
+        let manifest: serde_json::Value = serde_json::from_str(std::fs::read_to_string(root.join("out/manifest.jsonl")).unwrap().lines().next().unwrap()).unwrap();
+        (h5, manifest["config_hash"].as_str().unwrap().to_string())
+    };
+    let (a, b) = (tmp.path().join("one"), tmp.path().join("two/levels down"));
+    install(&a);
+    install(&b);
+    let (h5_a, hash_a) = generate(&a);
+    let (h5_b, hash_b) = generate(&b);
+    assert_eq!(hash_a, hash_b, "config hashes differ between the copies");
+    assert!(h5_a == h5_b, "the copies wrote different bytes");
+    let config = hdf5::File::open(a.join("out/seq_000000.h5")).unwrap().attr("config").unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap().to_string();
+    assert!(config.contains("models = [\"bundled:humans\"]") && config.contains("# bundled:scene/hall.glb "), "{config}");
+    assert!(!config.contains(&*tmp.path().to_string_lossy()), "the copy's path is recorded: {config}");
+    // The same copy with one model changed by a byte: another configuration.
+    let model = b.join("data/humans/h1700_w60.glb");
+    let mut bytes = std::fs::read(&model).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x20; // inside the binary chunk's padding or data: still a loadable model
+    std::fs::write(&model, bytes).unwrap();
+    std::fs::remove_dir_all(b.join("out")).unwrap();
+    let (_, hash_changed) = generate(&b);
+    assert_ne!(hash_changed, hash_a, "a changed model left the config hash as it was");
+}
