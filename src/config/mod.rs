@@ -689,11 +689,15 @@ impl Config {
         if self.sensor.ends_with(".toml") {
             files.push(PathBuf::from(&self.sensor));
         }
-        let mut out = Vec::with_capacity(files.len());
-        for f in files {
-            let (digest, _) = crate::output::manifest::sha256_file(&f).map_err(|e| Error::io(&f, e))?;
-            out.push((recorded_path(&f).display().to_string(), digest));
-        }
+        // A recording folder can hold gigabytes: its files are hashed in parallel.
+        use rayon::prelude::*;
+        let mut out = files
+            .par_iter()
+            .map(|f| {
+                let (digest, _) = crate::output::manifest::sha256_file(f).map_err(|e| Error::io(f, e))?;
+                Ok((recorded_path(f).display().to_string(), digest))
+            })
+            .collect::<Result<Vec<_>>>()?;
         out.sort();
         out.dedup();
         Ok(out)
