@@ -182,6 +182,14 @@ class Counts:
     fn: int = 0
     epe_sum: float = 0.0
     epe_beams: int = 0
+    #: Sums over the human beams of |error| along each beam's radial, tangential and up axes.
+    radial_sum: float = 0.0
+    tangential_sum: float = 0.0
+    up_sum: float = 0.0
+    axis_beams: int = 0
+    #: EPE summed over the returned background beams (the sensor's own motion seen in them).
+    background_epe_sum: float = 0.0
+    background_beams: int = 0
 
     def add(self, other: Counts) -> None:
         for k in self.__dataclass_fields__:
@@ -203,6 +211,12 @@ class Counts:
         }
         if velocity:
             out["epe_mps"] = ratio(self.epe_sum, self.epe_beams)
+            out["velocity_error_mps"] = {
+                "radial": ratio(self.radial_sum, self.axis_beams),
+                "tangential": ratio(self.tangential_sum, self.axis_beams),
+                "up": ratio(self.up_sum, self.axis_beams),
+                "background_epe": ratio(self.background_epe_sum, self.background_beams),
+            }
         return out
 
 
@@ -240,15 +254,30 @@ class Report:
         }
 
 
+def beam_axes(elevation_deg: np.ndarray, azimuth_deg: np.ndarray) -> np.ndarray:
+    """[3, H, W, 3]: each beam's radial (outward), tangential (towards larger azimuth) and
+    up unit vectors in the sensor frame, for the velocity error along each."""
+    el = np.deg2rad(np.asarray(elevation_deg, np.float64))[:, None]
+    az = np.deg2rad(np.asarray(azimuth_deg, np.float64))[None, :]
+    el, az = np.broadcast_arrays(el, az)
+    radial = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], -1)
+    tangential = np.stack([-np.sin(az), np.cos(az), np.zeros_like(az)], -1)
+    up = np.cross(radial, tangential)
+    return np.stack([radial, tangential, up])
+
+
 def _score_frame(
     report: Report, range_m: np.ndarray, truth: np.ndarray, human: np.ndarray,
-    v_true: np.ndarray | None, v_pred: np.ndarray | None,
+    v_true: np.ndarray | None, v_pred: np.ndarray | None, axes: np.ndarray | None = None,
 ) -> None:
-    """Adds one frame's beams to the report's bins."""
+    """Adds one frame's beams to the report's bins (``axes``: :func:`beam_axes`)."""
     returned = range_m > 0
-    error = None
+    error = along = None
     if v_true is not None and v_pred is not None:
-        error = np.linalg.norm(v_pred.astype(np.float64) - v_true, axis=-1)
+        diff = v_pred.astype(np.float64) - v_true
+        error = np.linalg.norm(diff, axis=-1)
+        if axes is not None:
+            along = np.abs(np.einsum("hwc,ahwc->ahw", diff, axes))
     for (lo, hi), c in zip(BINS, report.bins):
         inside = returned & (range_m >= lo) & (range_m < hi)
         t, p = truth & inside, human & inside
@@ -260,6 +289,14 @@ def _score_frame(
         if error is not None:
             c.epe_sum += float(error[t].sum())
             c.epe_beams += int(np.count_nonzero(t))
+            background = inside & ~truth
+            c.background_epe_sum += float(error[background].sum())
+            c.background_beams += int(np.count_nonzero(background))
+            if along is not None:
+                c.radial_sum += float(along[0][t].sum())
+                c.tangential_sum += float(along[1][t].sum())
+                c.up_sum += float(along[2][t].sum())
+                c.axis_beams += int(np.count_nonzero(t))
 
 
 def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int = 0) -> Report:
@@ -275,6 +312,7 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
     report = Report(str(ground_truth), str(predictions), preds.format, sequences=len(sequences))
     report.from_frame = from_frame
     for seq in sequences:
+        axes = beam_axes(seq.elevation_deg, seq.azimuth_deg)
         for t in range(from_frame, seq.frames):
             if not preds.available(seq, t):
                 continue
@@ -289,7 +327,7 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
             if v_pred is not None and v_true is None and t == 0:
                 report.notes.append(f"{seq.path}: no /velocity to score the predicted velocities on")
             report.velocity |= v_true is not None
-            _score_frame(report, range_m, seq.read("label", t) == 1, human, v_true, v_pred)
+            _score_frame(report, range_m, seq.read("label", t) == 1, human, v_true, v_pred, axes)
             report.frames += 1
     if problems:
         raise MismatchError(problems)
@@ -318,6 +356,12 @@ def format_report(d: dict[str, Any]) -> str:
     lines += [f"note: {n}" for n in d["notes"]]
     if velocity:
         lines.append(f"velocity end-point error on human beams: {_fmt(o['epe_mps'], 3)} m/s")
+        v = o["velocity_error_mps"]
+        lines.append(
+            f"  mean |error| along each beam: radial {_fmt(v['radial'], 3)}, tangential "
+            f"{_fmt(v['tangential'], 3)}, up {_fmt(v['up'], 3)} m/s; background beams' EPE "
+            f"{_fmt(v['background_epe'], 3)} m/s"
+        )
     header = f"{'distance':<10}{'IoU':>8}{'precision':>11}{'recall':>8}{'human beams':>13}"
     lines += ["", header + (f"{'EPE m/s':>9}" if velocity else "")]
     for b in d["bins"]:

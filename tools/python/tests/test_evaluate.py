@@ -24,6 +24,8 @@ def ground_truth(sample: Path) -> dict[str, dict[str, np.ndarray]]:
     for p in sorted(sample.glob("seq_*.h5")):
         with h5py.File(p, "r") as f:
             out[p.name] = {k: f[k][()] for k in ("range", "label", "instance", "velocity")}
+            out[p.name]["elevation_deg"] = f["sensor/elevation_deg"][()]
+            out[p.name]["azimuth_deg"] = f["sensor/azimuth_deg"][()]
     return out
 
 
@@ -81,8 +83,10 @@ def test_ground_truth_as_prediction_scores_one(sample: Path, tmp_path: Path, cap
 
 def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Every human beam at 8 m or more missed, 50 background beams under 4 m per frame taken
-    for human, velocities off by (0.3, 0.4, 0) m/s on human beams and by (3, 0, 0) m/s elsewhere:
-    IoU, precision, recall and EPE (over the true human beams alone) follow."""
+    for human, velocities off by 0.5 m/s along each human beam's own direction and by (3, 0, 0)
+    m/s elsewhere: IoU, precision, recall and EPE (over the true human beams alone) follow, and
+    the error is all radial (beam directions from the file's angles, as pedscan defines them:
+    x forward, y left, z up)."""
     gt = ground_truth(sample)
     preds = tmp_path / "preds"
     human = {b: 0 for b in BINS}
@@ -97,7 +101,10 @@ def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, c
             near_background = np.flatnonzero((r[t] > 0) & (r[t] < 4) & ~truth[t])[:50]
             label[t].flat[near_background] = 1
             false_pos += near_background.size
-        off = np.where(truth[..., None], np.array([0.3, 0.4, 0.0], np.float32), np.array([3.0, 0.0, 0.0], np.float32))
+        el = np.deg2rad(g["elevation_deg"])[:, None]
+        az = np.deg2rad(g["azimuth_deg"])[None, :]
+        beam = np.stack(np.broadcast_arrays(np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)), -1)
+        off = np.where(truth[..., None], 0.5 * beam[None], np.array([3.0, 0.0, 0.0])).astype(np.float32)
         write_h5(preds, name, label, g["velocity"] + off)
     code, out, err = run(capsys, sample, preds, "--json", tmp_path / "scores.json")
     assert (code, err) == (0, "")
@@ -109,6 +116,10 @@ def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, c
     assert o["precision"] == pytest.approx((total - missed) / (total - missed + false_pos))
     assert o["recall"] == pytest.approx((total - missed) / total)
     assert o["epe_mps"] == pytest.approx(0.5, abs=1e-6)
+    along = o["velocity_error_mps"]
+    assert along["radial"] == pytest.approx(0.5, abs=1e-6)
+    assert along["tangential"] == pytest.approx(0.0, abs=1e-6) and along["up"] == pytest.approx(0.0, abs=1e-6)
+    assert along["background_epe"] == pytest.approx(3.0, abs=1e-6)
     near, mid, far = report["bins"]
     assert near["iou"] == pytest.approx(human[BINS[0]] / (human[BINS[0]] + false_pos))
     assert mid["iou"] == 1.0
