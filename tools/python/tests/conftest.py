@@ -15,7 +15,18 @@ import h5py
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[3]
+
+def _repository_root() -> Path:
+    """The repository: the nearest folder above this file that holds Cargo.toml and data/ (so
+    a copy of the package inside the tree, as mutation testing makes, finds it too)."""
+    here = Path(__file__).resolve()
+    for d in here.parents:
+        if (d / "Cargo.toml").is_file() and (d / "data").is_dir():
+            return d
+    return here.parents[3]
+
+
+ROOT = _repository_root()
 
 
 def find_pedscan() -> Path:

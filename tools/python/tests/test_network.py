@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from conftest import ROOT
 from pedscan_data.model import NetConfig, SequenceNet, WrapConv, count_parameters, input_channels
 from pedscan_data.reader import Sequence
 from pedscan_data.train import paper_loss
@@ -221,7 +222,7 @@ def test_the_shipped_networks_load_predict_and_match_their_onnx(name: str, sampl
     from pedscan_data.netio import load_net
     from pedscan_data.predict import main as predict_main
 
-    models = Path(__file__).resolve().parents[3] / "data" / "models"
+    models = ROOT / "data" / "models"
     net, obj = load_net(models / f"{name}.pt")
     assert net.cfg.frames == int(name[len("frames"):]) and 0.5 < obj["human_threshold"] < 1
     sess = ort.InferenceSession(str(models / f"{name}.onnx"), providers=["CPUExecutionProvider"])
