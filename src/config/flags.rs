@@ -261,10 +261,7 @@ impl Flags {
         cfg.debug.validation |= a.validation;
         cfg.validate()?;
         // `bundled:<name>` given as a flag names the bundled data as it does in a file.
-        for m in &mut cfg.humans.models {
-            *m = super::resolve_bundled(m);
-        }
-        for p in [&mut cfg.scene.background, &mut cfg.scene.poses, &mut cfg.humans.tracks] {
+        for p in cfg.input_paths_mut() {
             *p = super::resolve_bundled(p);
         }
         if cfg.sensor.starts_with(super::BUNDLED) {

@@ -613,12 +613,7 @@ impl Config {
             }
         };
         // Only paths the file itself set are relative to it; defaults are absolute already.
-        for m in &mut cfg.humans.models {
-            fix(m);
-        }
-        fix(&mut cfg.scene.background);
-        fix(&mut cfg.scene.poses);
-        fix(&mut cfg.humans.tracks);
+        cfg.input_paths_mut().for_each(fix);
         fix(&mut cfg.out);
         if cfg.sensor.ends_with(".toml") {
             let mut p = PathBuf::from(&cfg.sensor);
@@ -626,6 +621,12 @@ impl Config {
             cfg.sensor = p.display().to_string();
         }
         Ok(cfg)
+    }
+
+    /// The input paths the configuration holds (models, background, poses, tracks; the
+    /// sensor is a name or a file, handled beside them), for the places that map them all.
+    fn input_paths_mut(&mut self) -> impl Iterator<Item = &mut PathBuf> {
+        self.humans.models.iter_mut().chain([&mut self.scene.background, &mut self.scene.poses, &mut self.humans.tracks])
     }
 
     /// The resolved configuration as TOML text.
@@ -645,13 +646,8 @@ impl Config {
         let d = Config::default();
         (c.out, c.device, c.sequences, c.first_sequence) = (d.out, d.device, d.sequences, d.first_sequence);
         c.debug = DebugConfig::default();
-        for m in &mut c.humans.models {
-            *m = recorded_path(m);
-        }
-        for p in [&mut c.scene.background, &mut c.scene.poses, &mut c.humans.tracks] {
-            if !p.as_os_str().is_empty() {
-                *p = recorded_path(p);
-            }
+        for p in c.input_paths_mut().filter(|p| !p.as_os_str().is_empty()) {
+            *p = recorded_path(p);
         }
         if c.sensor.ends_with(".toml") {
             c.sensor = recorded_path(Path::new(&c.sensor)).display().to_string();
