@@ -160,8 +160,18 @@ class Experiment:
             }
         return sets
 
-    def data(self) -> None:
+    def needed_sets(self, only: set[str] | None) -> set[str]:
+        """The data sets that the runs in ``only`` (all when None) train, validate and are
+        tested on."""
+        runs = self.runs()
+        chosen = [r for name, r in runs.items() if only is None or name in only]
+        return {r["data"] for r in chosen} | {"val"} | set(self.test_sets())
+
+    def data(self, only: set[str] | None = None) -> None:
+        needed = self.needed_sets(only)
         for name, d in self.datasets().items():
+            if name not in needed:
+                continue
             out = self.work / "data" / name
             marker = out / ".complete"
             cmd = [
@@ -461,7 +471,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--device", default="auto", help="auto | cpu | cuda")
     p.add_argument("--workers", type=int, default=1, help="data-loading processes per training run")
     p.add_argument("--only", default=",".join(STAGES), help=f"stages to run, of {','.join(STAGES)}")
-    p.add_argument("--runs", help="train only these runs (e.g. frames16,frames1)")
+    p.add_argument("--runs", help="only these runs (e.g. frames16,frames1): their data sets, the validation "
+                   "and test sets, and their training")
     p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
     args = p.parse_args(argv)
     stages = [s.strip() for s in args.only.split(",") if s.strip()]
@@ -470,11 +481,15 @@ def main(argv: list[str] | None = None) -> int:
         if bad:
             raise PedscanError(f"--only: unknown stage {', '.join(bad)} (of {', '.join(STAGES)})")
         ex = Experiment(args)
+        only = {r.strip() for r in args.runs.split(",") if r.strip()} if args.runs else None
+        unknown = sorted(only - set(ex.runs())) if only else []
+        if unknown:
+            raise PedscanError(f"--runs: unknown run {', '.join(unknown)} (of {', '.join(ex.runs())})")
         ex.check_scale()
         if "data" in stages:
-            ex.data()
+            ex.data(only)
         if "train" in stages:
-            ex.train(set(args.runs.split(",")) if args.runs else None)
+            ex.train(only)
         if "test" in stages:
             ex.test()
         if "results" in stages:

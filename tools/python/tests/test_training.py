@@ -227,3 +227,23 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     # Another scale in the same folder is refused, and so is data made by another command.
     assert exp.main([*args[:4], "small", *args[5:]]) == 2
     assert exp.main([*args, "--pedscan-flag=--sensor-model=off"]) == 2
+
+
+def test_the_paper_experiment_makes_only_the_data_of_the_runs_asked_for(tmp_path: Path) -> None:
+    """`--runs motion-sliding` generates that run's training set, the validation and the test
+    sets, and none of the others; an unknown run name is refused before anything is made."""
+    from conftest import find_pedscan
+
+    from pedscan_data import experiments as exp
+
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    work = tmp_path / "work"
+    args = ["paper", "--work", str(work), "--scale", "smoke", "--pedscan", str(find_pedscan()),
+            "--device", "cpu", "--workers", "0", "--only", "data",
+            f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}", "--pedscan-flag=--humans=1..1"]
+    assert exp.main([*args, "--runs", "motion-sliding,frames99"]) == 2
+    assert not work.exists()
+    assert exp.main([*args, "--runs", "motion-sliding"]) == 0
+    made = sorted(p.parent.name for p in (work / "data").glob("*/.complete"))
+    assert made == ["test", "train-sliding", "val"]
+    assert "--motion sliding" in (work / "data" / "train-sliding" / ".complete").read_text()
