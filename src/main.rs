@@ -8,8 +8,6 @@ use pedscan::config::{Config, Flags};
 use pedscan::commands::run::{RunOptions, Shard};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, AtomicUsize};
-use std::sync::Arc;
 
 /// `verify` found problems (already printed): exit 1.
 #[derive(Debug, thiserror::Error)]
@@ -72,29 +70,7 @@ enum Command {
     },
     /// Time against error: sweep resolution, level of detail, refinement, people and columns;
     /// then the triangle rate of the raster renderer against the ray caster (in `bench.md`).
-    Bench {
-        /// A reduced sweep (under a minute).
-        #[arg(long)]
-        quick: bool,
-        /// Base configuration (the sweep overrides its render and workload keys).
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// Write the points as JSON.
-        #[arg(long, default_value = "bench.json")]
-        json: PathBuf,
-        /// Write a Markdown table.
-        #[arg(long, default_value = "bench.md")]
-        markdown: PathBuf,
-        /// Write the time-vs-error plot.
-        #[arg(long, default_value = "bench.png")]
-        plot: PathBuf,
-        /// Run one point (internal: the sweep runs each point in a child process).
-        #[arg(long, hide = true)]
-        point: Option<String>,
-        /// Redraw the table and plot from the points of an earlier `--json` file; runs nothing.
-        #[arg(long)]
-        from_json: Option<PathBuf>,
-    },
+    Bench(pedscan::commands::bench::BenchRequest),
     /// Contact sheet of human models at several gait phases, rendered by pedscan itself.
     Sheet {
         /// Output PNG.
@@ -137,17 +113,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 Some(spec) => Shard::parse(&spec, |k| std::env::var(k).ok())?,
                 None => Shard::default(),
             };
-            // SIGINT and SIGTERM ask the run to stop between frames; a second one ends the
-            // process at once (temporaries may then remain; `--resume` cleans them up).
-            let stop = Arc::new(AtomicUsize::new(0));
-            let asked = Arc::new(AtomicBool::new(false));
-            for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-                // In this order: the first signal finds `asked` still false.
-                signal_hook::flag::register_conditional_shutdown(signal, 128 + signal, asked.clone())
-                    .and_then(|_| signal_hook::flag::register(signal, asked.clone()))
-                    .and_then(|_| signal_hook::flag::register_usize(signal, stop.clone(), signal as usize))
-                    .context("installing a signal handler")?;
-            }
+            let stop = pedscan::commands::run::stop_on_signals()?;
             let opts = RunOptions { progress: true, export_geometry: args.export_geometry.clone(), resume, overwrite, shard, stop: Some(stop) };
             let summary = pedscan::commands::run::generate(args.config()?, &opts)?;
             eprintln!("{summary}");
@@ -177,49 +143,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             println!("{report}");
         }
-        Command::Bench { quick, config, json, markdown, plot, point, from_json } => {
-            if let Some(src) = from_json {
-                let text = std::fs::read_to_string(&src).with_context(|| src.display().to_string())?;
-                let points: Vec<pedscan::commands::bench::Point> = serde_json::from_str(&text)
-                    .map_err(|e| pedscan::Error::input(src.display(), format!("not a bench JSON: {e}")))?;
-                let table = pedscan::commands::bench::markdown(&points);
-                std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
-                pedscan::commands::bench::plot(&points).save(&plot)?;
-                print!("{table}");
-                return Ok(());
-            }
-            let base = match &config {
-                Some(p) => Config::from_file(p)?,
-                None => Config::default(),
-            };
-            if let Some(spec) = point {
-                let spec: pedscan::commands::bench::PointSpec = serde_json::from_str(&spec).context("--point")?;
-                let p = pedscan::commands::bench::run_point(&base, &spec)?;
-                println!("{}", serde_json::to_string(&p)?);
-                return Ok(());
-            }
+        Command::Bench(req) => {
             let exe = std::env::current_exe().context("locating the pedscan executable")?;
-            let specs = pedscan::commands::bench::sweep(quick);
-            let n = specs.len();
-            let points = pedscan::commands::bench::run_sweep(&exe, config.as_deref(), &specs, |i, p| {
-                eprintln!(
-                    "[{}/{n}] {}: {:.1} frames/s, agreement {:.4} %, median error {:.4} mm, peak {:.0} MiB",
-                    i + 1,
-                    p.spec,
-                    p.frames_per_s,
-                    100.0 * p.human_beam_agreement,
-                    p.median_range_error_m * 1e3,
-                    p.peak_rss_mb
-                );
-            })?;
-            std::fs::write(&json, serde_json::to_string_pretty(&points)?).with_context(|| json.display().to_string())?;
-            let mut table = pedscan::commands::bench::markdown(&points);
-            table += &bench_rates(&base, quick);
-            table += &bench_terms(&base, quick);
-            table += &bench_shares(&base, quick);
-            std::fs::write(&markdown, &table).with_context(|| markdown.display().to_string())?;
-            pedscan::commands::bench::plot(&points).save(&plot)?;
-            print!("{table}");
+            print!("{}", pedscan::commands::bench::bench(&exe, &req)?);
         }
         Command::Sheet { out, models, phases, validation } => {
             let models = if models.is_empty() { Config::default().humans.models } else { models };
@@ -262,43 +188,5 @@ fn main() -> ExitCode {
                 _ => ExitCode::from(1),
             }
         }
-    }
-}
-
-/// The bench's triangle-rate table, or a line saying why there is none.
-/// The sensor model's terms timed on both backends (the raster one where Vulkan opens).
-fn bench_terms(base: &Config, quick: bool) -> String {
-    use pedscan::commands::bench::{sensor_model_costs, terms_markdown};
-    use pedscan::config::BackendChoice;
-    let (frames, repeats) = if quick { (4, 3) } else { (16, 5) };
-    let mut rows = Vec::new();
-    let mut notes = String::new();
-    for backend in [BackendChoice::Raycast, BackendChoice::Raster] {
-        match sensor_model_costs(base, &[backend], frames, repeats) {
-            Ok(r) => rows.extend(r),
-            Err(e) => notes += &format!("\n{backend:?}: not measured ({e})\n"),
-        }
-    }
-    terms_markdown(&rows, frames, repeats) + &notes
-}
-
-/// The bench's table of where the raster background's work runs, or a line saying why there
-/// is none.
-fn bench_shares(base: &Config, quick: bool) -> String {
-    use pedscan::commands::bench::{host_share_costs, shares_markdown};
-    let (frames, repeats) = if quick { (8, 3) } else { (32, 5) };
-    match host_share_costs(base, frames, repeats) {
-        Ok((device, rows)) => shares_markdown(&device, &rows, frames, repeats),
-        Err(e) => format!("\nWhere the raster background's work runs: not measured ({e})\n"),
-    }
-}
-
-fn bench_rates(base: &Config, quick: bool) -> String {
-    use pedscan::commands::bench::{rates_markdown, triangle_rates};
-    let counts: &[usize] = if quick { &[1_000, 16_000] } else { &[1_000, 4_000, 16_000, 64_000] };
-    let mut gpu = pedscan::backend::Gpu::new(&base.device, false);
-    match gpu.context().and_then(|ctx| Ok((ctx.device_name(), triangle_rates(&ctx, counts, 9)?))) {
-        Ok((device, rows)) => rates_markdown(&device, &rows),
-        Err(e) => format!("\nTriangle rate: not measured ({e})\n"),
     }
 }

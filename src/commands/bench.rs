@@ -710,3 +710,113 @@ pub fn terms_markdown(rows: &[TermRow], frames: usize, repeats: usize) -> String
     }
     s
 }
+
+/// What `pedscan bench` is asked for (its flags).
+#[derive(Clone, Debug, clap::Args)]
+pub struct BenchRequest {
+    /// A reduced sweep (under a minute).
+    #[arg(long)]
+    pub quick: bool,
+    /// Base configuration (the sweep overrides its render and workload keys).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Write the points as JSON.
+    #[arg(long, default_value = "bench.json")]
+    pub json: PathBuf,
+    /// Write a Markdown table.
+    #[arg(long, default_value = "bench.md")]
+    pub markdown: PathBuf,
+    /// Write the time-vs-error plot.
+    #[arg(long, default_value = "bench.png")]
+    pub plot: PathBuf,
+    /// Run one point (internal: the sweep runs each point in a child process).
+    #[arg(long, hide = true)]
+    pub point: Option<String>,
+    /// Redraw the table and plot from the points of an earlier `--json` file; runs nothing.
+    #[arg(long)]
+    pub from_json: Option<PathBuf>,
+}
+
+fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))
+}
+
+/// `pedscan bench`: the sweep (each point in a child process of `exe`), then the triangle
+/// rates, the sensor model's terms and where the raster background's work runs; writes the
+/// JSON, the Markdown tables and the plot, and returns the tables. With `point`, runs that one
+/// point here and returns its JSON line.
+pub fn bench(exe: &Path, req: &BenchRequest) -> Result<String> {
+    if let Some(src) = &req.from_json {
+        let text = std::fs::read_to_string(src).map_err(|e| Error::io(src, e))?;
+        let points: Vec<Point> =
+            serde_json::from_str(&text).map_err(|e| Error::input(src.display(), format!("not a bench JSON: {e}")))?;
+        let table = markdown(&points);
+        write_file(&req.markdown, &table)?;
+        plot(&points).save(&req.plot)?;
+        return Ok(table);
+    }
+    let base = match &req.config {
+        Some(p) => Config::from_file(p)?,
+        None => Config::default(),
+    };
+    if let Some(spec) = &req.point {
+        let spec: PointSpec = serde_json::from_str(spec).map_err(|e| Error::input("--point", e))?;
+        let p = run_point(&base, &spec)?;
+        return serde_json::to_string(&p).map(|s| s + "\n").map_err(|e| Error::Internal(format!("a bench point as JSON: {e}")));
+    }
+    let specs = sweep(req.quick);
+    let n = specs.len();
+    let points = run_sweep(exe, req.config.as_deref(), &specs, |i, p| {
+        eprintln!(
+            "[{}/{n}] {}: {:.1} frames/s, agreement {:.4} %, median error {:.4} mm, peak {:.0} MiB",
+            i + 1,
+            p.spec,
+            p.frames_per_s,
+            100.0 * p.human_beam_agreement,
+            p.median_range_error_m * 1e3,
+            p.peak_rss_mb
+        );
+    })?;
+    let json = serde_json::to_string_pretty(&points).map_err(|e| Error::Internal(format!("bench points as JSON: {e}")))?;
+    write_file(&req.json, json)?;
+    let mut table = markdown(&points);
+    table += &bench_rates(&base, req.quick);
+    table += &bench_terms(&base, req.quick);
+    table += &bench_shares(&base, req.quick);
+    write_file(&req.markdown, &table)?;
+    plot(&points).save(&req.plot)?;
+    Ok(table)
+}
+
+/// The sensor model's terms timed on both backends (the raster one where Vulkan opens).
+fn bench_terms(base: &Config, quick: bool) -> String {
+    let (frames, repeats) = if quick { (4, 3) } else { (16, 5) };
+    let mut rows = Vec::new();
+    let mut notes = String::new();
+    for backend in [BackendChoice::Raycast, BackendChoice::Raster] {
+        match sensor_model_costs(base, &[backend], frames, repeats) {
+            Ok(r) => rows.extend(r),
+            Err(e) => notes += &format!("\n{backend:?}: not measured ({e})\n"),
+        }
+    }
+    terms_markdown(&rows, frames, repeats) + &notes
+}
+
+/// The table of where the raster background's work runs, or a line saying why there is none.
+fn bench_shares(base: &Config, quick: bool) -> String {
+    let (frames, repeats) = if quick { (8, 3) } else { (32, 5) };
+    match host_share_costs(base, frames, repeats) {
+        Ok((device, rows)) => shares_markdown(&device, &rows, frames, repeats),
+        Err(e) => format!("\nWhere the raster background's work runs: not measured ({e})\n"),
+    }
+}
+
+/// The triangle-rate table, or a line saying why there is none.
+fn bench_rates(base: &Config, quick: bool) -> String {
+    let counts: &[usize] = if quick { &[1_000, 16_000] } else { &[1_000, 4_000, 16_000, 64_000] };
+    let mut gpu = crate::backend::Gpu::new(&base.device, false);
+    match gpu.context().and_then(|ctx| Ok((ctx.device_name(), triangle_rates(&ctx, counts, 9)?))) {
+        Ok((device, rows)) => rates_markdown(&device, &rows),
+        Err(e) => format!("\nTriangle rate: not measured ({e})\n"),
+    }
+}

@@ -19,7 +19,7 @@ use crate::output::manifest::{check_entry, config_hash, file_records, Manifest, 
 use crate::output::sequence_stem;
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -334,4 +334,20 @@ mod tests {
             assert!(e.is_input() && e.to_string().contains("--shard"), "{spec}: {e}");
         }
     }
+}
+
+/// Installs the handlers of a `generate` run: SIGINT and SIGTERM ask the run to stop between
+/// frames (the returned flag holds the signal's number, for [`RunOptions::stop`]); a second
+/// one ends the process at once (temporaries may then remain; `--resume` cleans them up).
+pub fn stop_on_signals() -> Result<Arc<AtomicUsize>> {
+    let stop = Arc::new(AtomicUsize::new(0));
+    let asked = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // In this order: the first signal finds `asked` still false.
+        signal_hook::flag::register_conditional_shutdown(signal, 128 + signal, asked.clone())
+            .and_then(|_| signal_hook::flag::register(signal, asked.clone()))
+            .and_then(|_| signal_hook::flag::register_usize(signal, stop.clone(), signal as usize))
+            .map_err(|e| Error::Internal(format!("installing a signal handler: {e}")))?;
+    }
+    Ok(stop)
 }
