@@ -8,13 +8,16 @@
 //! 3. `scene`: the environment and its walkable area, and each sequence's plan (sensor
 //!    path, people, walks);
 //! 4. `human`: glTF people, gait and skinning, and their conservative proxies;
-//! 5. `geometry`: the posed triangles of a frame in the sensor frame;
+//! 5. `pose`: a frame's sensor and people at its time, the environment and the people in
+//!    view placed (and under the rolling shutter warped) into `geometry`, the posed
+//!    triangles of a frame in the sensor frame;
 //! 6. `backend`: the nearest surface per beam, by Vulkan raster (`backend::raster`, on `gpu`)
 //!    or the CPU ray caster (`raycast`), both behind one trait;
 //! 7. `post`: composite people over the background, labels, instances, velocities;
-//! 8. `output`: HDF5, XML, PNG, PLY.
+//!    `sensor_model`: what a real sensor returns of it (surfaces, footprints, dropout, noise);
+//! 8. `output`: HDF5, XML, PNG, PLY, SemanticKITTI, ROS 2 bags, and the sequence's writer.
 //!
-//! `generator` runs the stages for every frame; `commands` holds `generate`'s job and the
+//! `generator` loads a run's inputs once and runs the stages for every frame; `commands` holds `generate`'s job and the
 //! tools beside it (crosscheck, bench, contact sheet); `plot` draws the bench's figures.
 
 pub mod config;
@@ -22,6 +25,7 @@ pub mod sensor;
 pub mod input;
 pub mod scene;
 pub mod human;
+pub mod pose;
 pub mod geometry;
 pub mod backend;
 pub mod gpu;

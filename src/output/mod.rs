@@ -7,10 +7,12 @@
 
 use crate::sensor::Sensor;
 
+mod files;
 mod h5;
 mod info;
 pub mod lock;
 pub mod manifest;
+mod pipeline;
 pub mod ply;
 pub mod png;
 pub mod ros2bag;
@@ -19,8 +21,10 @@ mod writer;
 mod xml;
 
 pub use info::info;
+pub use pipeline::write_frames;
 pub use png::{label_png, range_png, velocity_png};
-pub use writer::{sequence_stem, Compression, Finished, SequenceWriter, WriterOptions};
+pub use files::sequence_stem;
+pub use writer::{Compression, Finished, SequenceWriter, WriterOptions};
 
 /// What a sequence is about; written once per sequence.
 #[derive(Clone, Debug)]

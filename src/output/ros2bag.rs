@@ -155,7 +155,7 @@ impl Ros2BagWriter {
     /// `dirs`: the sensor's unit beam directions.
     pub fn create(out_dir: &Path, meta: &SequenceMeta, dirs: Arc<[DVec3]>) -> Result<Ros2BagWriter> {
         let fin = bag_dir(out_dir, meta.index);
-        let tmp = super::writer::fresh_tmp_dir(&fin)?;
+        let tmp = super::files::fresh_tmp_dir(&fin)?;
         let mcap_name = format!("{}.mcap", super::sequence_stem(meta.index));
         let path = tmp.join(&mcap_name);
         let file = std::fs::File::create(&path).map_err(|e| Error::io(&path, e))?;
@@ -270,7 +270,7 @@ impl Ros2BagWriter {
         let yaml = self.metadata();
         let meta = self.tmp.join("metadata.yaml");
         std::fs::write(&meta, yaml).map_err(|e| Error::io(&meta, e))?;
-        super::writer::replace_dir(&self.tmp, &self.fin)?;
+        super::files::replace_dir(&self.tmp, &self.fin)?;
         Ok(self.fin.clone())
     }
 

@@ -95,7 +95,7 @@ impl SemanticKittiWriter {
     /// `dirs`: the sensor's unit beam directions.
     pub fn create(out_dir: &Path, meta: &SequenceMeta, dirs: Arc<[DVec3]>) -> Result<SemanticKittiWriter> {
         let fin = sequence_dir(out_dir, meta.index);
-        let tmp = super::writer::fresh_tmp_dir(&fin)?;
+        let tmp = super::files::fresh_tmp_dir(&fin)?;
         create_dir(&tmp.join("velodyne"))?;
         create_dir(&tmp.join("labels"))?;
         if meta.outputs.velocity {
@@ -177,7 +177,7 @@ impl SemanticKittiWriter {
         let eye = "1 0 0 0 0 1 0 0 0 0 1 0";
         let calib: String = ["P0", "P1", "P2", "P3", "Tr"].iter().map(|k| format!("{k}: {eye}\n")).collect();
         write_file(&self.tmp.join("calib.txt"), calib.as_bytes())?;
-        super::writer::replace_dir(&self.tmp, &self.fin)?;
+        super::files::replace_dir(&self.tmp, &self.fin)?;
         Ok((self.fin, self.counts))
     }
 }
@@ -216,7 +216,7 @@ pub fn write_yaml(out_dir: &Path, counts: &ClassPoints, sequences: &[usize]) -> 
     let dir = out_dir.join(FOLDER);
     create_dir(&dir)?;
     let fin = dir.join("pedscan.yaml");
-    let tmp = super::writer::tmp_name(&fin);
+    let tmp = super::files::tmp_name(&fin);
     write_file(&tmp, yaml(counts, sequences).as_bytes())?;
     std::fs::rename(&tmp, &fin).map_err(|e| Error::io(&fin, e))
 }

@@ -8,6 +8,7 @@ use super::h5::H5Writer;
 use super::png::{bev_png, ego_velocity, label_png, range_png, save_png, velocity_png, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE};
 use super::ros2bag::Ros2BagWriter;
 use super::semantickitti::SemanticKittiWriter;
+use super::files::{rename, replace_dir, sequence_stem, tmp_name};
 use super::xml::XmlWriter;
 use super::{FrameOutput, SequenceMeta};
 use crate::config::{kill_self, KillStage};
@@ -61,11 +62,6 @@ pub struct Finished {
     pub class_points: Option<super::semantickitti::ClassPoints>,
 }
 
-/// The base name of sequence `index`: `seq_{index:06}`.
-pub fn sequence_stem(index: usize) -> String {
-    format!("seq_{index:06}")
-}
-
 /// Writes one sequence; see the module docs.
 pub struct SequenceWriter {
     meta: SequenceMeta,
@@ -85,23 +81,6 @@ pub struct SequenceWriter {
     /// The sensor's unit beam directions, shared by the formats that write points.
     beam_dirs: std::sync::Arc<[glam::DVec3]>,
     beams: Vec<u32>,
-}
-
-pub(crate) fn tmp_name(p: &Path) -> PathBuf {
-    let mut s = p.as_os_str().to_owned();
-    s.push(".tmp");
-    PathBuf::from(s)
-}
-
-/// The empty temporary directory of the final directory `fin` (`tmp_name`), created anew: a
-/// leftover of an earlier, interrupted run is removed first.
-pub(crate) fn fresh_tmp_dir(fin: &Path) -> Result<PathBuf> {
-    let tmp = tmp_name(fin);
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    Ok(tmp)
 }
 
 impl SequenceWriter {
@@ -430,30 +409,6 @@ impl SequenceWriter {
         done.files.extend(sk_final);
         done.files.extend(bag_final);
         Ok(done)
-    }
-}
-
-fn rename(from: &Path, to: &Path) -> Result<()> {
-    std::fs::rename(from, to).map_err(|e| Error::io(to, e))
-}
-
-/// Renames directory `tmp` to `fin`, replacing an existing `fin` (a rerun): the old one is
-/// moved aside first and deleted after, so `fin` is never a mix of both.
-pub(crate) fn replace_dir(tmp: &Path, fin: &Path) -> Result<()> {
-    if fin.exists() {
-        let old = {
-            let mut s = fin.as_os_str().to_owned();
-            s.push(".old");
-            PathBuf::from(s)
-        };
-        if old.exists() {
-            std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
-        }
-        rename(fin, &old)?;
-        rename(tmp, fin)?;
-        std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))
-    } else {
-        rename(tmp, fin)
     }
 }
 

@@ -47,6 +47,19 @@ pub struct EnvMesh {
     pub reflectance: f32,
 }
 
+/// One non-empty environment mesh as the frames draw it: its vertex range in
+/// [`Environment::positions`], its indices local to that range, and its triangle one-rings
+/// (built once per run).
+pub struct EnvDraw {
+    pub first_vertex: usize,
+    pub vertex_count: usize,
+    pub local_indices: Vec<u32>,
+    pub double_sided: bool,
+    pub adjacency: std::sync::Arc<crate::geometry::Adjacency>,
+    /// The mesh's reflectance (the sensor model's intensity).
+    pub reflectance: f32,
+}
+
 /// A material's near-infrared reflectance: `extras.reflectance` (a number in 0..1) when given,
 /// else the Rec. 709 luminance of its base colour factor (a visible-light stand-in).
 fn material_reflectance(m: &gltf::Material) -> f32 {
@@ -66,6 +79,28 @@ pub fn world_from_gltf() -> DMat4 {
 }
 
 impl Environment {
+    /// Its non-empty meshes as the frames draw them.
+    pub fn draws(&self) -> Vec<EnvDraw> {
+        self.meshes
+            .iter()
+            .filter(|m| !m.indices.is_empty())
+            .map(|m| {
+                let lo = *m.indices.iter().min().unwrap_or(&0);
+                let hi = *m.indices.iter().max().unwrap_or(&0);
+                let local_indices: Vec<u32> = m.indices.iter().map(|i| i - lo).collect();
+                let adjacency = std::sync::Arc::new(crate::geometry::Adjacency::build(&local_indices));
+                EnvDraw {
+                    first_vertex: lo as usize,
+                    vertex_count: (hi - lo + 1) as usize,
+                    local_indices,
+                    double_sided: m.double_sided,
+                    adjacency,
+                    reflectance: m.reflectance,
+                }
+            })
+            .collect()
+    }
+
     /// Loads every mesh of the default scene of a glTF/GLB file, with node transforms applied.
     /// The nodes must form strict trees, every accessor read must be what its reader assumes
     /// and fit in its buffer, and the instanced meshes together hold at most

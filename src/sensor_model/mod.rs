@@ -24,6 +24,7 @@
 //! beam whatever happens to it, so every output is the same at any thread count.
 
 pub mod shutter;
+pub mod surfaces;
 
 use crate::config::SensorModelConfig;
 use glam::DVec3;

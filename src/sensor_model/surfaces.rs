@@ -1,0 +1,379 @@
+//! The surfaces of a posed and cast frame as the sensor model sees them: per beam its
+//! surface (reflectance, incidence, body region), the footprint rays cast among the triangles
+//! near a beam ([`FootprintScene`]), and the rolling background refined in the world.
+
+use super::{FootprintScene, Surface, FOOTPRINT_RAYS};
+use crate::backend::BeamHits;
+use crate::error::{Error, Result};
+use crate::geometry::FrameGeometry;
+use crate::human::HumanModel;
+use crate::scene::EnvDraw;
+use glam::{DMat3, DMat4, DVec3};
+use rayon::prelude::*;
+
+/// Rolling shutter with a moving sensor: each placed environment vertex is exact at its own
+/// column's time, but a large triangle's interior is interpolated between vertices taken
+/// at different times (centimetres off across a wall). Each beam's hit is therefore
+/// recomputed in the world: the beam from the sensor's pose at its column's time, through
+/// the triangle the cast found and that triangle's one-ring (watertight f64, nearest).
+/// `bg_hits`, the hits of the placed `background` (drawn from `env` as `env_meshes`), are
+/// refined in place; `column_pose` is the sensor's world pose per column (of `columns`),
+/// empty when the sensor did not move during the sweep (then nothing changes).
+pub fn refine_rolling_background(env: &EnvWorld, background: &FrameGeometry, dirs: &[DVec3], columns: usize, bg_hits: &mut BeamHits) {
+    if env.column_pose.is_empty() {
+        return;
+    }
+    let w = columns;
+    let (poses, env_meshes) = (env.column_pose, env.meshes);
+    bg_hits.range_m.par_iter_mut().zip(bg_hits.triangle.par_iter_mut()).enumerate().with_min_len(512).for_each(|(b, (r, t))| {
+        if *t == crate::backend::NO_TRIANGLE {
+            return;
+        }
+        let pose = poses[b % w];
+        let origin = pose.w_axis.truncate();
+        let dir = DMat3::from_mat4(pose) * dirs[b];
+        let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return };
+        let test = |cand: u32| -> Option<f64> {
+            let (tri, cull) = world_triangle(background, env.positions, env_meshes, cand, origin);
+            crate::backend::triangle::intersect_pre(&ray, &tri, cull)
+        };
+        // The triangle the cast found holds the exact hit but near its edges; there, its
+        // one-ring.
+        let mut best = test(*t).map_or((f64::INFINITY, u32::MAX), |h| (h, *t));
+        if best.1 == u32::MAX {
+            for cand in background.neighbours(*t) {
+                if let Some(h) = test(cand) {
+                    if crate::backend::triangle::better(h, cand, best.0, best.1) {
+                        best = (h, cand);
+                    }
+                }
+            }
+        }
+        if best.1 != u32::MAX {
+            (*r, *t) = (best.0 as f32, best.1);
+        }
+    });
+}
+
+/// The surfaces of a posed and cast frame, as the sensor model sees them.
+pub struct SceneSurfaces<'a> {
+    pub humans: &'a FrameGeometry,
+    pub human_hits: &'a BeamHits,
+    pub background: &'a FrameGeometry,
+    pub bg_hits: &'a BeamHits,
+    pub recorded: Option<&'a [f32]>,
+    pub recorded_intensity: &'a [f32],
+    pub intensity_scale: f64,
+    pub columns: usize,
+    pub layout: &'a [(u32, usize, usize)],
+    pub regions: &'a [Vec<Vec<u8>>],
+    /// The environment's meshes as drawn, for their reflectance.
+    pub env_meshes: &'a [EnvDraw],
+    pub reflectance: &'a [[f32; 4]],
+    pub dirs: &'a [DVec3],
+    /// Under a sensor that moves during the sweep: the environment in the world and each
+    /// column's sensor pose, so footprint rays meet it exactly (as the beams themselves,
+    /// `refine_rolling_background`); else the placed `background` is exact.
+    pub env_world: Option<EnvWorld<'a>>,
+}
+
+pub struct EnvWorld<'a> {
+    pub positions: &'a [DVec3],
+    pub meshes: &'a [EnvDraw],
+    pub column_pose: &'a [DMat4],
+}
+
+/// Background triangle `t` (global in `background`, whose meshes are `env_meshes`) in the
+/// world, relative to `origin`, from the environment's f64 `positions`; and whether its back
+/// face is culled.
+fn world_triangle(background: &FrameGeometry, positions: &[DVec3], env_meshes: &[EnvDraw], t: u32, origin: DVec3) -> ([DVec3; 3], bool) {
+    let k = background.mesh_index_of_triangle(t);
+    let mesh = &background.meshes[k];
+    let first = env_meshes[k].first_vertex as u32;
+    let idx = &background.indices[3 * t as usize..3 * t as usize + 3];
+    ([0, 1, 2].map(|c| positions[(first + idx[c] - mesh.first_vertex) as usize] - origin), !mesh.double_sided)
+}
+
+/// The nearest of `triangles` (triangle, corners in the sensor frame, back culled) along
+/// `dir`, with the casters' watertight test and tie rule.
+fn nearest_hit(triangles: &[(u32, [DVec3; 3], bool)], dir: DVec3) -> Option<(f64, u32)> {
+    let ray = crate::backend::triangle::RayPre::new(dir)?;
+    let mut best = (f64::INFINITY, u32::MAX);
+    for &(t, ref tri, cull) in triangles {
+        if let Some(h) = crate::backend::triangle::intersect_pre(&ray, tri, cull) {
+            if crate::backend::triangle::better(h, t, best.0, best.1) {
+                best = (h, t);
+            }
+        }
+    }
+    (best.1 != u32::MAX).then_some(best)
+}
+
+/// |cos| of the angle between `dir` and the normal of triangle `t` (1 for a degenerate one),
+/// and the unit normal (zero for a degenerate one).
+fn cos_incidence(geom: &FrameGeometry, t: u32, dir: DVec3) -> (f32, glam::Vec3) {
+    let [a, b, c] = geom.triangle_f64(t);
+    let n = (b - a).cross(c - a);
+    let len = n.length();
+    if len > 0.0 && len.is_finite() { ((n.dot(dir).abs() / len) as f32, (n / len).as_vec3()) } else { (1.0, glam::Vec3::ZERO) }
+}
+
+/// Reflectance of a recorded return whose intensity is unknown (for the footprint's power).
+const RECORDED_REFLECTANCE: f32 = 0.3;
+
+impl SceneSurfaces<'_> {
+    fn human_surface(&self, t: u32, range_m: f64, dir: DVec3) -> Surface {
+        let k = self.humans.mesh_index_of_triangle(t);
+        let mesh = &self.humans.meshes[k];
+        let (instance, m, lod) = self.layout[k];
+        let region = self.regions[m][lod].get((t - mesh.first_triangle) as usize).copied().unwrap_or(crate::sensor_model::UPPER);
+        let reflectance = self.reflectance.get(instance as usize - 1).map_or(0.3, |r| r[region as usize]);
+        let (cos_incidence, normal) = cos_incidence(self.humans, t, dir);
+        Surface { range_m, instance: instance as u16, reflectance, cos_incidence, rendered: true, normal }
+    }
+
+    fn background_surface(&self, b: usize, t: u32, range_m: f64, dir: DVec3) -> Surface {
+        if self.recorded.is_some() {
+            // The recording's intensity (already with its incidence) in reflectance units, for
+            // the footprint's power; unknown: a typical reflectance.
+            let reflectance = match self.recorded_intensity.get(b) {
+                Some(&i) if self.recorded_intensity.len() == self.dirs.len() => (i as f64 / self.intensity_scale).clamp(0.0, 1.0) as f32,
+                _ => RECORDED_REFLECTANCE,
+            };
+            return Surface { range_m, instance: 0, reflectance, cos_incidence: 1.0, rendered: false, normal: glam::Vec3::ZERO };
+        }
+        let (reflectance, (cos, normal)) = if t == crate::backend::NO_TRIANGLE || t >= self.background.triangle_count() {
+            (0.5, (1.0, glam::Vec3::ZERO))
+        } else {
+            let k = self.background.mesh_index_of_triangle(t);
+            (self.env_meshes.get(k).map_or(0.5, |m| m.reflectance), cos_incidence(self.background, t, dir))
+        };
+        Surface { range_m, instance: 0, reflectance, cos_incidence: cos, rendered: true, normal }
+    }
+
+    /// The composited beam `b` (range, instance) as a surface.
+    pub fn clean(&self, b: usize, range_m: f32, instance: u16) -> Option<Surface> {
+        if range_m <= 0.0 {
+            return None;
+        }
+        let dir = self.dirs[b];
+        Some(if instance > 0 {
+            self.human_surface(self.human_hits.triangle[b], range_m as f64, dir)
+        } else {
+            self.background_surface(b, self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE), range_m as f64, dir)
+        })
+    }
+}
+
+impl SceneSurfaces<'_> {
+    /// Environment triangle `t` in the sensor frame of column `col`, and whether its back face
+    /// is culled: under a sensor that moves during the sweep from the world at the column's
+    /// pose (the placed triangles are interpolated between their vertices' times, centimetres
+    /// off across a wall), else as placed.
+    fn env_triangle(&self, t: u32, col: usize) -> ([DVec3; 3], bool) {
+        match &self.env_world {
+            Some(e) => {
+                let pose = e.column_pose[col];
+                let (tri, cull) = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate());
+                let rot_t = DMat3::from_mat4(pose).transpose();
+                (tri.map(|p| rot_t * p), cull)
+            }
+            None => (self.background.triangle_f64(t), !self.background.mesh_of_triangle(t).double_sided),
+        }
+    }
+
+    /// The nearest range beam `b` sees over both layers (infinite: nothing).
+    fn nearest_range(&self, b: usize) -> f64 {
+        let human = match self.human_hits.triangle.get(b) {
+            Some(&t) if t != crate::backend::NO_TRIANGLE => self.human_hits.range_m[b] as f64,
+            _ => f64::INFINITY,
+        };
+        let background = match self.recorded {
+            Some(r) => r[b] as f64,
+            None => self.bg_hits.range_m.get(b).copied().unwrap_or(0.0) as f64,
+        };
+        human.min(if background > 0.0 { background } else { f64::INFINITY })
+    }
+
+    /// The common case of a footprint, cheaply: when every neighbour across the silhouette
+    /// sees something farther (or nothing) and every footprint ray meets the rendered triangle
+    /// the beam itself meets or one of its one-ring, the footprint lies on that surface
+    /// (nothing nearer can cover part of it, but a feature thinner than the beam spacing, as
+    /// for the candidates of `cast_footprint`). Fills `out[1..]` and returns true then.
+    fn footprint_on_own_surface(&self, b: usize, across: &[usize], dirs: &[DVec3; FOOTPRINT_RAYS], out: &mut [Option<Surface>; FOOTPRINT_RAYS]) -> bool {
+        let Some(own) = out[0].filter(|s| s.rendered) else { return false };
+        if across.iter().any(|&nb| self.nearest_range(nb) <= own.range_m) {
+            return false;
+        }
+        let person = own.instance > 0;
+        let (geom, t) = if person {
+            (self.humans, self.human_hits.triangle[b])
+        } else {
+            (self.background, self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE))
+        };
+        if t == crate::backend::NO_TRIANGLE || t >= geom.triangle_count() {
+            return false;
+        }
+        let col = b % self.columns;
+        let surface: Vec<(u32, [DVec3; 3], bool)> = std::iter::once(t)
+            .chain(geom.neighbours(t))
+            .map(|c| {
+                let (tri, cull) = if person { (geom.triangle_f64(c), !geom.mesh_of_triangle(c).double_sided) } else { self.env_triangle(c, col) };
+                (c, tri, cull)
+            })
+            .collect();
+        let mut hits = [(0.0, 0u32); FOOTPRINT_RAYS];
+        for (hit, &dir) in hits.iter_mut().zip(dirs).skip(1) {
+            let Some(best) = nearest_hit(&surface, dir) else { return false };
+            *hit = best;
+        }
+        for ((o, &dir), &(h, c)) in out.iter_mut().zip(dirs).zip(&hits).skip(1) {
+            *o = Some(if person { self.human_surface(c, h, dir) } else { self.background_surface(b, c, h, dir) });
+        }
+        true
+    }
+
+    /// The background behind the people along `dir`, near beam `b`: the plane of the
+    /// background triangle beam `b` meets, through its exact hit (its footprint is millimetres
+    /// across; under a moving sensor the triangle's normal from the world, at the column's
+    /// pose), or its recorded return. None where the plane lies behind the ray.
+    fn background_near(&self, b: usize, dir: DVec3) -> Option<(f64, u32)> {
+        if let Some(r) = self.recorded {
+            return (r[b] > 0.0).then(|| (r[b] as f64, crate::backend::NO_TRIANGLE));
+        }
+        let t = self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+        let r = self.bg_hits.range_m.get(b).copied().unwrap_or(0.0) as f64;
+        if t == crate::backend::NO_TRIANGLE || t >= self.background.triangle_count() || r <= 0.0 {
+            return None;
+        }
+        let n = match &self.env_world {
+            Some(_) => {
+                let [p, q, u] = self.env_triangle(t, b % self.columns).0;
+                (q - p).cross(u - p).normalize_or_zero()
+            }
+            None => cos_incidence(self.background, t, self.dirs[b]).1.as_dvec3(),
+        };
+        let denom = n.dot(dir);
+        if n == DVec3::ZERO || denom.abs() <= 1e-12 {
+            return Some((r, t));
+        }
+        let along = n.dot(self.dirs[b] * r) / denom;
+        (along > 0.0).then_some((along, t))
+    }
+}
+
+/// The footprint's surfaces are searched among the triangles the beam and its grid neighbours
+/// across the silhouette hit, and those triangles' one-rings (watertight test, as the
+/// casters): the footprint (a few millimetres to centimetres across) lies between those beams,
+/// so its surfaces are there but for a limb, a post or a table's edge thinner than the beam
+/// spacing that no neighbour hits. Where the environment is continuous around the beam (the
+/// beam and its neighbours meet one triangle and its one-ring) or is a recording, a ray's
+/// background is the plane the beam itself meets ([`SceneSurfaces::background_near`]); else
+/// only the candidates count, and a ray that meets none of them meets nothing (past a wall's
+/// top, say).
+impl FootprintScene for SceneSurfaces<'_> {
+    fn cast_footprint(&self, b: usize, across: &[usize], dirs: &[DVec3; FOOTPRINT_RAYS], out: &mut [Option<Surface>; FOOTPRINT_RAYS]) {
+        let col = b % self.columns;
+        if self.footprint_on_own_surface(b, across, dirs, out) {
+            return;
+        }
+        // The beam and its neighbours across the silhouette.
+        let mut beams = [b; 5];
+        beams[1..1 + across.len().min(4)].copy_from_slice(&across[..across.len().min(4)]);
+        // The pyramid through the origin that holds every footprint ray (widened by 1 %): a
+        // triangle with all three corners outside one of its faces meets none of the rays.
+        let d = dirs[0];
+        let e_az = DVec3::new(-d.y, d.x, 0.0).normalize_or_zero();
+        let e_el = d.cross(e_az);
+        let (mut hx, mut hy) = (0.0f64, 0.0f64);
+        for r in &dirs[1..] {
+            let along = r.dot(d);
+            hx = hx.max(r.dot(e_az).abs() / along);
+            hy = hy.max(r.dot(e_el).abs() / along);
+        }
+        let (hx, hy) = (1.01 * hx + 1e-9, 1.01 * hy + 1e-9);
+        let outside = |tri: &[DVec3; 3]| {
+            // Per corner: which faces it lies beyond (bits), ANDed over the corners.
+            let beyond = |p: DVec3| -> u8 {
+                let (a, x, y) = (p.dot(d), p.dot(e_az), p.dot(e_el));
+                (a <= 0.0) as u8 | ((x > hx * a) as u8) << 1 | ((x < -hx * a) as u8) << 2 | ((y > hy * a) as u8) << 3 | ((y < -hy * a) as u8) << 4
+            };
+            beyond(tri[0]) & beyond(tri[1]) & beyond(tri[2]) != 0
+        };
+        // The candidates of one layer: the triangles the beams hit and their one-rings, those
+        // the pyramid may hold, each as `corners` gives it in the sensor frame.
+        let candidates = |geom: &FrameGeometry, hits: &BeamHits, corners: &dyn Fn(u32) -> [DVec3; 3]| -> Vec<(u32, [DVec3; 3], bool)> {
+            let mut ts: Vec<u32> = Vec::with_capacity(64);
+            for &nb in &beams {
+                let t = hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+                if t != crate::backend::NO_TRIANGLE && t < geom.triangle_count() {
+                    ts.push(t);
+                    ts.extend(geom.neighbours(t));
+                }
+            }
+            ts.sort_unstable();
+            ts.dedup();
+            ts.iter()
+                .map(|&t| (t, corners(t)))
+                .filter(|(_, tri)| !outside(tri))
+                .map(|(t, tri)| (t, tri, !geom.mesh_of_triangle(t).double_sided))
+                .collect()
+        };
+        let people = candidates(self.humans, self.human_hits, &|t| self.humans.triangle_f64(t));
+        // A rendered environment's candidates. Under a moving sensor they are taken from the
+        // world into the sensor frame of the beam's column (the placed triangles are
+        // interpolated between their vertices' times, centimetres off across a wall).
+        // Where the beam and its neighbours meet one triangle and its one-ring, the surface is
+        // continuous there and the beam's own plane holds the footprint.
+        let bg_triangle = |nb: usize| self.bg_hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+        let own = bg_triangle(b);
+        let continuous = own != crate::backend::NO_TRIANGLE
+            && own < self.background.triangle_count()
+            && beams.iter().all(|&nb| {
+                let t = bg_triangle(nb);
+                t == own || self.background.neighbours(own).any(|n| n == t)
+            });
+        let searched = self.recorded.is_none() && !continuous;
+        let env = if searched { candidates(self.background, self.bg_hits, &|t| self.env_triangle(t, col).0) } else { Vec::new() };
+        for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
+            let human = nearest_hit(&people, dir);
+            let background = if searched { nearest_hit(&env, dir) } else { self.background_near(b, dir) };
+            *o = match (human, background) {
+                (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
+                (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
+                _ => None,
+            };
+        }
+    }
+}
+
+/// Per level of detail, per triangle: the body region of a model's triangles (the region of
+/// the joint that weighs most on the majority of its corners), from the skin's joint names.
+pub fn body_regions(model: &HumanModel) -> Result<Vec<Vec<u8>>> {
+    let names: Vec<String> = if model.lods.iter().all(|l| l.joints.is_empty()) {
+        Vec::new()
+    } else {
+        let doc = gltf::Gltf::open(&model.path).map_err(|e| Error::input(model.path.display(), e))?;
+        doc.skins().next().map_or_else(Vec::new, |s| s.joints().map(|n| n.name().unwrap_or("").to_string()).collect())
+    };
+    let joint_region: Vec<u8> = names.iter().map(|n| crate::sensor_model::region_of_joint(n)).collect();
+    Ok(model
+        .lods
+        .iter()
+        .map(|l| {
+            let vertex = |i: u32| -> u8 {
+                let i = i as usize;
+                let (Some(j), Some(w)) = (l.joints.get(i), l.weights.get(i)) else { return crate::sensor_model::UPPER };
+                let k = (0..4).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
+                joint_region.get(j[k] as usize).copied().unwrap_or(crate::sensor_model::UPPER)
+            };
+            l.indices
+                .chunks_exact(3)
+                .map(|t| {
+                    let (a, b, c) = (vertex(t[0]), vertex(t[1]), vertex(t[2]));
+                    if b == c { b } else { a }
+                })
+                .collect()
+        })
+        .collect())
+}
