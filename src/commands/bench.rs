@@ -711,6 +711,84 @@ pub fn terms_markdown(rows: &[TermRow], frames: usize, repeats: usize) -> String
     s
 }
 
+/// One workload of the per-stage table: milliseconds per frame per stage of `generate`.
+#[derive(Clone, Debug, Serialize)]
+pub struct StageRow {
+    pub variant: String,
+    /// plan, pose + skin, BVH refit (`debug.caster = "bvh"` only), background, people, post,
+    /// write (on the writer thread), and the frame thread's sum.
+    pub ms: [f64; 8],
+}
+
+/// The stages of `generate` (plan, pose, cast, post, write) on three workloads of `base`: its
+/// own, the sensor model off, and 30 people. Each round writes sequence 0 (`frames` frames)
+/// of every workload into a temporary folder, the workloads interleaved; medians of `repeats`
+/// rounds (what `--timings` reports, per round).
+pub fn stage_costs(base: &Config, frames: usize, repeats: usize) -> Result<Vec<StageRow>> {
+    let mut off = base.clone();
+    off.sensor_model.enabled = false;
+    let mut crowd = base.clone();
+    crowd.humans.count = [30, 30];
+    let variants = [("as configured", base.clone()), ("sensor model off", off), ("30 people", crowd)];
+    let dir = tempdir_for_point()?.join("stages");
+    let mut gens = Vec::new();
+    for (name, cfg) in &variants {
+        let mut cfg = cfg.clone();
+        cfg.frames = frames;
+        let out = dir.join(name.replace(' ', "-"));
+        std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+        gens.push((crate::generator::Generator::new(cfg)?, out));
+    }
+    let mut samples = vec![vec![Vec::new(); 8]; variants.len()];
+    for _ in 0..repeats.max(1) {
+        for (v, (gen, out)) in gens.iter_mut().enumerate() {
+            let before = gen.timings();
+            gen.write_sequence(0, out, || Ok(()))?;
+            let after = gen.timings();
+            let n = (after.frames - before.frames).max(1) as f64;
+            let d = |a: f64, b: f64| 1e3 * (a - b) / n;
+            let stages = [
+                d(after.plan_s, before.plan_s),
+                d(after.pose_s, before.pose_s),
+                d(after.bvh_s, before.bvh_s),
+                d(after.background_s, before.background_s),
+                d(after.humans_s, before.humans_s),
+                d(after.post_s, before.post_s),
+                d(after.write_s, before.write_s),
+            ];
+            let thread: f64 = stages[..6].iter().sum();
+            for (k, ms) in stages.iter().chain(std::iter::once(&thread)).enumerate() {
+                samples[v][k].push(*ms);
+            }
+        }
+    }
+    for (gen, _) in gens {
+        gen.finish()?;
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(variants
+        .iter()
+        .zip(samples)
+        .map(|((name, _), mut s)| StageRow { variant: name.to_string(), ms: std::array::from_fn(|k| median(&mut s[k])) })
+        .collect())
+}
+
+/// The Markdown table of [`stage_costs`].
+pub fn stages_markdown(rows: &[StageRow], frames: usize, repeats: usize) -> String {
+    let mut s = format!(
+        "\nWhere a frame's time goes (ms per frame, `generate`'s stages as `--timings` reports them; sequence 0, {frames} frames x {repeats} interleaved rounds, medians; write runs on its own thread, overlapping the next frame):\n\n\
+         | workload | plan | pose + skin | bvh refit | background | people | post | frame thread | write |\n|---|---|---|---|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        let m = r.ms;
+        s += &format!(
+            "| {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
+            r.variant, m[0], m[1], m[2], m[3], m[4], m[5], m[7], m[6]
+        );
+    }
+    s
+}
+
 /// What `pedscan bench` is asked for (its flags).
 #[derive(Clone, Debug, clap::Args)]
 pub struct BenchRequest {
@@ -742,7 +820,8 @@ fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
 }
 
 /// `pedscan bench`: the sweep (each point in a child process of `exe`), then the triangle
-/// rates, the sensor model's terms and where the raster background's work runs; writes the
+/// rates, the sensor model's terms, where the raster background's work runs and where a
+/// frame's time goes, stage by stage; writes the
 /// JSON, the Markdown tables and the plot, and returns the tables. With `point`, runs that one
 /// point here and returns its JSON line.
 pub fn bench(exe: &Path, req: &BenchRequest) -> Result<String> {
@@ -783,6 +862,7 @@ pub fn bench(exe: &Path, req: &BenchRequest) -> Result<String> {
     table += &bench_rates(&base, req.quick);
     table += &bench_terms(&base, req.quick);
     table += &bench_shares(&base, req.quick);
+    table += &bench_stages(&base, req.quick);
     write_file(&req.markdown, &table)?;
     plot(&points).save(&req.plot)?;
     Ok(table)
@@ -808,6 +888,15 @@ fn bench_shares(base: &Config, quick: bool) -> String {
     match host_share_costs(base, frames, repeats) {
         Ok((device, rows)) => shares_markdown(&device, &rows, frames, repeats),
         Err(e) => format!("\nWhere the raster background's work runs: not measured ({e})\n"),
+    }
+}
+
+/// The per-stage table, or a line saying why there is none.
+fn bench_stages(base: &Config, quick: bool) -> String {
+    let (frames, repeats) = if quick { (4, 3) } else { (32, 5) };
+    match stage_costs(base, frames, repeats) {
+        Ok(rows) => stages_markdown(&rows, frames, repeats),
+        Err(e) => format!("\nWhere a frame's time goes: not measured ({e})\n"),
     }
 }
 

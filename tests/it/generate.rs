@@ -379,3 +379,27 @@ fn copies_at_different_paths_write_the_same_bytes_and_config_hash() {
     let (_, hash_changed) = generate(&b);
     assert_ne!(hash_changed, hash_a, "a changed model left the config hash as it was");
 }
+
+/// `bench`'s per-stage table: one row per workload, each stage a difference of `--timings`'
+/// counters over the round's frames (so never negative), the frame thread their sum; its
+/// temporary folder is gone after. Timings are read, never compared with a bound.
+#[test]
+fn bench_stage_table_accounts_every_stage_of_a_round() {
+    let mut base = pedscan::config::Config::default();
+    base.humans.count = [1, 2];
+    let rows = pedscan::commands::bench::stage_costs(&base, 2, 2).unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r.variant.as_str()).collect();
+    assert_eq!(names, ["as configured", "sensor model off", "30 people"]);
+    for r in &rows {
+        assert!(r.ms.iter().all(|m| m.is_finite() && *m >= 0.0), "{r:?}");
+        // Medians of sums and sums of medians differ; with two rounds the median is their mean,
+        // which is linear, so the frame thread equals the sum of the six stage medians.
+        let sum: f64 = r.ms[..6].iter().sum();
+        assert!((sum - r.ms[7]).abs() <= 1e-9 * sum.max(1.0), "{r:?}");
+        assert!(r.ms[1] > 0.0 && r.ms[5] > 0.0 && r.ms[6] > 0.0, "pose, post and write ran: {r:?}");
+    }
+    let table = pedscan::commands::bench::stages_markdown(&rows, 2, 2);
+    assert_eq!(table.lines().filter(|l| l.starts_with("| ") && !l.starts_with("| workload")).count(), 3, "{table}");
+    let dir = std::env::temp_dir().join(format!("pedscan-bench-{}", std::process::id())).join("stages");
+    assert!(!dir.exists());
+}
