@@ -208,3 +208,69 @@ def test_unknown_format_exits_2(sample: Path, tmp_path: Path) -> None:
         )
         assert done.returncode == 2
         assert f"{predictions}: unknown predictions format" in done.stderr
+
+
+def _report(velocity: bool) -> dict:
+    """A scored report as :meth:`Report.as_dict` gives it, with numbers picked by hand."""
+    overall = {"beams": 1000, "human_beams": 40, "tp": 30, "fp": 10, "fn": 10,
+               "iou": 0.6, "precision": 0.75, "recall": 0.75}
+    bins = [
+        {"min_m": 0.0, "max_m": 4.0, "iou": 0.8, "precision": 0.9, "recall": 0.88888, "human_beams": 27},
+        {"min_m": 4.0, "max_m": 8.0, "iou": 1 / 3, "precision": 0.5, "recall": 0.5, "human_beams": 12},
+        {"min_m": 8.0, "max_m": None, "iou": None, "precision": None, "recall": 0.0, "human_beams": 1},
+    ]
+    if velocity:
+        overall["epe_mps"] = 0.12345
+        overall["velocity_error_mps"] = {"radial": 0.1, "tangential": 0.05, "up": 0.0125, "background_epe": 1.5}
+        for b, e in zip(bins, (0.1, 0.2, None)):
+            b["epe_mps"] = e
+    return {"sequences": 2, "frames": 3, "format": "h5", "notes": ["a note", "another"],
+            "overall": overall, "bins": bins}
+
+
+def test_the_printed_report_is_the_documented_table() -> None:
+    """Every line of the summary `evaluate` prints, written out by hand: counts, rounding to 4
+    (velocity 3) places, `n/a` for an undefined score, the bins' names, the columns' widths,
+    and the velocity lines and column only when the predictions carry velocity."""
+    from pedscan_data.evaluate import format_report
+
+    assert format_report(_report(velocity=False)).split("\n") == [
+        "ground truth: 2 sequences, 3 frames, 1000 returned beams, 40 human beams",
+        "predictions: h5",
+        "human IoU 0.6000  precision 0.7500  recall 0.7500  (TP 30, FP 10, FN 10)",
+        "note: a note",
+        "note: another",
+        "",
+        "distance       IoU  precision  recall  human beams",
+        "0-4 m       0.8000     0.9000  0.8889           27",
+        "4-8 m       0.3333     0.5000  0.5000           12",
+        "8+ m           n/a        n/a  0.0000            1",
+    ]
+    assert format_report(_report(velocity=True)).split("\n") == [
+        "ground truth: 2 sequences, 3 frames, 1000 returned beams, 40 human beams",
+        "predictions: h5",
+        "human IoU 0.6000  precision 0.7500  recall 0.7500  (TP 30, FP 10, FN 10)",
+        "note: a note",
+        "note: another",
+        "velocity end-point error on human beams: 0.123 m/s",
+        "  mean |error| along each beam: radial 0.100, tangential 0.050, up 0.013 m/s; "
+        "background beams' EPE 1.500 m/s",
+        "",
+        "distance       IoU  precision  recall  human beams  EPE m/s",
+        "0-4 m       0.8000     0.9000  0.8889           27    0.100",
+        "4-8 m       0.3333     0.5000  0.5000           12    0.200",
+        "8+ m           n/a        n/a  0.0000            1      n/a",
+    ]
+
+
+def test_a_mismatch_names_the_first_twenty_problems_and_counts_the_rest() -> None:
+    from pedscan_data.evaluate import MismatchError
+
+    few = MismatchError(["a: missing", "b: 3 frames, not 4"])
+    assert str(few) == "predictions do not match the ground truth:\n  a: missing\n  b: 3 frames, not 4"
+    assert few.problems == ["a: missing", "b: 3 frames, not 4"]
+    many = MismatchError([f"p{k}" for k in range(23)])
+    assert str(many) == ("predictions do not match the ground truth:\n  "
+                         + "\n  ".join(f"p{k}" for k in range(20)) + "\n  ... and 3 more")
+    exactly = MismatchError([f"p{k}" for k in range(20)])
+    assert not str(exactly).endswith("more")
