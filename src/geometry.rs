@@ -82,16 +82,24 @@ impl Adjacency {
         let mut offsets = Vec::with_capacity(tris + 1);
         let mut neighbours = Vec::with_capacity(tris * 12);
         offsets.push(0);
-        let mut ring: Vec<u32> = Vec::with_capacity(32);
+        // Each vertex's triangles are listed in ascending order (filled in triangle order), so
+        // a one-ring is the three lists merged, without sorting: the smallest head is taken,
+        // its copies at every head skipped.
+        let list = |i: u32| &vtris[vcount[i as usize] as usize..vcount[i as usize + 1] as usize];
         for (t, tri) in indices.chunks_exact(3).enumerate() {
-            ring.clear();
-            for &i in tri {
-                let (a, b) = (vcount[i as usize] as usize, vcount[i as usize + 1] as usize);
-                ring.extend(vtris[a..b].iter().copied().filter(|&n| n != t as u32));
+            let mut heads = [list(tri[0]), list(tri[1]), list(tri[2])];
+            loop {
+                let Some(next) = heads.iter().filter_map(|h| h.first().copied()).min() else { break };
+                for h in &mut heads {
+                    // A triangle that repeats a vertex is listed twice for it.
+                    while h.first() == Some(&next) {
+                        *h = &h[1..];
+                    }
+                }
+                if next != t as u32 {
+                    neighbours.push(next);
+                }
             }
-            ring.sort_unstable();
-            ring.dedup();
-            neighbours.extend_from_slice(&ring);
             offsets.push(neighbours.len() as u32);
         }
         Adjacency { offsets, neighbours }
@@ -274,6 +282,22 @@ mod tests {
         g.push_mesh(&[[0.0; 3]; 3], &[0, 1, 2], 0, true);
         g.push_mesh_with_adjacency(&[[0.0; 3]; 9], &idx, 2, false, Some(Arc::new(a)));
         assert_eq!(g.neighbours(2).collect::<Vec<_>>(), vec![1, 3, 4]);
+    }
+
+    /// The merged one-rings equal the definition, checked by brute force over every pair of
+    /// triangles, on a random mesh with shared vertices and triangles that repeat a vertex.
+    #[test]
+    fn adjacency_equals_the_brute_force_one_rings() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let idx: Vec<u32> = (0..3 * 400).map(|_| rng.random_range(0..150u32)).collect();
+        let a = Adjacency::build(&idx);
+        let tri = |t: usize| &idx[3 * t..3 * t + 3];
+        for t in 0..400 {
+            let expected: Vec<u32> =
+                (0..400).filter(|&u| u != t && tri(u).iter().any(|v| tri(t).contains(v))).map(|u| u as u32).collect();
+            assert_eq!(a.of(t as u32), expected.as_slice(), "triangle {t}");
+        }
     }
 
     #[test]
