@@ -41,17 +41,19 @@ def last_validation(run: Path) -> dict:
 
 def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) -> None:
     """The mask and the velocities, each alone (together, at this learning rate the human
-    velocity's weight of 1,001 shakes the mask for a few hundred steps)."""
-    common = ["--frames", "2", "--width", "8", "--val", two_frames, "--lr", "1e-2", "--decay", "0"]
+    velocity's weight of 1,001 shakes the mask for a few hundred steps). The mask's learning
+    rate decays (1e-2 / (1 + k / 100)): at a constant 1e-2 its IoU swings by 0.5 from one
+    hundred steps to the next, and where it stands at a given step differs between CPUs."""
+    common = ["--frames", "2", "--width", "8", "--val", two_frames, "--lr", "1e-2"]
     seg = tmp_path / "seg"
-    assert run_train(two_frames, "--out", seg, "--steps", "250", "--val-every", "250", *common,
+    assert run_train(two_frames, "--out", seg, "--steps", "500", "--val-every", "500", *common, "--decay", "1e-2",
                      "--loss-weights", "10000", "0", "0") == 0
     last = last_validation(seg)
-    assert last["step"] == 250
+    assert last["step"] == 500
     assert last["overall"]["human_beams"] > 100
     assert last["overall"]["iou"] >= 0.9, last["overall"]
     vel = tmp_path / "vel"
-    assert run_train(two_frames, "--out", vel, "--steps", "150", "--val-every", "150", *common,
+    assert run_train(two_frames, "--out", vel, "--steps", "150", "--val-every", "150", *common, "--decay", "0",
                      "--loss-weights", "0", "1", "1001") == 0
     with h5py.File(two_frames / "seq_000000.h5", "r") as f:
         human = (f["label"][1] == 1) & (f["range"][1] > 0)
@@ -65,7 +67,7 @@ def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) ->
     assert info["config"]["loss_weights"] == [10000.0, 0.0, 0.0]
     assert (seg / "curves.png").stat().st_size > 1000
     model = load_file(seg / "model.pt")
-    assert model["training"]["step"] == 250
+    assert model["training"]["step"] == 500
     # With --val, the human threshold is calibrated on it at the end, never worse than the argmax.
     cal = [json.loads(x) for x in (seg / "metrics.jsonl").read_text().splitlines() if '"calibration"' in x][-1]
     assert 0 < model["human_threshold"] < 1 and model["human_threshold"] == cal["human_threshold"]
