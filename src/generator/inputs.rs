@@ -2,6 +2,7 @@
 //! or the recording, the sensor's recorded poses, the pedestrian tracks, and what the stages
 //! derive from them once (the environment's meshes as drawn, the people's body regions).
 
+use crate::backend::Gpu;
 use crate::config::{BackendChoice, Config};
 use crate::error::{Error, Result};
 use crate::human::proxy::ModelProxies;
@@ -12,7 +13,6 @@ use crate::input::Recording;
 use crate::pose::PoseInputs;
 use crate::scene::{EnvDraw, Environment, WalkableGrid, WALKABLE_CELL_M};
 use crate::sensor::Sensor;
-use crate::backend::Gpu;
 use glam::{DMat4, DVec3};
 use rayon::prelude::*;
 use std::sync::Arc;

@@ -4,10 +4,10 @@
 //! ([`crate::sensor_model::shutter`]). Also the per-beam surface velocities of `velocity =
 //! "limb"`, which skin the people again about the frame's time.
 
-use crate::human::proxy::ModelProxies;
 use crate::backend::BeamHits;
 use crate::error::Result;
 use crate::geometry::FrameGeometry;
+use crate::human::proxy::ModelProxies;
 use crate::human::{GaitStyle, HumanModel, MODEL_TO_BODY};
 use crate::input::Recording;
 use crate::output::HumanState;
