@@ -22,14 +22,12 @@ pub struct Posed<'a> {
     pub proxies: &'a FrameGeometry,
 }
 
-
 fn layer_of(s: &PoseStage, kind: LayerKind) -> Layer<'_> {
     match kind {
         LayerKind::Background => Layer::Background(&s.background),
         LayerKind::People => Layer::People { people: &s.humans, proxies: &s.proxies },
     }
 }
-
 
 impl Generator {
     /// The frame [`Generator::pose_frame`] posed last.

@@ -80,7 +80,6 @@ pub fn frame_state_at(plan: &SequencePlan, k: usize, t: f64) -> FrameState {
     }
 }
 
-
 /// What the pose stage reads, loaded once for a run.
 pub struct PoseInputs<'a> {
     pub sensor: &'a Sensor,
