@@ -274,3 +274,5 @@ def test_a_mismatch_names_the_first_twenty_problems_and_counts_the_rest() -> Non
                          + "\n  ".join(f"p{k}" for k in range(20)) + "\n  ... and 3 more")
     exactly = MismatchError([f"p{k}" for k in range(20)])
     assert not str(exactly).endswith("more")
+    one_over = MismatchError([f"p{k}" for k in range(21)])
+    assert str(one_over).endswith("\n  p19\n  ... and 1 more")
