@@ -88,8 +88,7 @@ impl Adjacency {
         let list = |i: u32| &vtris[vcount[i as usize] as usize..vcount[i as usize + 1] as usize];
         for (t, tri) in indices.chunks_exact(3).enumerate() {
             let mut heads = [list(tri[0]), list(tri[1]), list(tri[2])];
-            loop {
-                let Some(next) = heads.iter().filter_map(|h| h.first().copied()).min() else { break };
+            while let Some(next) = heads.iter().filter_map(|h| h.first().copied()).min() {
                 for h in &mut heads {
                     // A triangle that repeats a vertex is listed twice for it.
                     while h.first() == Some(&next) {

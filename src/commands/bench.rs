@@ -9,7 +9,7 @@
 
 use crate::config::{Config, Refine};
 use crate::error::{Error, Result};
-use crate::output::{FrameOutput, SequenceWriter, WriterOptions};
+use crate::output::{write_file, FrameOutput, SequenceWriter, WriterOptions};
 use crate::config::BackendChoice;
 use crate::generator::Generator;
 use crate::backend::raycast::{self, Bvh};
@@ -813,10 +813,6 @@ pub struct BenchRequest {
     /// Redraw the table and plot from the points of an earlier `--json` file; runs nothing.
     #[arg(long)]
     pub from_json: Option<PathBuf>,
-}
-
-fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
-    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))
 }
 
 /// `pedscan bench`: the sweep (each point in a child process of `exe`), then the triangle

@@ -51,3 +51,8 @@ pub(crate) fn replace_dir(tmp: &Path, fin: &Path) -> Result<()> {
         rename(tmp, fin)
     }
 }
+
+/// Writes `bytes` to `path`, an error naming the path.
+pub(crate) fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))
+}

@@ -22,10 +22,10 @@
 //! renamed to `SS/` when complete.
 
 use crate::error::{Error, Result};
+use super::files::write_file;
 use crate::output::{FrameOutput, SequenceMeta};
 use glam::DVec3;
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -85,10 +85,6 @@ fn create_dir(p: &Path) -> Result<()> {
     std::fs::create_dir_all(p).map_err(|e| Error::io(p, e))
 }
 
-fn write_file(p: &Path, bytes: &[u8]) -> Result<()> {
-    let mut f = std::fs::File::create(p).map_err(|e| Error::io(p, e))?;
-    f.write_all(bytes).map_err(|e| Error::io(p, e))
-}
 
 impl SemanticKittiWriter {
     /// Creates `OUT/semantickitti/sequences/SS.tmp/` (an older one is replaced).
