@@ -207,9 +207,11 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     assert exp.main(args) == 0
     res = json.loads((work / "results.json").read_text())
     runs = [f"frames{n}" for n in (1, 2, 4, 8, 16)] + [f"motion-{m}" for m in ("static", "sliding", "in-place")]
-    assert sorted(res["runs"]) == sorted(runs)
+    on_rec = ["recorded-frames16", "recorded-frames1"]
+    assert sorted(res["runs"]) == sorted(runs + on_rec)
     assert all(r["step"] == 3 for r in res["runs"].values())
-    expected = {f"{r}--test" for r in runs} | {f"frames{n}--test-recorded" for n in (1, 2, 4, 8, 16)}
+    expected = ({f"{r}--test" for r in runs + on_rec} | {f"frames{n}--test-recorded" for n in (1, 2, 4, 8, 16)}
+                | {f"{r}--test-recorded" for r in on_rec})
     assert set(res["scores"]) == expected
     for key, s in res["scores"].items():
         assert s["from_frame"] == exp.SCORE_FROM and s["frames"] == 2, key
@@ -219,8 +221,16 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     static = json.loads((work / "runs" / "motion-static" / "run.json").read_text())
     assert static["config"]["data"][0]["seed"] == exp.SEEDS["train"]
     assert "--motion static" in (work / "data" / "train-static" / ".complete").read_text()
+    # The networks trained on the recording learned from, and were calibrated on, its own
+    # training and validation sets: people composited into it from seeds the test never uses.
+    onrec = json.loads((work / "runs" / "recorded-frames16" / "run.json").read_text())
+    assert onrec["config"]["data"][0]["seed"] == exp.SEEDS["train-recorded"]
+    for name in ("train-recorded", "val-recorded", "test-recorded"):
+        assert str(velodyne) in (work / "data" / name / ".complete").read_text(), name
+    assert len({exp.SEEDS[k] for k in ("train-recorded", "val-recorded", "recorded", "train", "val", "test")}) == 6
     md = (work / "results.md").read_text()
     assert "| 8+ m |" in md and "0.1622" in md and "A recorded background" in md
+    assert "| recorded-frames16 | test-recorded |" in md and "| recorded-frames1 | test |" in md
     assert (work / "results.png").stat().st_size > 1000
     assert (work / "results-example.png").stat().st_size > 1000
     stamp = {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")}
