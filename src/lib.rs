@@ -31,6 +31,7 @@ pub mod backend;
 pub mod gpu;
 pub mod post;
 pub mod sensor_model;
+pub mod realism;
 pub mod output;
 pub mod generator;
 pub mod commands;

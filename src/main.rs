@@ -97,6 +97,9 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// A recording against a pedscan output, measured the same way: hole rate by incidence,
+    /// range and row, range noise, intensity; the largest gap of each curve.
+    Realism(pedscan::commands::realism::RealismRequest),
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -161,6 +164,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             eprintln!("wrote {}", png.display());
         }
+        Command::Realism(req) => println!("{}", pedscan::commands::realism::realism(&req)?),
         Command::Info { file } => {
             print!("{}", pedscan::output::info(&file)?);
         }

@@ -88,6 +88,9 @@ pub struct Recording {
     /// Why frames of a capture take the uniform sweep instead of their own, once for the
     /// whole recording (how many, and the first frame's reason).
     pub sweep_warning: Option<String>,
+    /// The recording sensor's beam elevations, degrees, descending, when the source says
+    /// which sensor it is (a Velodyne capture); `None` for frame folders.
+    pub source_elevation_deg: Option<Vec<f64>>,
 }
 
 /// A frame's column boundary times after its own time, when it has its own sweep.
@@ -122,6 +125,7 @@ impl Recording {
         let projector = Projector::new(target);
         let mut column_offsets = Vec::new();
         let mut sweep_warning = None;
+        let mut source_elevation_deg = None;
         let (frames, capture_times, description) = if path.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
                 .map_err(|e| Error::input(path.display(), format!("cannot list the folder: {e}")))?
@@ -163,6 +167,9 @@ impl Recording {
                 rec.partial_rotations
             );
             let times: Vec<f64> = rec.scans.iter().map(|s| s.time_s.unwrap_or(f64::NAN)).collect();
+            let mut el = rec.model.elevation_deg().to_vec();
+            el.sort_by(|a, b| b.total_cmp(a));
+            source_elevation_deg = Some(el);
             (column_offsets, sweep_warning) = capture_sweeps(&rec.scans, target.columns);
             let mut images = Vec::with_capacity(rec.scans.len());
             for s in &rec.scans {
@@ -223,6 +230,7 @@ impl Recording {
             files_read: std::sync::atomic::AtomicUsize::new(0),
             column_offsets,
             sweep_warning,
+            source_elevation_deg,
         })
     }
 

@@ -7,7 +7,7 @@
 
 use crate::sensor::Sensor;
 
-mod files;
+pub(crate) mod files;
 mod h5;
 mod info;
 pub mod lock;

@@ -18,5 +18,6 @@ mod output;
 mod production;
 mod proxy;
 mod real_inputs;
+mod realism;
 mod sensor_model;
 mod stability;

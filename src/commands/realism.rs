@@ -1,0 +1,253 @@
+//! `pedscan realism REC SIM`: a recording against a pedscan output, measured by one estimator
+//! on the output's sensor grid ([`crate::realism`]): hole rate per incidence, range and row,
+//! range noise per range, intensity; a table, and optionally a JSON report and a PNG of the
+//! curves.
+
+use crate::error::{Error, Result};
+use crate::input::recording::{is_recording, Recording};
+use crate::plot::{Marker, Plot, Series, PALETTE};
+use crate::realism::{compare, Curve, Measure, Report, EXCLUDED};
+use crate::sensor::Sensor;
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+/// Fewest returns a side must have to be measured.
+pub const MIN_RETURNS: u64 = 10_000;
+
+/// `pedscan realism`'s arguments.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RealismRequest {
+    /// The recording: a Velodyne .pcap, a folder of KITTI .bin or .pcd frames, or a pedscan
+    /// output (a folder of seq_*.h5 or one file; its people are left out).
+    pub rec: PathBuf,
+    /// A pedscan output: a folder written by `generate` (every seq_*.h5) or one sequence file;
+    /// its people are left out (`--humans 0..0` measures the scene alone).
+    pub sim: PathBuf,
+    /// Write the curves, real against simulated, as a PNG.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Write the report as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Measure at most this many frames of each side, evenly spaced (default: all).
+    #[arg(long)]
+    pub max_frames: Option<usize>,
+}
+
+/// The grid both sides are measured on: the pedscan output's sensor.
+pub struct Grid {
+    pub sensor: Sensor,
+    pub dirs: Vec<DVec3>,
+}
+
+/// A source's frames as (file or recording index, frame) pairs, `max` of them evenly spaced.
+fn spaced(total: usize, max: Option<usize>) -> Vec<usize> {
+    match max {
+        Some(m) if m < total => (0..m).map(|k| k * total / m).collect(),
+        _ => (0..total).collect(),
+    }
+}
+
+fn is_output(path: &Path) -> bool {
+    if path.is_file() {
+        return path.extension().is_some_and(|e| e == "h5");
+    }
+    std::fs::read_dir(path).is_ok_and(|mut d| {
+        d.any(|e| e.is_ok_and(|e| e.file_name().to_string_lossy().starts_with("seq_") && e.path().extension().is_some_and(|x| x == "h5")))
+    })
+}
+
+fn open_h5(path: &Path) -> Result<hdf5::File> {
+    hdf5::File::open(path).map_err(|e| Error::input(path.display(), format!("not a readable HDF5 file ({e})")))
+}
+
+/// The sensor of a pedscan sequence file, from its `sensor` attribute and `/sensor/elevation_deg`.
+pub fn output_grid(path: &Path) -> Result<Grid> {
+    let file = open_h5(path)?;
+    let bad = |m: String| Error::input(path.display(), m);
+    let shape = file.dataset("range").map_err(|_| bad("no /range: not a pedscan sequence".into()))?.shape();
+    let [_, h, w] = shape[..] else { return Err(bad(format!("/range has shape {shape:?}, expected [frames, rows, columns]"))) };
+    let el: Vec<f32> = file
+        .dataset("sensor/elevation_deg")
+        .and_then(|d| d.read_raw())
+        .map_err(|_| bad("no /sensor/elevation_deg: not a pedscan sequence".into()))?;
+    if el.len() != h || w == 0 {
+        return Err(bad(format!("/sensor/elevation_deg has {} rows, /range {h} x {w}", el.len())));
+    }
+    let name = file
+        .attr("sensor")
+        .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
+        .map(|v| v.as_str().to_string())
+        .unwrap_or_else(|_| "sensor".into());
+    let elevation_deg: Vec<f64> = el.iter().map(|&e| e as f64).collect();
+    // The preset's range limits where the name is one (they decide what a recording keeps).
+    let base = Sensor::from_name_or_file(&name).ok().filter(|s| s.rows() == h).unwrap_or_else(Sensor::hdl32e);
+    let sensor = Sensor { name, elevation_deg, columns: w, ..base };
+    sensor.validate(&path.display().to_string())?;
+    let dirs = sensor.beam_dirs();
+    Ok(Grid { sensor, dirs })
+}
+
+fn same_grid(a: &Sensor, b: &Sensor, tol_deg: f64) -> bool {
+    a.columns == b.columns && a.rows() == b.rows() && a.elevation_deg.iter().zip(&b.elevation_deg).all(|(x, y)| (x - y).abs() <= tol_deg)
+}
+
+fn describe(s: &Sensor) -> String {
+    format!("{}: {} rows x {} columns, {:+.2} to {:+.2} deg", s.name, s.rows(), s.columns, s.elevation_deg[0], s.elevation_deg[s.rows() - 1])
+}
+
+/// Measures the frames of pedscan sequence files on `grid` (every file must be of that
+/// sensor); beams labelled human are left out.
+pub fn measure_output(files: &[PathBuf], grid: &Grid, max_frames: Option<usize>) -> Result<Measure> {
+    let mut m = Measure::new(grid.sensor.rows());
+    let mut frames = Vec::new();
+    for f in files {
+        let g = output_grid(f)?;
+        if !same_grid(&g.sensor, &grid.sensor, 0.0) {
+            return Err(Error::input(
+                f.display(),
+                format!("another sensor ({}) than the SIM output's ({})", describe(&g.sensor), describe(&grid.sensor)),
+            ));
+        }
+        let t = open_h5(f)?.dataset("range").map(|d| d.shape()[0]).unwrap_or(0);
+        frames.extend((0..t).map(|k| (f, k)));
+    }
+    let beams = grid.dirs.len();
+    let mut current: Option<(&PathBuf, Vec<f32>, Vec<f32>, Vec<u8>)> = None;
+    let mut range = Vec::with_capacity(beams);
+    for k in spaced(frames.len(), max_frames) {
+        let (f, t) = frames[k];
+        if current.as_ref().is_none_or(|c| c.0 != f) {
+            let file = open_h5(f)?;
+            let bad = |m: String| Error::input(f.display(), m);
+            let r: Vec<f32> = file.dataset("range").and_then(|d| d.read_raw()).map_err(|e| bad(format!("/range: {e}")))?;
+            let i: Vec<f32> = match file.dataset("intensity") {
+                Ok(d) => d.read_raw().map_err(|e| bad(format!("/intensity: {e}")))?,
+                Err(_) => Vec::new(),
+            };
+            let l: Vec<u8> = match file.dataset("label") {
+                Ok(d) => d.read_raw().map_err(|e| bad(format!("/label: {e}")))?,
+                Err(_) => Vec::new(),
+            };
+            if (!i.is_empty() && i.len() != r.len()) || (!l.is_empty() && l.len() != r.len()) {
+                return Err(bad("/intensity or /label does not match /range's shape".into()));
+            }
+            current = Some((f, r, i, l));
+        }
+        let (_, r, i, l) = current.as_ref().expect("read above");
+        let span = t * beams..(t + 1) * beams;
+        range.clear();
+        range.extend(r[span.clone()].iter().enumerate().map(|(b, &x)| {
+            let human = l.get(span.start + b).is_some_and(|&v| v == 1);
+            if human || !x.is_finite() || x < 0.0 {
+                EXCLUDED
+            } else {
+                x
+            }
+        }));
+        let intensity = if i.is_empty() { &[][..] } else { &i[span] };
+        m.add_frame(grid.sensor.columns, &grid.dirs, &range, intensity);
+    }
+    Ok(m)
+}
+
+/// Measures a recording (a capture or a frame folder) projected onto `grid`; a capture of
+/// another sensor than the grid's is refused.
+pub fn measure_recording(path: &Path, grid: &Grid, max_frames: Option<usize>) -> Result<Measure> {
+    let rec = Recording::open(path, None, &grid.sensor)?;
+    if let Some(el) = &rec.source_elevation_deg {
+        let source = Sensor { name: rec.description.split(' ').next().unwrap_or("capture").into(), elevation_deg: el.clone(), ..grid.sensor.clone() };
+        if !same_grid(&source, &grid.sensor, 0.05) {
+            return Err(Error::input(
+                path.display(),
+                format!("a capture of another sensor ({}) than the pedscan output's ({}); generate with the recording's sensor", describe(&source), describe(&grid.sensor)),
+            ));
+        }
+    }
+    let mut m = Measure::new(grid.sensor.rows());
+    let (mut range, mut intensity) = (Vec::new(), Vec::new());
+    for k in spaced(rec.len(), max_frames) {
+        rec.frame(k, &mut range, &mut intensity)?;
+        m.add_frame(grid.sensor.columns, &grid.dirs, &range, &intensity);
+    }
+    Ok(m)
+}
+
+/// Measures `path` on `grid`: a pedscan output or a recording.
+pub fn measure(path: &Path, grid: &Grid, max_frames: Option<usize>) -> Result<Measure> {
+    let m = if is_output(path) {
+        measure_output(&crate::commands::stats::sequence_files(path)?, grid, max_frames)?
+    } else if is_recording(path) {
+        measure_recording(path, grid, max_frames)?
+    } else if path.exists() {
+        return Err(Error::input(path.display(), "neither a pedscan output (seq_*.h5) nor a recording (.pcap, a folder of .bin or .pcd frames)"));
+    } else {
+        return Err(Error::input(path.display(), "no such file or folder"));
+    };
+    let returns = m.beams() - m.holes();
+    if returns < MIN_RETURNS {
+        return Err(Error::input(
+            path.display(),
+            format!("{returns} returns in {} frames: too few to measure (want at least {MIN_RETURNS})", m.frames),
+        ));
+    }
+    Ok(m)
+}
+
+/// Runs `pedscan realism`: measures both sides, writes the files asked for (each whole or
+/// not at all), returns the report.
+pub fn realism(req: &RealismRequest) -> Result<Report> {
+    if req.max_frames == Some(0) {
+        return Err(Error::input("--max-frames", "must be at least 1"));
+    }
+    let sim_files = crate::commands::stats::sequence_files(&req.sim)?;
+    let grid = output_grid(&sim_files[0])?;
+    let sim = measure(&req.sim, &grid, req.max_frames)?;
+    let rec = measure(&req.rec, &grid, req.max_frames)?;
+    let report = compare(&req.rec.display().to_string(), &rec, &req.sim.display().to_string(), &sim, &grid.sensor.elevation_deg);
+    if let Some(p) = &req.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| Error::io(p, std::io::Error::other(e)))?;
+        crate::output::files::write_file(p, text)?;
+    }
+    if let Some(p) = &req.png {
+        crate::plot::save_image(&plot(&report), p)?;
+    }
+    Ok(report)
+}
+
+fn curve_series(c: &Curve, x: impl Fn(f64, f64) -> f64, scale: f64) -> [Series; 2] {
+    let pts = |f: &dyn Fn(&crate::realism::Point) -> Option<f64>| -> Vec<(f64, f64)> {
+        c.points.iter().filter_map(|p| f(p).map(|v| (x(p.lo, p.hi), v * scale))).collect()
+    };
+    let min = if c.unit == "m" { crate::realism::MIN_RESIDUALS as u64 } else { crate::realism::MIN_BEAMS };
+    let enough = |n: u64| n >= min;
+    [
+        Series { name: "recording".into(), points: pts(&|p| p.rec.filter(|_| enough(p.rec_n))), colour: PALETTE[0], line: true, marker: Marker::Circle },
+        Series { name: "pedscan".into(), points: pts(&|p| p.sim.filter(|_| enough(p.sim_n))), colour: PALETTE[1], line: true, marker: Marker::Square },
+    ]
+}
+
+/// The report's curves as one picture: hole rate by incidence, by range and by row, range
+/// noise by range, and the intensity histograms (bins with too few beams left out).
+pub fn plot(r: &Report) -> image::RgbImage {
+    let mid = |lo: f64, hi: f64| if hi.is_finite() { 0.5 * (lo + hi) } else { lo + 0.5 * crate::realism::RANGE_BIN_M };
+    let tile = |title: &str, x: &str, y: &str, series: Vec<Series>| Plot { title: title.into(), x_label: x.into(), y_label: y.into(), series, width: 640, height: 380, ..Plot::default() };
+    let mut tiles = vec![
+        tile("hole rate by incidence", "incidence, deg", "holes, %", curve_series(&r.hole_rate_by_incidence, mid, 100.0).to_vec()),
+        tile("hole rate by range", "expected range, m", "holes, %", curve_series(&r.hole_rate_by_range, mid, 100.0).to_vec()),
+        tile("range noise (returns below 60 deg)", "range, m", "robust sd, mm", curve_series(&r.range_noise_by_range, mid, 1000.0).to_vec()),
+        tile("hole rate by row", "row elevation, deg", "holes, %", curve_series(&r.hole_rate_by_row, |lo, _| lo, 100.0).to_vec()),
+    ];
+    if let Some(i) = &r.intensity {
+        let centres: Vec<f64> = i.edges.windows(2).map(|e| 0.5 * (e[0] + e[1])).collect();
+        let s = |name: &str, v: &[f64], k: usize| Series { name: name.into(), points: centres.iter().zip(v).map(|(&x, &y)| (x, y)).collect(), colour: PALETTE[k], line: true, marker: Marker::Circle };
+        tiles.push(tile("intensity of returns", "intensity (sources' units)", "fraction of returns", vec![s("recording", &i.rec, 0), s("pedscan", &i.sim, 1)]));
+    }
+    let images: Vec<image::RgbImage> = tiles.iter().map(Plot::render).collect();
+    let (tw, th) = images[0].dimensions();
+    let mut out = image::RgbImage::from_pixel(2 * tw, th * images.len().div_ceil(2) as u32, image::Rgb([255, 255, 255]));
+    for (k, img) in images.iter().enumerate() {
+        image::imageops::overlay(&mut out, img, (k as u32 % 2 * tw) as i64, (k as u32 / 2 * th) as i64);
+    }
+    out
+}
