@@ -100,6 +100,9 @@ enum Command {
     /// A recording against a pedscan output, measured the same way: hole rate by incidence,
     /// range and row, range noise, intensity; the largest gap of each curve.
     Realism(pedscan::commands::realism::RealismRequest),
+    /// Fit the `[sensor_model]` terms a recording can tell (detection by incidence and power,
+    /// dropout, range noise) and write them as TOML.
+    SensorFit(pedscan::commands::realism::SensorFitRequest),
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -165,6 +168,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             eprintln!("wrote {}", png.display());
         }
         Command::Realism(req) => println!("{}", pedscan::commands::realism::realism(&req)?),
+        Command::SensorFit(req) => print!("{}", pedscan::commands::realism::sensor_fit(&req)?.toml),
         Command::Info { file } => {
             print!("{}", pedscan::output::info(&file)?);
         }

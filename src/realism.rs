@@ -78,6 +78,9 @@ pub struct Surface {
     pub expected_range_m: f64,
     /// Measured minus expected range, normalised for the plane's own error (returns only).
     pub residual_m: Option<f64>,
+    /// The median intensity of the neighbours that define the plane (when the source has
+    /// intensities): what the surface returns around the beam, whether or not it returned.
+    pub intensity: Option<f32>,
 }
 
 /// Symmetric 3x3 eigen decomposition (cyclic Jacobi): eigenvalues ascending, with their unit
@@ -151,11 +154,18 @@ fn fit_plane(pts: &[(DVec3, usize)]) -> Plane {
 /// hole, [`EXCLUDED`] (or any negative or non-finite value) left out; `dirs` the unit beam
 /// directions, row-major. Writes one entry per beam into `out`.
 pub fn estimate_frame(rows: usize, cols: usize, dirs: &[DVec3], range: &[f32], out: &mut Vec<Option<Surface>>) {
+    estimate_frame_with(rows, cols, dirs, range, &[], out)
+}
+
+/// [`estimate_frame`] with each beam's intensity (empty: none), for [`Surface::intensity`].
+pub fn estimate_frame_with(rows: usize, cols: usize, dirs: &[DVec3], range: &[f32], intensity: &[f32], out: &mut Vec<Option<Surface>>) {
     assert_eq!(dirs.len(), rows * cols);
     assert_eq!(range.len(), rows * cols);
     out.clear();
     out.resize(rows * cols, None);
+    // The neighbouring returns: point and beam index.
     let mut pts: Vec<(DVec3, usize)> = Vec::with_capacity((2 * ROW_REACH + 1) * (2 * COL_REACH + 1));
+    let mut scratch = Vec::new();
     for r in 0..rows {
         for c in 0..cols {
             let i = r * cols + c;
@@ -173,22 +183,31 @@ pub fn estimate_frame(rows: usize, cols: usize, dirs: &[DVec3], range: &[f32], o
                     }
                     let rj = range[j];
                     if rj > 0.0 && rj.is_finite() {
-                        pts.push((dirs[j] * rj as f64, rr));
+                        pts.push((dirs[j] * rj as f64, j));
                     }
                 }
             }
-            out[i] = surface_at(&mut pts, dirs[i], own);
+            out[i] = surface_at(&mut pts, cols, dirs[i], own).map(|mut s| {
+                if !intensity.is_empty() {
+                    scratch.clear();
+                    scratch.extend(pts.iter().map(|p| intensity[p.1] as f64).filter(|v| v.is_finite()));
+                    s.intensity = (!scratch.is_empty()).then(|| median_in_place(&mut scratch) as f32);
+                }
+                s
+            });
         }
     }
 }
 
-fn surface_at(pts: &mut Vec<(DVec3, usize)>, dir: DVec3, own: f32) -> Option<Surface> {
+/// The surface of a beam from its neighbouring returns `pts` (point, beam index) on a grid of
+/// `cols` columns.
+fn surface_at(pts: &mut Vec<(DVec3, usize)>, cols: usize, dir: DVec3, own: f32) -> Option<Surface> {
     let plane = loop {
         if pts.len() < MIN_NEIGHBOURS {
             return None;
         }
-        let first_row = pts[0].1;
-        if pts.iter().all(|p| p.1 == first_row) {
+        let first_row = pts[0].1 / cols;
+        if pts.iter().all(|p| p.1 / cols == first_row) {
             return None;
         }
         let plane = fit_plane(pts);
@@ -222,7 +241,7 @@ fn surface_at(pts: &mut Vec<(DVec3, usize)>, dir: DVec3, own: f32) -> Option<Sur
     }
     let k = pts.len() as f64;
     let residual_m = (own > 0.0).then(|| (own as f64 - t) / (1.0 + 1.0 / k).sqrt());
-    Some(Surface { incidence_deg: along.abs().min(1.0).acos().to_degrees(), expected_range_m: t, residual_m })
+    Some(Surface { incidence_deg: along.abs().min(1.0).acos().to_degrees(), expected_range_m: t, residual_m, intensity: None })
 }
 
 /// Beams and holes in one bin.
@@ -261,7 +280,19 @@ pub struct Measure {
     pub intensity: Vec<f32>,
     /// Whether the source records an intensity.
     pub has_intensity: bool,
+    /// Every beam with a surface, when kept ([`Measure::keep_samples`]): what a fit needs.
+    pub samples: Option<Vec<Sample>>,
     surfaces: Vec<Option<Surface>>,
+}
+
+/// One beam with a surface, for fitting.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub incidence_deg: f32,
+    pub expected_range_m: f32,
+    /// The neighbours' median intensity (NaN without one).
+    pub intensity: f32,
+    pub hole: bool,
 }
 
 /// The bin of a value on bins of `width` from 0, the last bin open.
@@ -280,15 +311,22 @@ impl Measure {
             residuals: vec![Vec::new(); RANGE_BINS],
             intensity: Vec::new(),
             has_intensity: false,
+            samples: None,
             surfaces: Vec::new(),
         }
+    }
+
+    /// The same, keeping every beam with a surface as a [`Sample`].
+    pub fn keep_samples(mut self) -> Measure {
+        self.samples = Some(Vec::new());
+        self
     }
 
     /// Adds a frame: `range` as for [`estimate_frame`]; `intensity` per beam (empty when the
     /// source has none).
     pub fn add_frame(&mut self, cols: usize, dirs: &[DVec3], range: &[f32], intensity: &[f32]) {
         let rows = self.by_row.len();
-        estimate_frame(rows, cols, dirs, range, &mut self.surfaces);
+        estimate_frame_with(rows, cols, dirs, range, intensity, &mut self.surfaces);
         self.frames += 1;
         self.has_intensity |= !intensity.is_empty();
         let n_inc = self.by_incidence.len();
@@ -308,6 +346,14 @@ impl Measure {
             match s {
                 None => self.no_surface.add(hole),
                 Some(s) => {
+                    if let Some(v) = &mut self.samples {
+                        v.push(Sample {
+                            incidence_deg: s.incidence_deg as f32,
+                            expected_range_m: s.expected_range_m as f32,
+                            intensity: s.intensity.unwrap_or(f32::NAN),
+                            hole,
+                        });
+                    }
                     self.by_incidence[bin_of(s.incidence_deg, INCIDENCE_BIN_DEG, n_inc)].add(hole);
                     let rb = bin_of(s.expected_range_m, RANGE_BIN_M, RANGE_BINS);
                     self.by_range[rb].add(hole);
@@ -625,5 +671,6 @@ impl fmt::Display for Report {
     }
 }
 
+pub mod fit;
 #[cfg(test)]
 mod tests;

@@ -98,15 +98,19 @@ fn describe(s: &Sensor) -> String {
 
 /// Measures the frames of pedscan sequence files on `grid` (every file must be of that
 /// sensor); beams labelled human are left out.
-pub fn measure_output(files: &[PathBuf], grid: &Grid, max_frames: Option<usize>) -> Result<Measure> {
+pub fn measure_output(files: &[PathBuf], grid: &Grid, max_frames: Option<usize>, samples: bool) -> Result<Measure> {
     let mut m = Measure::new(grid.sensor.rows());
+    if samples {
+        m = m.keep_samples();
+    }
     let mut frames = Vec::new();
     for f in files {
         let g = output_grid(f)?;
-        if !same_grid(&g.sensor, &grid.sensor, 0.0) {
+        // The file's elevations are f32: equal to the grid's within their rounding.
+        if !same_grid(&g.sensor, &grid.sensor, 1e-4) {
             return Err(Error::input(
                 f.display(),
-                format!("another sensor ({}) than the SIM output's ({})", describe(&g.sensor), describe(&grid.sensor)),
+                format!("another sensor ({}) than the one measured on ({})", describe(&g.sensor), describe(&grid.sensor)),
             ));
         }
         let t = open_h5(f)?.dataset("range").map(|d| d.shape()[0]).unwrap_or(0);
@@ -153,7 +157,7 @@ pub fn measure_output(files: &[PathBuf], grid: &Grid, max_frames: Option<usize>)
 
 /// Measures a recording (a capture or a frame folder) projected onto `grid`; a capture of
 /// another sensor than the grid's is refused.
-pub fn measure_recording(path: &Path, grid: &Grid, max_frames: Option<usize>) -> Result<Measure> {
+pub fn measure_recording(path: &Path, grid: &Grid, max_frames: Option<usize>, samples: bool) -> Result<Measure> {
     let rec = Recording::open(path, None, &grid.sensor)?;
     if let Some(el) = &rec.source_elevation_deg {
         let source = Sensor { name: rec.description.split(' ').next().unwrap_or("capture").into(), elevation_deg: el.clone(), ..grid.sensor.clone() };
@@ -165,6 +169,9 @@ pub fn measure_recording(path: &Path, grid: &Grid, max_frames: Option<usize>) ->
         }
     }
     let mut m = Measure::new(grid.sensor.rows());
+    if samples {
+        m = m.keep_samples();
+    }
     let (mut range, mut intensity) = (Vec::new(), Vec::new());
     for k in spaced(rec.len(), max_frames) {
         rec.frame(k, &mut range, &mut intensity)?;
@@ -175,10 +182,15 @@ pub fn measure_recording(path: &Path, grid: &Grid, max_frames: Option<usize>) ->
 
 /// Measures `path` on `grid`: a pedscan output or a recording.
 pub fn measure(path: &Path, grid: &Grid, max_frames: Option<usize>) -> Result<Measure> {
+    measure_with(path, grid, max_frames, false)
+}
+
+/// [`measure`], keeping every beam's sample when `samples`.
+pub fn measure_with(path: &Path, grid: &Grid, max_frames: Option<usize>, samples: bool) -> Result<Measure> {
     let m = if is_output(path) {
-        measure_output(&crate::commands::stats::sequence_files(path)?, grid, max_frames)?
+        measure_output(&crate::commands::stats::sequence_files(path)?, grid, max_frames, samples)?
     } else if is_recording(path) {
-        measure_recording(path, grid, max_frames)?
+        measure_recording(path, grid, max_frames, samples)?
     } else if path.exists() {
         return Err(Error::input(path.display(), "neither a pedscan output (seq_*.h5) nor a recording (.pcap, a folder of .bin or .pcd frames)"));
     } else {
@@ -250,4 +262,130 @@ pub fn plot(r: &Report) -> image::RgbImage {
         image::imageops::overlay(&mut out, img, (k as u32 % 2 * tw) as i64, (k as u32 / 2 * th) as i64);
     }
     out
+}
+
+/// Fewest beams with a surface and an intensity for a fit of the detection terms.
+pub const MIN_FIT_BEAMS: u64 = 20_000;
+/// Fewest of them beyond 70 deg of incidence, for the grazing terms.
+pub const MIN_GRAZING_BEAMS: u64 = 2_000;
+/// Fewest residuals in a range bin for its noise to count.
+pub const MIN_NOISE_RESIDUALS: usize = 2_000;
+
+/// `pedscan sensor-fit`'s arguments.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SensorFitRequest {
+    /// Recordings of one sensor: Velodyne .pcap files, folders of KITTI .bin or .pcd frames,
+    /// or pedscan outputs (their people left out).
+    #[arg(required = true)]
+    pub recs: Vec<PathBuf>,
+    /// Where to write the fitted `[sensor_model]` (TOML, the fit's figures as comments).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The recordings' sensor: a preset or a TOML file.
+    #[arg(long, default_value = "hdl32e")]
+    pub sensor: String,
+    /// The recordings' intensity units (intensity = this * reflectance * cos(incidence));
+    /// default 100 for a Velodyne capture (calibrated reflectivity, percent), else 1.
+    #[arg(long)]
+    pub intensity_scale: Option<f64>,
+    /// Measure at most this many frames of each recording, evenly spaced (default: all).
+    #[arg(long)]
+    pub max_frames: Option<usize>,
+}
+
+/// What `sensor-fit` found, and the TOML it wrote.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SensorFit {
+    pub detection: crate::realism::fit::DetectionFit,
+    /// The range noise taken (the smallest robust sd of a range bin) and every bin's.
+    pub range_noise_m: f64,
+    pub noise_by_range: Vec<(f64, usize, f64)>,
+    pub toml: String,
+}
+
+/// The `[sensor_model]` terms a recording cannot tell, and why.
+pub const NOT_FITTED: [(&str, &str); 6] = [
+    ("laser_bias_m", "each laser's bias needs the true range of what it saw"),
+    ("divergence_mrad, mixed_return_m", "footprints show at silhouettes, which the plane estimator leaves out"),
+    ("*_reflectance", "recordings hold no labeled people"),
+    ("intensity_scale", "the intensity's units are the source's definition (--intensity-scale)"),
+    ("rolling_shutter", "a capture's own sweep is read from its packets"),
+    ("enabled", "a switch"),
+];
+
+/// Runs `pedscan sensor-fit`: measures every recording on the sensor's grid, fits the
+/// detection terms and the range noise, writes the TOML (whole or not at all).
+pub fn sensor_fit(req: &SensorFitRequest) -> Result<SensorFit> {
+    if req.max_frames == Some(0) {
+        return Err(Error::input("--max-frames", "must be at least 1"));
+    }
+    let sensor = Sensor::from_name_or_file(&req.sensor)?;
+    let grid = Grid { dirs: sensor.beam_dirs(), sensor };
+    let mut samples = Vec::new();
+    let mut residuals: Vec<Vec<f32>> = vec![Vec::new(); crate::realism::RANGE_BINS];
+    let mut scale = None;
+    let mut lines = vec!["# pedscan sensor-fit: the [sensor_model] terms these recordings tell, fitted by maximum".to_string(), "# likelihood over every beam whose neighbours define a surface (pedscan realism's estimator).".into()];
+    for rec in &req.recs {
+        let m = measure_with(rec, &grid, req.max_frames, true)?;
+        if !m.has_intensity {
+            return Err(Error::input(
+                rec.display(),
+                "records no intensity: the detection terms follow the received power (reflectance), which it cannot tell",
+            ));
+        }
+        let s = req.intensity_scale.unwrap_or(if rec.extension().is_some_and(|e| e.eq_ignore_ascii_case("pcap")) { 100.0 } else { 1.0 });
+        if !(s > 0.0 && s.is_finite()) {
+            return Err(Error::input("--intensity-scale", format!("{s} must be a positive number")));
+        }
+        if scale.is_some_and(|x| x != s) {
+            return Err(Error::input(rec.display(), "another intensity scale than the recordings before it: fit recordings of one kind together"));
+        }
+        scale = Some(s);
+        lines.push(format!("# {}: {} frames, {} beams, {:.1} % holes", rec.display(), m.frames, m.beams(), 100.0 * m.holes() as f64 / m.beams().max(1) as f64));
+        for (k, r) in m.residuals.iter().enumerate() {
+            residuals[k].extend_from_slice(r);
+        }
+        samples.extend(m.samples.unwrap_or_default());
+    }
+    let scale = scale.unwrap_or(1.0);
+    let all = req.recs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ");
+    let fit = crate::realism::fit::fit_detection(&samples, scale, MIN_FIT_BEAMS).ok_or_else(|| {
+        Error::input(&all, format!("{} beams with a surface and an intensity: too few to fit the detection terms (want {MIN_FIT_BEAMS})", samples.iter().filter(|s| s.intensity > 0.0).count()))
+    })?;
+    let grazing = samples.iter().filter(|s| s.intensity > 0.0 && s.incidence_deg >= 70.0).count() as u64;
+    if grazing < MIN_GRAZING_BEAMS {
+        return Err(Error::input(&all, format!("{grazing} beams beyond 70 deg of incidence: too few to fit the grazing terms (want {MIN_GRAZING_BEAMS})")));
+    }
+    let noise_by_range: Vec<(f64, usize, f64)> = residuals
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.len() >= MIN_NOISE_RESIDUALS)
+        .filter_map(|(k, r)| crate::realism::robust_sd(r).map(|sd| (k as f64 * crate::realism::RANGE_BIN_M, r.len(), sd)))
+        .collect();
+    let Some(&(_, _, noise)) = noise_by_range.iter().min_by(|a, b| a.2.total_cmp(&b.2)) else {
+        return Err(Error::input(&all, format!("no range bin with {MIN_NOISE_RESIDUALS} residuals below 60 deg of incidence: too few to fit the range noise")));
+    };
+    lines.push(format!("# intensity scale {scale}; {} beams fitted, {} holes; mean -log-likelihood per beam {:.4}", fit.beams, fit.holes, fit.nll_per_beam));
+    lines.push("# hole rate by incidence, observed / fitted (beams):".into());
+    for &(lo, n, obs, pred) in fit.by_incidence.iter().filter(|b| b.1 >= crate::realism::MIN_BEAMS) {
+        lines.push(format!("#   {lo:>4.0}-{:<4.0} deg  {:5.1} % / {:5.1} %  ({n})", lo + crate::realism::INCIDENCE_BIN_DEG, 100.0 * obs, 100.0 * pred));
+    }
+    lines.push(format!("# range noise, robust sd per range bin below 60 deg (the smallest taken: a surface's roughness adds to the sensor's own):"));
+    for &(lo, n, sd) in &noise_by_range {
+        lines.push(format!("#   {lo:>4.0}-{:<4.0} m  {:6.1} mm  ({n} residuals)", lo + crate::realism::RANGE_BIN_M, 1000.0 * sd));
+    }
+    lines.push("# not fitted (the recordings cannot tell):".into());
+    for (k, why) in NOT_FITTED {
+        lines.push(format!("#   {k}: {why}"));
+    }
+    lines.push("[sensor_model]".into());
+    lines.push(format!("dropout_rate = {:.4}", fit.dropout_rate));
+    lines.push(format!("grazing_deg = [{:.1}, 90.0]", fit.grazing_start_deg));
+    lines.push(format!("grazing_loss = {:.3}", fit.grazing_loss));
+    lines.push(format!("detection_range_m = {:.1}", fit.detection_range_m));
+    lines.push(format!("detection_softness = {:.3}", fit.detection_softness));
+    lines.push(format!("range_noise_m = {:.4}", noise));
+    let toml = lines.join("\n") + "\n";
+    crate::output::files::write_file(&req.out, &toml)?;
+    Ok(SensorFit { detection: fit, range_noise_m: noise, noise_by_range, toml })
 }

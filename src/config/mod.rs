@@ -393,9 +393,11 @@ pub struct SensorModelConfig {
     /// Width of the detection curve in natural-log units of received power (0 = a hard
     /// threshold).
     pub detection_softness: f64,
-    /// Incidence angles (from the surface normal) over which detection falls linearly from
-    /// all to none, degrees.
+    /// Incidence angles (from the surface normal) over which detection falls linearly in
+    /// cos(incidence) from all to `1 - grazing_loss`, degrees.
     pub grazing_deg: [f64; 2],
+    /// Fraction of returns lost at `grazing_deg[1]` and beyond (1: none return there).
+    pub grazing_loss: f64,
     /// Full beam divergence, horizontal and vertical, mrad (0 = a knife-edge beam).
     pub divergence_mrad: [f64; 2],
     /// Surfaces closer together than this within one beam's footprint give one mixed return
@@ -425,6 +427,7 @@ impl Default for SensorModelConfig {
             detection_range_m: 70.0,
             detection_softness: 0.3,
             grazing_deg: [75.0, 89.0],
+            grazing_loss: 1.0,
             divergence_mrad: [3.0, 1.5],
             mixed_return_m: 0.5,
             skin_reflectance: [0.25, 0.55],
@@ -460,6 +463,7 @@ impl SensorModelConfig {
         positive("sensor_model.detection_range_m", m.detection_range_m)?;
         non_negative("sensor_model.detection_softness", m.detection_softness)?;
         range_ok("sensor_model.grazing_deg", m.grazing_deg, 0.0, 90.0)?;
+        range_ok("sensor_model.grazing_loss", [m.grazing_loss, m.grazing_loss], 0.0, 1.0)?;
         range_ok("sensor_model.divergence_mrad", [m.divergence_mrad[0].min(m.divergence_mrad[1]), m.divergence_mrad[0].max(m.divergence_mrad[1])], 0.0, 50.0)?;
         non_negative("sensor_model.mixed_return_m", m.mixed_return_m)?;
         for (key, r) in [

@@ -13,8 +13,9 @@
 //!   return mode). Its power and intensity are the footprint's share.
 //! - **Dropout**: a return is detected with probability `(1 - dropout_rate) * g(incidence) *
 //!   d(power)`: `d` a logistic in the log of the received power `reflectance * cos / r^2`
-//!   against that of reflectance 0.1 head-on at `detection_range_m`, `g` falling linearly from
-//!   1 to 0 over `grazing_deg`. A lost return is a hole: range 0, label 0, instance 0.
+//!   against that of reflectance 0.1 head-on at `detection_range_m`, `g` falling linearly in
+//!   cos(incidence) from 1 to `1 - grazing_loss` over `grazing_deg`. A lost return is a hole:
+//!   range 0, label 0, instance 0.
 //! - **Range noise**: a per-laser bias (drawn per sequence) plus Gaussian noise per return.
 //!
 //! The rolling shutter (each column at its own time) is not a post effect: the frame is posed
@@ -244,7 +245,9 @@ pub fn apply(f: &FrameIn, scene: &dyn FootprintScene, out: &mut Vec<BeamOut>) {
                 (power >= p50) as u8 as f64
             };
             let c = s.cos_incidence as f64;
-            let g = if c >= g0 { 1.0 } else if c <= g1 || g0 <= g1 { 0.0 } else { (c - g1) / (g0 - g1) };
+            // Linear in cos(incidence) from 1 at grazing_deg[0] to 1 - grazing_loss at [1].
+            let loss = cfg.grazing_loss;
+            let g = if c >= g0 { 1.0 } else if c <= g1 || g0 <= g1 { 1.0 - loss } else { 1.0 - loss * (g0 - c) / (g0 - g1) };
             if u_drop >= (1.0 - cfg.dropout_rate) * g * d {
                 continue;
             }

@@ -99,3 +99,80 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
     refused(&["junk.h5", "hdl"], "junk.h5: not a readable HDF5 file");
     refused(&["hdl", "hdl", "--max-frames", "0"], "--max-frames");
 }
+
+/// A folder with one ascii PCD frame of x y z only (no intensity): an HDL-32E's beams on a
+/// wall 6 m ahead.
+fn wall_pcd(dir: &std::path::Path) {
+    let s = pedscan::sensor::Sensor::hdl32e();
+    let pts: Vec<String> = s
+        .beam_dirs()
+        .iter()
+        .filter(|d| d.x > 0.05)
+        .map(|d| {
+            let p = *d * (6.0 / d.x);
+            format!("{} {} {}", p.x as f32, p.y as f32, p.z as f32)
+        })
+        .collect();
+    let header = format!(
+        "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA ascii\n",
+        n = pts.len()
+    );
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("000000.pcd"), header + &pts.join("\n") + "\n").unwrap();
+}
+
+#[test]
+fn a_fit_gives_back_the_terms_an_output_was_made_with() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    // Divergence and laser bias off: holes only from dropout, grazing and detection, noise
+    // only from the range noise.
+    std::fs::write(
+        dir.join("known.toml"),
+        "[sensor_model]\ndropout_rate = 0.03\ngrazing_deg = [70.0, 90.0]\ngrazing_loss = 0.4\ndetection_range_m = 30.0\n\
+         detection_softness = 0.5\nrange_noise_m = 0.01\nlaser_bias_m = 0.0\ndivergence_mrad = [0.0, 0.0]\n",
+    )
+    .unwrap();
+    ok(&pedscan(&["generate", "--backend", "raycast", "--config", "known.toml", "--humans", "0..0", "--frames", "10", "--sequences", "2", "--out", "o"], dir));
+    ok(&pedscan(&["sensor-fit", "o", "--out", "fit.toml"], dir));
+    let text = std::fs::read_to_string(dir.join("fit.toml")).unwrap();
+    let cfg: toml::Value = toml::from_str(&text).unwrap();
+    let m = &cfg["sensor_model"];
+    let f = |k: &str| m[k].as_float().unwrap();
+    // Measured on this estimator (README, "Sensor model"): dropout, the start of the grazing
+    // fall, the softness and the noise come back; the loss at 90 deg and the detection range
+    // trade against each other in a hall 36 m across and come back 25 % low.
+    assert!((f("dropout_rate") - 0.03).abs() < 0.004, "{text}");
+    assert!((m["grazing_deg"][0].as_float().unwrap() - 70.0).abs() < 4.0, "{text}");
+    assert!((f("range_noise_m") / 0.01 - 1.0).abs() < 0.1, "{text}");
+    assert!((f("detection_softness") / 0.5 - 1.0).abs() < 0.25, "{text}");
+    assert!(f("grazing_loss") > 0.2 && f("grazing_loss") < 0.5, "{text}");
+    assert!(text.contains("# not fitted") && text.contains("laser_bias_m:"), "{text}");
+    // The file is a configuration pedscan takes.
+    ok(&pedscan(&["generate", "--backend", "raycast", "--config", "fit.toml", "--frames", "1", "--humans", "0..0", "--out", "again"], dir));
+}
+
+#[test]
+fn a_fit_refuses_what_the_recording_cannot_tell() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    wall_pcd(&dir.join("wall"));
+    // realism compares what it can, and says the intensity is not compared.
+    ok(&pedscan(&["generate", "--backend", "raycast", "--frames", "1", "--humans", "0..0", "--out", "hall"], dir));
+    let o = pedscan(&["realism", "wall", "hall"], dir);
+    ok(&o);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("wall: records no intensity"));
+    let refused = |args: &[&str], needle: &str| {
+        expect_input_error(&[&["sensor-fit"], args, &["--out", "fit.toml"][..]].concat(), dir, needle);
+        assert!(!dir.join("fit.toml").exists(), "{args:?} wrote the fit");
+    };
+    refused(&["wall"], "wall: records no intensity");
+    refused(&["nowhere"], "nowhere: no such file or folder");
+    refused(&["hall", "--sensor", "vlp16"], "another sensor (hdl32e");
+    refused(&["hall", "--max-frames", "0"], "--max-frames");
+    refused(&["hall", "--intensity-scale=-1"], "--intensity-scale");
+    refused(&["hall", "--intensity-scale=nan"], "--intensity-scale");
+    // One VLP-16 frame: enough returns to measure (16,384 beams), too few to fit (20,000).
+    ok(&pedscan(&["generate", "--backend", "raycast", "--frames", "1", "--humans", "0..0", "--sensor", "vlp16", "--out", "vlp"], dir));
+    refused(&["vlp", "--sensor", "vlp16"], "too few to fit the detection terms (want 20000)");
+}

@@ -575,8 +575,8 @@ fn realism_refuses_a_capture_of_another_sensor_than_the_output() {
     let dist = |f: usize, _: usize, _: usize| 2000 + (f % 50) as u16;
     let f = write_file(&capture(&spin(VLP, STRONGEST, 9051, 20, 400, dist)).bytes);
     let grid = |s: crate::sensor::Sensor| crate::commands::realism::Grid { dirs: s.beam_dirs(), sensor: s };
-    let err = crate::commands::realism::measure_recording(f.path(), &grid(crate::sensor::Sensor::hdl32e()), None).unwrap_err().to_string();
+    let err = crate::commands::realism::measure_recording(f.path(), &grid(crate::sensor::Sensor::hdl32e()), None, false).unwrap_err().to_string();
     assert!(err.contains("a capture of another sensor (VLP-16: 16 rows") && err.contains("hdl32e: 32 rows"), "{err}");
-    let m = crate::commands::realism::measure_recording(f.path(), &grid(crate::sensor::Sensor::vlp16()), None).unwrap();
+    let m = crate::commands::realism::measure_recording(f.path(), &grid(crate::sensor::Sensor::vlp16()), None, false).unwrap();
     assert!(m.frames >= 2 && m.beams() > m.holes());
 }
