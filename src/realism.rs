@@ -468,12 +468,12 @@ pub struct Side {
 /// The intensity comparison.
 #[derive(Clone, Debug, Serialize)]
 pub struct IntensityReport {
-    /// Histogram bin edges (each side in its own units; bins to the larger 99.5th percentile).
+    /// Histogram bin edges (up to the larger 99.5th percentile of the two sides).
     pub edges: Vec<f64>,
     /// Fraction of returns per bin.
     pub rec: Vec<f64>,
     pub sim: Vec<f64>,
-    /// 1-Wasserstein distance in the sources' units.
+    /// 1-Wasserstein distance in the intensities' units.
     pub wasserstein: Option<f64>,
     /// The same after dividing each side by its own median (the shape of the distributions,
     /// whatever their units).
@@ -657,7 +657,7 @@ impl fmt::Display for Report {
                 )?;
                 writeln!(
                     f,
-                    "Wasserstein-1 distance: {} (sources' units), {} (each over its median)",
+                    "Wasserstein-1 distance: {}, {} (each over its median)",
                     i.wasserstein.map_or("-".into(), |v| format!("{v:.3}")),
                     i.wasserstein_over_median.map_or("-".into(), |v| format!("{v:.3}"))
                 )?;

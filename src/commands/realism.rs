@@ -96,6 +96,34 @@ fn describe(s: &Sensor) -> String {
     format!("{}: {} rows x {} columns, {:+.2} to {:+.2} deg", s.name, s.rows(), s.columns, s.elevation_deg[0], s.elevation_deg[s.rows() - 1])
 }
 
+/// The intensity units of a pedscan sequence file (intensity = scale * reflectance * cos):
+/// its configuration's `sensor_model.intensity_scale`, else 100 over a Velodyne capture and 1
+/// over anything else (the rule `generate` follows).
+pub fn output_intensity_scale(path: &Path) -> Result<f64> {
+    let file = open_h5(path)?;
+    let text = file
+        .attr("config")
+        .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
+        .map(|v| v.as_str().to_string())
+        .map_err(|_| Error::input(path.display(), "no `config` attribute: not a pedscan sequence"))?;
+    let cfg: toml::Value = toml::from_str(&text).map_err(|e| Error::input(path.display(), format!("its `config` attribute is not TOML: {e}")))?;
+    if let Some(s) = cfg.get("sensor_model").and_then(|m| m.get("intensity_scale")).and_then(|v| v.as_float()) {
+        return Ok(s);
+    }
+    let bg = cfg.get("scene").and_then(|s| s.get("background")).and_then(|v| v.as_str()).unwrap_or("");
+    Ok(if bg.to_ascii_lowercase().ends_with(".pcap") { 100.0 } else { 1.0 })
+}
+
+/// The intensity units of a source: a pedscan output's ([`output_intensity_scale`]), 100 for
+/// a Velodyne capture, 1 for anything else.
+pub fn intensity_scale_of(path: &Path) -> Result<f64> {
+    if is_output(path) {
+        output_intensity_scale(&crate::commands::stats::sequence_files(path)?[0])
+    } else {
+        Ok(if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pcap")) { 100.0 } else { 1.0 })
+    }
+}
+
 /// Measures the frames of pedscan sequence files on `grid` (every file must be of that
 /// sensor); beams labelled human are left out.
 pub fn measure_output(files: &[PathBuf], grid: &Grid, max_frames: Option<usize>, samples: bool) -> Result<Measure> {
@@ -214,9 +242,16 @@ pub fn realism(req: &RealismRequest) -> Result<Report> {
     }
     let sim_files = crate::commands::stats::sequence_files(&req.sim)?;
     let grid = output_grid(&sim_files[0])?;
-    let sim = measure(&req.sim, &grid, req.max_frames)?;
-    let rec = measure(&req.rec, &grid, req.max_frames)?;
-    let report = compare(&req.rec.display().to_string(), &rec, &req.sim.display().to_string(), &sim, &grid.sensor.elevation_deg);
+    let mut sim = measure(&req.sim, &grid, req.max_frames)?;
+    let mut rec = measure(&req.rec, &grid, req.max_frames)?;
+    // Both sides' intensities in the model's units, reflectance * cos(incidence).
+    let scales = (intensity_scale_of(&req.rec)?, intensity_scale_of(&req.sim)?);
+    rec.intensity.iter_mut().for_each(|v| *v /= scales.0 as f32);
+    sim.intensity.iter_mut().for_each(|v| *v /= scales.1 as f32);
+    let mut report = compare(&req.rec.display().to_string(), &rec, &req.sim.display().to_string(), &sim, &grid.sensor.elevation_deg);
+    if report.intensity.is_some() {
+        report.notes.push(format!("intensities in reflectance x cos(incidence): rec's divided by {}, sim's by {}", scales.0, scales.1));
+    }
     if let Some(p) = &req.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| Error::io(p, std::io::Error::other(e)))?;
         crate::output::files::write_file(p, text)?;
@@ -253,7 +288,7 @@ pub fn plot(r: &Report) -> image::RgbImage {
     if let Some(i) = &r.intensity {
         let centres: Vec<f64> = i.edges.windows(2).map(|e| 0.5 * (e[0] + e[1])).collect();
         let s = |name: &str, v: &[f64], k: usize| Series { name: name.into(), points: centres.iter().zip(v).map(|(&x, &y)| (x, y)).collect(), colour: PALETTE[k], line: true, marker: Marker::Circle };
-        tiles.push(tile("intensity of returns", "intensity (sources' units)", "fraction of returns", vec![s("recording", &i.rec, 0), s("pedscan", &i.sim, 1)]));
+        tiles.push(tile("intensity of returns", "reflectance x cos(incidence)", "fraction of returns", vec![s("recording", &i.rec, 0), s("pedscan", &i.sim, 1)]));
     }
     let images: Vec<image::RgbImage> = tiles.iter().map(Plot::render).collect();
     let (tw, th) = images[0].dimensions();
@@ -285,7 +320,8 @@ pub struct SensorFitRequest {
     #[arg(long, default_value = "hdl32e")]
     pub sensor: String,
     /// The recordings' intensity units (intensity = this * reflectance * cos(incidence));
-    /// default 100 for a Velodyne capture (calibrated reflectivity, percent), else 1.
+    /// default 100 for a Velodyne capture (calibrated reflectivity, percent), a pedscan
+    /// output's own, else 1.
     #[arg(long)]
     pub intensity_scale: Option<f64>,
     /// Measure at most this many frames of each recording, evenly spaced (default: all).
@@ -333,7 +369,10 @@ pub fn sensor_fit(req: &SensorFitRequest) -> Result<SensorFit> {
                 "records no intensity: the detection terms follow the received power (reflectance), which it cannot tell",
             ));
         }
-        let s = req.intensity_scale.unwrap_or(if rec.extension().is_some_and(|e| e.eq_ignore_ascii_case("pcap")) { 100.0 } else { 1.0 });
+        let s = match req.intensity_scale {
+            Some(s) => s,
+            None => intensity_scale_of(rec)?,
+        };
         if !(s > 0.0 && s.is_finite()) {
             return Err(Error::input("--intensity-scale", format!("{s} must be a positive number")));
         }

@@ -76,7 +76,17 @@ fn run(f: &Frame, cfg: &SensorModelConfig, clean: &[Option<Surface>], draws: &Se
 fn noise_bias_and_dropout_match_their_configuration() {
     const FRAMES: usize = 300;
     let f = frame();
-    let cfg = SensorModelConfig { range_noise_m: 0.02, laser_bias_m: 0.01, dropout_rate: 0.05, divergence_mrad: [0.0, 0.0], ..SensorModelConfig::on() };
+    // Detection certain (a bright wall far inside the detection range), so only the dropout
+    // loses returns.
+    let cfg = SensorModelConfig {
+        range_noise_m: 0.02,
+        laser_bias_m: 0.01,
+        dropout_rate: 0.05,
+        divergence_mrad: [0.0, 0.0],
+        detection_range_m: 1e4,
+        detection_softness: 0.3,
+        ..SensorModelConfig::on()
+    };
     let rows = f.sensor.rows();
     let draws = SequenceDraws::draw(&cfg, 3, 0, rows, 0);
     let wall = Surface { range_m: 10.0, instance: 0, reflectance: 0.5, cos_incidence: 1.0, rendered: true, normal: glam::Vec3::X };
@@ -135,20 +145,40 @@ fn noise_bias_and_dropout_match_their_configuration() {
 #[test]
 fn detection_follows_power_and_incidence() {
     let f = frame();
-    let cfg = SensorModelConfig { range_noise_m: 0.0, laser_bias_m: 0.0, dropout_rate: 0.0, divergence_mrad: [0.0, 0.0], ..SensorModelConfig::on() };
+    let cfg = SensorModelConfig {
+        range_noise_m: 0.0,
+        laser_bias_m: 0.0,
+        dropout_rate: 0.0,
+        divergence_mrad: [0.0, 0.0],
+        detection_range_m: 70.0,
+        detection_softness: 0.3,
+        grazing_deg: [75.0, 89.0],
+        grazing_loss: 1.0,
+        ..SensorModelConfig::on()
+    };
     let draws = SequenceDraws::draw(&cfg, 1, 0, f.sensor.rows(), 0);
     let scene = Edge { edge_az: 10.0, near_m: 1.0, far_m: 1.0 };
-    let kept = |s: Surface| {
+    let kept_with = |cfg: &SensorModelConfig, s: Surface| {
         let clean = vec![Some(s); f.dirs.len()];
-        run(&f, &cfg, &clean, &draws, &scene, 0).iter().filter(|o| o.range_m > 0.0).count() as f64 / f.dirs.len() as f64
+        run(&f, cfg, &clean, &draws, &scene, 0).iter().filter(|o| o.range_m > 0.0).count() as f64 / f.dirs.len() as f64
     };
+    let kept = |s: Surface| kept_with(&cfg, s);
     let at = |range_m, reflectance, cos_incidence| Surface { range_m, instance: 0, reflectance, cos_incidence, rendered: true, normal: glam::Vec3::X };
     let half = kept(at(cfg.detection_range_m, 0.1, 1.0));
     assert!((half - 0.5).abs() < 0.02, "{half}");
     assert_eq!(kept(at(10.0, 0.5, 1.0)), 1.0);
     assert_eq!(kept(at(10.0, 0.5, 0.01)), 0.0, "past the grazing angle");
-    let mid = kept(at(10.0, 0.5, (0.5 * (cfg.grazing_deg[0].to_radians().cos() + cfg.grazing_deg[1].to_radians().cos())) as f32));
+    let mid_cos = (0.5 * (cfg.grazing_deg[0].to_radians().cos() + cfg.grazing_deg[1].to_radians().cos())) as f32;
+    let mid = kept(at(10.0, 0.5, mid_cos));
     assert!((mid - 0.5).abs() < 0.02, "halfway through the grazing band: {mid}");
+    // With a partial loss: 1 - loss past the band, 1 - loss / 2 halfway, at 2 m where the
+    // received power leaves detection at 1 - 1e-6. 32,768 beams: a standard error of 0.27 %
+    // (past) and 0.22 % (halfway); the bounds are 4 of them, under a 2 % error in the loss.
+    let partial = SensorModelConfig { grazing_loss: 0.4, ..cfg.clone() };
+    let past = kept_with(&partial, at(2.0, 0.5, 0.01));
+    assert!((past - 0.6).abs() < 0.011, "past the band with loss 0.4: {past}");
+    let mid = kept_with(&partial, at(2.0, 0.5, mid_cos));
+    assert!((mid - 0.8).abs() < 0.009, "halfway with loss 0.4: {mid}");
 }
 
 /// An edge in front of a wall: within `mixed_return_m` the footprint gives one mixed return at

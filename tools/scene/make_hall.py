@@ -127,8 +127,15 @@ def to_gltf(p):
     return (x, z, -y)  # world z-up -> glTF y-up; pedscan maps back with (x, -z, y)
 
 
+#: Near-infrared (905 nm) reflectance per object, the sensor model's intensity and detection:
+#: typical values of the materials, not measurements of one sample. A concrete floor, white
+#: painted walls and ceiling, painted concrete pillars, wooden and laminate furniture.
+REFLECTANCE = {"floor": 0.3, "ceiling": 0.7, "walls": 0.7, "pillars": 0.5, "furniture": 0.4}
+
+
 def write_glb(path, objects, placed):
     bin_parts, buffer_views, accessors, meshes, nodes = [], [], [], [], []
+    names = list(objects)
     offset = 0
     for name, m in objects.items():
         pos = [to_gltf(p) for p in m.v]
@@ -148,7 +155,7 @@ def write_glb(path, objects, placed):
         accessors.append({"bufferView": len(buffer_views) - 1, "componentType": 5125, "count": 3 * len(m.t),
                           "type": "SCALAR"})
         meshes.append({"name": name, "primitives": [{"attributes": {"POSITION": len(accessors) - 2},
-                                                     "indices": len(accessors) - 1, "material": 0}]})
+                                                     "indices": len(accessors) - 1, "material": names.index(name)}]})
         nodes.append({"name": name, "mesh": len(meshes) - 1})
     doc = {
         "asset": {"version": "2.0", "generator": "pedscan tools/scene/make_hall.py"},
@@ -158,8 +165,9 @@ def write_glb(path, objects, placed):
             "objects": placed, "frame": "glTF y-up; world (x, y, z) = (x, -z, y)"}}}],
         "nodes": nodes,
         "meshes": meshes,
-        "materials": [{"name": "matte", "doubleSided": True,
-                       "pbrMetallicRoughness": {"baseColorFactor": [0.7, 0.7, 0.7, 1.0], "metallicFactor": 0.0}}],
+        "materials": [{"name": name, "doubleSided": True, "extras": {"reflectance": REFLECTANCE[name]},
+                       "pbrMetallicRoughness": {"baseColorFactor": [REFLECTANCE[name]] * 3 + [1.0], "metallicFactor": 0.0}}
+                      for name in names],
         "accessors": accessors,
         "bufferViews": buffer_views,
         "buffers": [{"byteLength": offset}],
