@@ -282,6 +282,9 @@ pub struct Measure {
     pub has_intensity: bool,
     /// Every beam with a surface, when kept ([`Measure::keep_samples`]): what a fit needs.
     pub samples: Option<Vec<Sample>>,
+    /// Per beam of the grid: frames in which it was a hole, and frames it was counted.
+    pub beam_holes: Vec<u32>,
+    pub beam_frames: Vec<u32>,
     surfaces: Vec<Option<Surface>>,
 }
 
@@ -312,6 +315,8 @@ impl Measure {
             intensity: Vec::new(),
             has_intensity: false,
             samples: None,
+            beam_holes: Vec::new(),
+            beam_frames: Vec::new(),
             surfaces: Vec::new(),
         }
     }
@@ -330,11 +335,17 @@ impl Measure {
         self.frames += 1;
         self.has_intensity |= !intensity.is_empty();
         let n_inc = self.by_incidence.len();
+        if self.beam_frames.len() != range.len() {
+            self.beam_holes = vec![0; range.len()];
+            self.beam_frames = vec![0; range.len()];
+        }
         for (i, (&r, s)) in range.iter().zip(&self.surfaces).enumerate() {
             if !(r >= 0.0) {
                 continue;
             }
             let hole = r == 0.0;
+            self.beam_frames[i] += 1;
+            self.beam_holes[i] += u32::from(hole);
             self.by_row[i / cols].add(hole);
             if !hole {
                 if let Some(&v) = intensity.get(i) {

@@ -336,6 +336,7 @@ pub struct SensorFit {
     /// The range noise taken (the smallest robust sd of a range bin) and every bin's.
     pub range_noise_m: f64,
     pub noise_by_range: Vec<(f64, usize, f64)>,
+    pub platform: Option<crate::realism::fit::PlatformFit>,
     pub toml: String,
 }
 
@@ -360,6 +361,8 @@ pub fn sensor_fit(req: &SensorFitRequest) -> Result<SensorFit> {
     let mut samples = Vec::new();
     let mut residuals: Vec<Vec<f32>> = vec![Vec::new(); crate::realism::RANGE_BINS];
     let mut scale = None;
+    let beams = grid.dirs.len();
+    let (mut beam_holes, mut beam_frames) = (vec![0u32; beams], vec![0u32; beams]);
     let mut lines = vec!["# pedscan sensor-fit: the [sensor_model] terms these recordings tell, fitted by maximum".to_string(), "# likelihood over every beam whose neighbours define a surface (pedscan realism's estimator).".into()];
     for rec in &req.recs {
         let m = measure_with(rec, &grid, req.max_frames, true)?;
@@ -383,6 +386,10 @@ pub fn sensor_fit(req: &SensorFitRequest) -> Result<SensorFit> {
         lines.push(format!("# {}: {} frames, {} beams, {:.1} % holes", rec.display(), m.frames, m.beams(), 100.0 * m.holes() as f64 / m.beams().max(1) as f64));
         for (k, r) in m.residuals.iter().enumerate() {
             residuals[k].extend_from_slice(r);
+        }
+        for i in 0..m.beam_frames.len().min(beams) {
+            beam_holes[i] += m.beam_holes[i];
+            beam_frames[i] += m.beam_frames[i];
         }
         samples.extend(m.samples.unwrap_or_default());
     }
@@ -413,6 +420,21 @@ pub fn sensor_fit(req: &SensorFitRequest) -> Result<SensorFit> {
     for &(lo, n, sd) in &noise_by_range {
         lines.push(format!("#   {lo:>4.0}-{:<4.0} m  {:6.1} mm  ({n} residuals)", lo + crate::realism::RANGE_BIN_M, 1000.0 * sd));
     }
+    let platform = crate::realism::fit::fit_platform(&beam_holes, &beam_frames, &grid.dirs);
+    match &platform {
+        Some(p) => lines.push(format!(
+            "# platform: {} beams behind and below the sensor are blind in {:.0} % of their frames or more; one box \
+             {} m below the sensor (the beams tell angles, not size) hides them with intersection over union {:.2}",
+            p.blind,
+            100.0 * crate::realism::fit::PLATFORM_BLIND,
+            crate::realism::fit::PLATFORM_TOP_M,
+            p.iou
+        )),
+        None => lines.push(format!(
+            "# platform: none (fewer than {} beams behind and below the sensor are blind)",
+            crate::realism::fit::PLATFORM_MIN_BEAMS
+        )),
+    }
     lines.push("# not fitted (the recordings cannot tell):".into());
     for (k, why) in NOT_FITTED {
         lines.push(format!("#   {k}: {why}"));
@@ -424,7 +446,13 @@ pub fn sensor_fit(req: &SensorFitRequest) -> Result<SensorFit> {
     lines.push(format!("detection_range_m = {:.1}", fit.detection_range_m));
     lines.push(format!("detection_softness = {:.3}", fit.detection_softness));
     lines.push(format!("range_noise_m = {:.4}", noise));
+    if let Some(p) = &platform {
+        let v = |a: [f64; 3]| format!("[{:.3}, {:.3}, {:.3}]", a[0], a[1], a[2]);
+        lines.push("[[sensor_model.platform]]".into());
+        lines.push(format!("min_m = {}", v(p.platform.min_m)));
+        lines.push(format!("max_m = {}", v(p.platform.max_m)));
+    }
     let toml = lines.join("\n") + "\n";
     crate::output::files::write_file(&req.out, &toml)?;
-    Ok(SensorFit { detection: fit, range_noise_m: noise, noise_by_range, toml })
+    Ok(SensorFit { detection: fit, range_noise_m: noise, noise_by_range, platform, toml })
 }

@@ -414,7 +414,49 @@ pub struct SensorModelConfig {
     /// remission and everything else: 1).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub intensity_scale: Option<f64>,
+    /// What the sensor is mounted on, as boxes in the sensor frame (`[[sensor_model.platform]]`):
+    /// a rendered surface behind a box returns nothing (the mount hides it; a sensor blanks
+    /// or a driver crops its own vehicle). Empty: none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub platform: Vec<PlatformBox>,
 }
+
+/// One box of the sensor's platform, sensor frame (x forward, y left, z up), metres.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlatformBox {
+    pub min_m: [f64; 3],
+    pub max_m: [f64; 3],
+}
+
+impl PlatformBox {
+    /// Where a ray from the sensor along unit `dir` enters the box (slab test), `None` when
+    /// it misses.
+    pub fn entry(&self, dir: glam::DVec3) -> Option<f64> {
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            let d = dir[k];
+            let (lo, hi) = (self.min_m[k], self.max_m[k]);
+            if d.abs() < 1e-15 {
+                if 0.0 < lo || 0.0 > hi {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = ((lo / d), (hi / d));
+            let (a, b) = if a <= b { (a, b) } else { (b, a) };
+            t0 = t0.max(a);
+            t1 = t1.min(b);
+            if t0 > t1 {
+                return None;
+            }
+        }
+        Some(t0)
+    }
+}
+
+/// Most boxes a platform may have.
+pub const MAX_PLATFORM_BOXES: usize = 64;
 
 impl Default for SensorModelConfig {
     fn default() -> Self {
@@ -429,6 +471,7 @@ impl Default for SensorModelConfig {
             detection_softness: 0.84,
             grazing_deg: [78.5, 90.0],
             grazing_loss: 0.07,
+            platform: Vec::new(),
             divergence_mrad: [3.0, 1.5],
             mixed_return_m: 0.5,
             skin_reflectance: [0.25, 0.55],
@@ -477,6 +520,18 @@ impl SensorModelConfig {
         }
         if let Some(s) = m.intensity_scale {
             positive("sensor_model.intensity_scale", s)?;
+        }
+        if m.platform.len() > MAX_PLATFORM_BOXES {
+            return Err(Error::input("config key `sensor_model.platform`", format!("{} boxes: at most {MAX_PLATFORM_BOXES}", m.platform.len())));
+        }
+        for (k, b) in m.platform.iter().enumerate() {
+            let key = format!("config key `sensor_model.platform[{k}]`");
+            if !(0..3).all(|i| b.min_m[i].is_finite() && b.max_m[i].is_finite() && b.min_m[i] < b.max_m[i]) {
+                return Err(Error::input(key, format!("min_m {:?} and max_m {:?} must be finite with min < max on every axis", b.min_m, b.max_m)));
+            }
+            if (0..3).all(|i| b.min_m[i] <= 0.0 && b.max_m[i] >= 0.0) {
+                return Err(Error::input(key, "the box holds the sensor (the origin): every beam would be hidden"));
+            }
         }
         Ok(())
     }

@@ -207,6 +207,75 @@ pub fn fit_detection(samples: &[Sample], scale: f64, min_beams: u64) -> Option<D
     })
 }
 
+/// A beam counted in at least this many frames and lost in this share of them is blind.
+pub const PLATFORM_MIN_FRAMES: u32 = 4;
+pub const PLATFORM_BLIND: f64 = 0.95;
+/// Fewest blind beams behind and below the sensor for a platform to be fitted.
+pub const PLATFORM_MIN_BEAMS: usize = 20;
+/// The fitted box's top face lies this far below the sensor: the beams tell angles only, so
+/// the box is placed at this depth and scaled to match them, m.
+pub const PLATFORM_TOP_M: f64 = 0.5;
+
+/// A platform fitted to the blind beams of recordings.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlatformFit {
+    pub platform: crate::config::PlatformBox,
+    /// Blind beams behind and below the sensor, and the fit's intersection over union with
+    /// the beams the box hides.
+    pub blind: usize,
+    pub iou: f64,
+}
+
+/// Fits one box behind and below the sensor (top face [`PLATFORM_TOP_M`] down, 2 m deep,
+/// symmetric across; its near edge, length and half-width searched) to the beams that are
+/// blind in the recordings (`beam_holes` of `beam_frames`, per beam of `dirs`): the largest
+/// intersection over union on a log grid, then a finer grid around the best. `None` when
+/// fewer than [`PLATFORM_MIN_BEAMS`] beams behind and below are blind.
+pub fn fit_platform(beam_holes: &[u32], beam_frames: &[u32], dirs: &[glam::DVec3]) -> Option<PlatformFit> {
+    let rear: Vec<usize> = (0..dirs.len()).filter(|&i| dirs[i].z < 0.0 && dirs[i].x < 0.0).collect();
+    let blind = |i: usize| beam_frames.get(i).is_some_and(|&n| n >= PLATFORM_MIN_FRAMES && beam_holes[i] as f64 >= PLATFORM_BLIND * n as f64);
+    let observed: Vec<bool> = rear.iter().map(|&i| blind(i)).collect();
+    let count = observed.iter().filter(|&&b| b).count();
+    if count < PLATFORM_MIN_BEAMS {
+        return None;
+    }
+    let boxed = |[near, length, half]: [f64; 3]| crate::config::PlatformBox {
+        min_m: [-near - length, -half, -PLATFORM_TOP_M - 2.0],
+        max_m: [-near, half, -PLATFORM_TOP_M],
+    };
+    let iou = |p: [f64; 3]| {
+        let b = boxed(p);
+        let (mut inter, mut union) = (0usize, 0usize);
+        for (k, &i) in rear.iter().enumerate() {
+            let hidden = b.entry(dirs[i]).is_some();
+            inter += (hidden && observed[k]) as usize;
+            union += (hidden || observed[k]) as usize;
+        }
+        inter as f64 / union.max(1) as f64
+    };
+    // A log grid from 5 cm to 10 m (ratio 1.26 a step), then quarter steps around the best.
+    let ratio = 200f64.powf(1.0 / 23.0);
+    let mut best = ([0.0; 3], -1.0);
+    let search = |centre: [f64; 3], steps: i32, r: f64, best: &mut ([f64; 3], f64)| {
+        for i in -steps..=steps {
+            for j in -steps..=steps {
+                for k in -steps..=steps {
+                    let p = [centre[0] * r.powi(i), centre[1] * r.powi(j), centre[2] * r.powi(k)];
+                    let v = iou(p);
+                    if v > best.1 {
+                        *best = (p, v);
+                    }
+                }
+            }
+        }
+    };
+    let mid = 0.05 * ratio.powi(12);
+    search([mid; 3], 12, ratio, &mut best);
+    let coarse = best.0;
+    search(coarse, 4, ratio.powf(0.25), &mut best);
+    Some(PlatformFit { platform: boxed(best.0), blind: count, iou: best.1 })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -241,5 +310,39 @@ mod tests {
         }
         // Too few beams with an intensity: no fit.
         assert!(fit_detection(&samples[..500], 100.0, 1000).is_none());
+    }
+
+    #[test]
+    fn a_known_platform_is_fitted_back_from_its_blind_beams() {
+        // The beams a known box hides, blind in every one of 5 frames (one other beam lost in
+        // 4 of 5: not blind): the fit hides the same beams.
+        let s = crate::sensor::Sensor::hdl32e();
+        let dirs = s.beam_dirs();
+        let truth = crate::config::PlatformBox { min_m: [-1.7, -0.3, -2.5], max_m: [-0.6, 0.3, -PLATFORM_TOP_M] };
+        let hidden: Vec<bool> = dirs.iter().map(|&d| truth.entry(d).is_some()).collect();
+        let frames = vec![5u32; dirs.len()];
+        let mut holes: Vec<u32> = hidden.iter().map(|&h| if h { 5 } else { 0 }).collect();
+        let lone = dirs.iter().position(|d| d.z < 0.0 && d.x < 0.0 && truth.entry(*d).is_none()).unwrap();
+        holes[lone] = 4;
+        assert!(hidden.iter().filter(|&&h| h).count() >= PLATFORM_MIN_BEAMS);
+        let fit = fit_platform(&holes, &frames, &dirs).unwrap();
+        assert_eq!(fit.blind, hidden.iter().filter(|&&h| h).count());
+        assert!(fit.iou > 0.97, "{fit:?}");
+        // Too few blind beams: no platform.
+        let few: Vec<u32> = (0..dirs.len()).map(|i| if i == lone { 5 } else { 0 }).collect();
+        assert!(fit_platform(&few, &frames, &dirs).is_none());
+    }
+
+    #[test]
+    fn a_ray_enters_a_box_where_the_slabs_say() {
+        let b = crate::config::PlatformBox { min_m: [1.0, -1.0, -1.0], max_m: [3.0, 1.0, 1.0] };
+        assert_eq!(b.entry(glam::DVec3::X), Some(1.0));
+        let d = glam::DVec3::new(1.0, 0.5, 0.0).normalize();
+        assert!((b.entry(d).unwrap() - 1.0 / d.x).abs() < 1e-12);
+        // Along y at x = 0: outside the x slab, parallel to it: a miss.
+        assert_eq!(b.entry(glam::DVec3::Y), None);
+        assert_eq!(b.entry(-glam::DVec3::X), None);
+        // Through the corner region outside the y slab.
+        assert_eq!(b.entry(glam::DVec3::new(1.0, 1.2, 0.0).normalize()), None);
     }
 }

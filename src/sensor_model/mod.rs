@@ -17,6 +17,8 @@
 //!   cos(incidence) from 1 to `1 - grazing_loss` over `grazing_deg`. A lost return is a hole:
 //!   range 0, label 0, instance 0.
 //! - **Range noise**: a per-laser bias (drawn per sequence) plus Gaussian noise per return.
+//! - **Platform**: a rendered surface behind one of `platform`'s boxes (the mount, in the
+//!   sensor frame) returns nothing.
 //!
 //! The rolling shutter (each column at its own time) is not a post effect: the frame is posed
 //! over the sweep ([`shutter`]).
@@ -212,6 +214,12 @@ pub fn apply(f: &FrameIn, scene: &dyn FootprintScene, out: &mut Vec<BeamOut>) {
     } else {
         (Vec::new(), Vec::new())
     };
+    // Where each beam enters the platform (infinity: it does not).
+    let platform: Vec<f64> = if on && !cfg.platform.is_empty() {
+        f.dirs.iter().map(|&d| cfg.platform.iter().filter_map(|b| b.entry(d)).fold(f64::INFINITY, f64::min)).collect()
+    } else {
+        Vec::new()
+    };
     out.par_chunks_mut(w).enumerate().for_each(|(row, outs)| {
         let mut rng = stream(f.seed, f.sequence as u64, f.frame as u64);
         rng.set_stream(row as u64);
@@ -235,6 +243,10 @@ pub fn apply(f: &FrameIn, scene: &dyn FootprintScene, out: &mut Vec<BeamOut>) {
                     };
                     *o = BeamOut { range_m: range as f32, instance: s.instance, intensity, from_footprint: edge };
                 }
+                continue;
+            }
+            // Behind the platform: hidden.
+            if platform.get(b).is_some_and(|&t| s.range_m > t) {
                 continue;
             }
             // Detection: power (the footprint's share), incidence, and chance.

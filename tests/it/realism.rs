@@ -154,6 +154,8 @@ fn a_fit_gives_back_the_terms_an_output_was_made_with() {
     assert!((f("detection_softness") / 0.5 - 1.0).abs() < 0.25, "{text}");
     assert!(f("grazing_loss") > 0.2 && f("grazing_loss") < 0.5, "{text}");
     assert!(text.contains("# not fitted") && text.contains("laser_bias_m:"), "{text}");
+    // Nothing is blind behind the sensor in the hall: no platform.
+    assert!(text.contains("# platform: none") && !text.contains("[[sensor_model.platform]]"), "{text}");
     // The file is a configuration pedscan takes.
     ok(&pedscan(&["generate", "--backend", "raycast", "--config", "fit.toml", "--frames", "1", "--humans", "0..0", "--out", "again"], dir));
 }

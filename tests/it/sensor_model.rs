@@ -398,3 +398,47 @@ fn environment_steps_return_their_whole_footprint() {
     // intensity (88 in range alone); without the environment's edges 29 did in range.
     assert!(agree as f64 >= 0.85 * steps as f64, "{agree} of {steps} agree; worst {:.3} m at beam {}", worst.0, worst.1);
 }
+
+/// The platform hides exactly the rendered beams whose surface lies behind one of its boxes,
+/// never a recorded beam; a box that holds the sensor is refused.
+#[test]
+fn the_platform_hides_what_lies_behind_it() {
+    use pedscan::config::PlatformBox;
+    let f = frame();
+    let boxes = vec![PlatformBox { min_m: [-3.0, -0.5, -2.0], max_m: [-0.5, 0.5, -0.3] }, PlatformBox { min_m: [0.2, 2.0, -1.0], max_m: [0.4, 2.2, 1.0] }];
+    let cfg = SensorModelConfig {
+        range_noise_m: 0.0,
+        laser_bias_m: 0.0,
+        dropout_rate: 0.0,
+        divergence_mrad: [0.0, 0.0],
+        detection_range_m: 1e4,
+        grazing_loss: 0.0,
+        platform: boxes.clone(),
+        ..SensorModelConfig::on()
+    };
+    let draws = SequenceDraws::draw(&cfg, 1, 0, f.sensor.rows(), 0);
+    let scene = Edge { edge_az: 10.0, near_m: 1.0, far_m: 1.0 };
+    let at = |rendered| Surface { range_m: 10.0, instance: 0, reflectance: 0.5, cos_incidence: 1.0, rendered, normal: glam::Vec3::X };
+    let out = run(&f, &cfg, &vec![Some(at(true)); f.dirs.len()], &draws, &scene, 0);
+    let mut hidden = 0;
+    for (b, o) in out.iter().enumerate() {
+        let behind = boxes.iter().any(|x| x.entry(f.dirs[b]).is_some_and(|t| t < 10.0));
+        assert_eq!(o.range_m == 0.0, behind, "beam {b}");
+        hidden += behind as usize;
+    }
+    assert!(hidden > 500, "{hidden} beams hidden");
+    // A recorded background carries its own platform: untouched.
+    let rec = run(&f, &cfg, &vec![Some(at(false)); f.dirs.len()], &draws, &scene, 0);
+    assert!(rec.iter().all(|o| o.range_m == 10.0));
+    // A box around the sensor, or an empty one, is refused by name.
+    for (b, needle) in [
+        (PlatformBox { min_m: [-1.0, -1.0, -1.0], max_m: [1.0, 1.0, 1.0] }, "holds the sensor"),
+        (PlatformBox { min_m: [1.0, -1.0, -1.0], max_m: [1.0, 1.0, 1.0] }, "min < max"),
+    ] {
+        let text = format!("[sensor_model]\n[[sensor_model.platform]]\nmin_m = {:?}\nmax_m = {:?}\n", b.min_m, b.max_m);
+        let file = tempfile::Builder::new().suffix(".toml").tempfile().unwrap();
+        std::fs::write(file.path(), text).unwrap();
+        let err = pedscan::config::Config::from_file(file.path()).and_then(|c| c.validate()).unwrap_err().to_string();
+        assert!(err.contains("sensor_model.platform[0]") && err.contains(needle), "{err}");
+    }
+}
