@@ -1,7 +1,10 @@
 """Trains the paper's sequence network on pedscan sequences.
 
-    python -m pedscan_data.train DATA --frames N --out RUN [--steps S] [--val DATA2]
+    python -m pedscan_data.train DATA [DATA...] --frames N --out RUN [--steps S] [--val DATA2]
                                  [--device auto|cpu|cuda] [--resume]
+
+Several DATA folders (backgrounds, scenarios) pool their sequences: each step draws one of
+all of them alike.
 
 The paper's policy (Kim et al. 2020, Section V-B) by default:
 
@@ -61,6 +64,20 @@ class TrainConfig:
     loss_weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS
     data: list[dict[str, Any]] = field(default_factory=list)
     """the training sequences: file name, bytes, index, seed"""
+
+
+def training_paths(folders: list[Path]) -> list[Path]:
+    """The sequence files of every training folder (or file), in the order given; one given
+    twice is refused (it would weigh twice)."""
+    paths: list[Path] = []
+    for d in folders:
+        paths += sequence_paths(d)
+    seen: set[Path] = set()
+    for p in paths:
+        if p.resolve() in seen:
+            raise PedscanError(f"{p}: given twice among the training data")
+        seen.add(p.resolve())
+    return paths
 
 
 def describe_data(paths: list[Path]) -> list[dict[str, Any]]:
@@ -298,8 +315,8 @@ def train(args: argparse.Namespace) -> int:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
     if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, *cfg.loss_weights)):
         raise PedscanError("--lr, --decay and --loss-weights must be finite and not negative")
-    paths = sequence_paths(args.data)
-    seqs = check_sequences(paths, cfg.frames, str(args.data), cfg.intensity)
+    paths = training_paths(args.data)
+    seqs = check_sequences(paths, cfg.frames, ", ".join(map(str, args.data)), cfg.intensity)
     val_seqs = check_sequences(sequence_paths(args.val), 1, str(args.val), cfg.intensity) if args.val else []
     score_from = cfg.frames - 1 if args.score_from is None else args.score_from
     for s in val_seqs:
@@ -471,7 +488,7 @@ def bench_loader(args: argparse.Namespace) -> int:
     """Windows per second the loader delivers alone (no training), with the run's workers."""
     import torch
 
-    seqs = check_sequences(sequence_paths(args.data), args.frames, str(args.data), args.intensity)
+    seqs = check_sequences(training_paths(args.data), args.frames, ", ".join(map(str, args.data)), args.intensity)
     data = StepWindows(seqs, args.frames, args.seed, args.intensity)
     n = args.bench_loader
     loader = torch.utils.data.DataLoader(
@@ -490,7 +507,9 @@ def bench_loader(args: argparse.Namespace) -> int:
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m pedscan_data.train", description=__doc__.split("\n\n")[0])
-    p.add_argument("data", type=Path, help="pedscan output folder with the training sequences")
+    p.add_argument("data", type=Path, nargs="+",
+                   help="pedscan output folder(s) with the training sequences; each step draws one of all their "
+                   "sequences alike (several backgrounds: one folder each)")
     p.add_argument("--frames", type=int, required=True, help="N, frames per window (1, 2, 4, 8, 16)")
     p.add_argument("--out", type=Path, help="run folder")
     p.add_argument("--steps", type=int, default=4000, help="training steps (default 4000)")

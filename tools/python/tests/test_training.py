@@ -78,6 +78,22 @@ def weights(run: Path) -> dict[str, torch.Tensor]:
     return load_file(run / "checkpoint.pt")["state_dict"]
 
 
+def test_several_training_folders_pool_their_sequences(sample: Path, tmp_path: Path, capsys) -> None:
+    """Two folders (two scenes): the run trains on all their sequences, recorded with their
+    seeds; a folder given twice is refused before anything is written."""
+    other = tmp_path / "other"
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    generate(other, "--sequences", "1", "--frames", "4", "--humans", "2..2", "--seed", "9",
+             "--sensor", str(tmp_path / "sensor.toml"), "--outputs", "range,label,instance,velocity")
+    run = tmp_path / "run"
+    assert run_train(sample, other, "--frames", "2", "--width", "4", "--out", run, "--steps", "4", "--val-every", "4") == 0
+    data = json.loads((run / "run.json").read_text())["config"]["data"]
+    assert [(d["file"], d["seed"]) for d in data] == [("seq_000000.h5", 3), ("seq_000001.h5", 3), ("seq_000000.h5", 9)]
+    assert run_train(sample, sample, "--frames", "2", "--out", tmp_path / "twice", "--steps", "4") == 2
+    assert "given twice among the training data" in capsys.readouterr().err
+    assert not (tmp_path / "twice").exists()
+
+
 def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path, tmp_path: Path) -> None:
     common = ["--frames", "2", "--steps", "7", "--width", "4", "--checkpoint-every", "2", "--log-every", "1"]
     assert run_train(sample, "--out", tmp_path / "a", *common) == 0
