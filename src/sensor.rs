@@ -80,10 +80,13 @@ impl Sensor {
                 if !p.exists() {
                     return Err(Error::input(
                         format!("--sensor {path}"),
-                        "neither a preset (hdl32e, vlp16) nor an existing TOML file",
+                        "neither a preset (hdl32e, vlp16) nor an existing TOML file or Ouster metadata JSON",
                     ));
                 }
                 let text = std::fs::read_to_string(p).map_err(|e| Error::input(p.display(), format!("cannot read: {e}")))?;
+                if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
+                    return Sensor::from_ouster_json(&text, &p.display().to_string());
+                }
                 let file: SensorFile =
                     toml::from_str(&text).map_err(|e| Error::input(p.display(), e))?;
                 let name = file.name.clone().unwrap_or_else(|| {
@@ -92,6 +95,47 @@ impl Sensor {
                 Sensor::from_file(file, name, &p.display().to_string())
             }
         }
+    }
+
+    /// A sensor from an Ouster sensor metadata JSON (what `ouster-cli` and the sensor's HTTP
+    /// API write): the rows from `beam_altitude_angles`, the columns from
+    /// `data_format.columns_per_frame` (or `lidar_data_format`), the rate from `lidar_mode`
+    /// (`"1024x10"`), the name from `prod_line`; both the flat layout (firmware 2.x) and the
+    /// nested one (`beam_intrinsics`, `config_params`). The grid is Ouster's destaggered image:
+    /// each row's beams take their column's azimuth (`beam_azimuth_angles` and the lidar
+    /// origin's offset are not modelled). Range limits 0.5 to 100 m, as for a TOML sensor.
+    pub fn from_ouster_json(text: &str, input: &str) -> Result<Sensor> {
+        let bad = |m: String| Error::input(input, m);
+        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| bad(format!("not JSON: {e}")))?;
+        let find = |path: &[&[&str]]| path.iter().find_map(|p| p.iter().try_fold(&v, |x, k| x.get(*k)));
+        let angles = find(&[&["beam_altitude_angles"], &["beam_intrinsics", "beam_altitude_angles"]])
+            .and_then(|a| a.as_array())
+            .ok_or_else(|| bad("no beam_altitude_angles: not an Ouster sensor metadata file".into()))?;
+        let elevation_deg = angles
+            .iter()
+            .enumerate()
+            .map(|(k, a)| a.as_f64().ok_or_else(|| bad(format!("beam_altitude_angles[{k}] is not a number"))))
+            .collect::<Result<Vec<f64>>>()?;
+        let mode = find(&[&["lidar_mode"], &["config_params", "lidar_mode"]]).and_then(|m| m.as_str());
+        let from_mode = |i: usize| mode.and_then(|m| m.split('x').nth(i)).and_then(|x| x.parse::<f64>().ok());
+        let columns = find(&[&["data_format", "columns_per_frame"], &["lidar_data_format", "columns_per_frame"]])
+            .and_then(|c| c.as_u64())
+            .map(|c| c as f64)
+            .or_else(|| from_mode(0))
+            .ok_or_else(|| bad("no data_format.columns_per_frame and no lidar_mode: the columns are unknown".into()))?;
+        if !(columns >= 1.0 && columns <= 65536.0 && columns.fract() == 0.0) {
+            return Err(bad(format!("columns_per_frame = {columns} is not a column count")));
+        }
+        let name = find(&[&["prod_line"], &["sensor_info", "prod_line"]]).and_then(|n| n.as_str()).unwrap_or("ouster");
+        let file = SensorFile {
+            name: Some(name.into()),
+            elevation_deg,
+            columns: columns as usize,
+            rate_hz: from_mode(1),
+            min_range_m: None,
+            max_range_m: None,
+        };
+        Sensor::from_file(file, name.to_ascii_lowercase(), input)
     }
 
     /// Builds and checks a sensor from its TOML form; `input` names the source in errors.
@@ -235,6 +279,34 @@ pub const MAX_ELEVATION_DEG: f64 = 35.26;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_ouster_metadata_file_gives_its_grid() {
+        // Firmware 2.x's flat layout: 4 beams given out of order, 1024 x 10.
+        let flat = r#"{"prod_line": "OS-1-128", "lidar_mode": "1024x10", "beam_altitude_angles": [20.95, -21.3, 0.4, 6.1],
+                       "beam_azimuth_angles": [4.2, 1.4, -1.4, -4.2], "data_format": {"columns_per_frame": 1024, "pixels_per_column": 4}}"#;
+        let s = Sensor::from_ouster_json(flat, "os.json").unwrap();
+        assert_eq!((s.name.as_str(), s.columns, s.rate_hz), ("os-1-128", 1024, 10.0));
+        assert_eq!(s.elevation_deg, vec![20.95, 6.1, 0.4, -21.3]);
+        // The nested layout (newer firmware), 2048 x 10 from the mode alone.
+        let nested = r#"{"sensor_info": {"prod_line": "OS-0-128"}, "config_params": {"lidar_mode": "2048x10"},
+                         "beam_intrinsics": {"beam_altitude_angles": [30.0, 10.0, -10.0, -30.0]}}"#;
+        let s = Sensor::from_ouster_json(nested, "os0.json").unwrap();
+        assert_eq!((s.name.as_str(), s.columns, s.rows()), ("os-0-128", 2048, 4));
+        // An OS0's +-45 deg is past what the cube faces cover: refused by name.
+        let wide = r#"{"lidar_mode": "1024x10", "beam_altitude_angles": [45.0, 0.0, -45.0]}"#;
+        assert!(Sensor::from_ouster_json(wide, "os0.json").unwrap_err().to_string().contains("outside the supported band"));
+        for (text, needle) in [
+            ("{", "os.json: not JSON"),
+            (r#"{"lidar_mode": "1024x10"}"#, "no beam_altitude_angles"),
+            (r#"{"beam_altitude_angles": [1.0, 0.0]}"#, "the columns are unknown"),
+            (r#"{"lidar_mode": "1024x10", "beam_altitude_angles": [1.0, "x"]}"#, "beam_altitude_angles[1] is not a number"),
+            (r#"{"lidar_mode": "0.5x10", "beam_altitude_angles": [1.0, 0.0]}"#, "is not a column count"),
+        ] {
+            let e = Sensor::from_ouster_json(text, "os.json").unwrap_err().to_string();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+    }
 
     #[test]
     fn may_see_sphere_holds_every_sphere_a_beam_meets_and_drops_those_off_the_band() {
