@@ -199,3 +199,42 @@ fn robust_sd_and_wasserstein_of_known_samples() {
     let want = (0..1000).map(|k| ((k as f64 + 0.5) / 1000.0 * 100.0).floor()).sum::<f64>() / 1000.0;
     assert!((wasserstein1(&a, &b).unwrap() - want).abs() < 1e-9);
 }
+
+#[test]
+fn a_surface_needs_six_points_from_two_rows_that_span_a_plane() {
+    // Straight at a wall 6 m ahead: six neighbours (three above, three below) define it,
+    // five do not (the mutation tests' survivors: `<` made `<=`, the row check, the spread).
+    let at = |x: f64, y: f64, z: f64, row: usize, col: usize| (DVec3::new(x, y, z), row * 100 + col);
+    let wall = |y: f64, z: f64, row: usize, col: usize| at(6.0, y, z, row, col);
+    let six = vec![wall(-0.1, 0.2, 0, 1), wall(0.0, 0.2, 0, 2), wall(0.1, 0.2, 0, 3), wall(-0.1, -0.2, 2, 1), wall(0.0, -0.2, 2, 2), wall(0.1, -0.2, 2, 3)];
+    let s = surface_at(&mut six.clone(), 100, DVec3::X, 6.0).expect("six points on two rows define the wall");
+    assert!(s.incidence_deg.abs() < 1e-9 && (s.expected_range_m - 6.0).abs() < 1e-9);
+    assert!(surface_at(&mut six[..5].to_vec(), 100, DVec3::X, 6.0).is_none(), "five points");
+    // Six points all tagged as one row, on the wall and spanning it: no surface (a row alone
+    // cannot tell a plane's tilt across rows).
+    let one_row: Vec<_> = (0..6).map(|k| wall(-0.25 + 0.1 * k as f64, 0.1 * (k % 3) as f64 - 0.1, 1, k)).collect();
+    assert!(surface_at(&mut one_row.clone(), 100, DVec3::X, 6.0).is_none(), "one row");
+    // Seven points on a line across two rows (a wire): no plane, no surface.
+    let line: Vec<_> = (0..7).map(|k| at(6.0, -0.3 + 0.1 * k as f64, -0.3 + 0.1 * k as f64, k / 4, k)).collect();
+    assert!(surface_at(&mut line.clone(), 100, DVec3::X, 6.0).is_none(), "a line");
+}
+
+#[test]
+fn the_plane_tolerance_grows_with_range() {
+    // At 20 m the tolerance is 6 cm + 1 % of the range = 26 cm: a point 15 cm off the wall
+    // (at the window's centre, so the fit moves little towards it) stays, one 40 cm off goes.
+    let p = |x: f64, y: f64, z: f64, i: usize| (DVec3::new(x, y, z), i);
+    let base: Vec<_> = [(-0.4, 0.5), (0.0, 0.5), (0.4, 0.5), (-0.4, -0.5), (0.0, -0.5), (0.4, -0.5), (-0.8, 0.0)]
+        .iter()
+        .enumerate()
+        .map(|(k, &(y, z))| p(20.0, y, z, [0, 0, 0, 200, 200, 200, 100][k] + k))
+        .collect();
+    let mut near = base.clone();
+    near.push(p(20.15, 0.0, 0.0, 101));
+    surface_at(&mut near, 100, DVec3::X, 20.0).unwrap();
+    assert_eq!(near.len(), 8, "15 cm off at 20 m is within the tolerance");
+    let mut far = base.clone();
+    far.push(p(20.4, 0.0, 0.0, 101));
+    surface_at(&mut far, 100, DVec3::X, 20.0).unwrap();
+    assert_eq!(far.len(), 7, "40 cm off at 20 m is dropped");
+}
