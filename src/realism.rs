@@ -270,8 +270,8 @@ pub struct Measure {
     pub by_incidence: Vec<Count>,
     /// Per expected-range bin, beams with a surface.
     pub by_range: Vec<Count>,
-    /// Per row, every beam that is not excluded.
-    pub by_row: Vec<Count>,
+    /// Rows of the grid (see [`Measure::by_row`]).
+    pub rows: usize,
     /// Beams with no surface around them.
     pub no_surface: Count,
     /// Range residuals per range bin (returns below [`NOISE_MAX_INCIDENCE_DEG`]).
@@ -309,7 +309,7 @@ impl Measure {
             frames: 0,
             by_incidence: vec![Count::default(); (90.0 / INCIDENCE_BIN_DEG) as usize],
             by_range: vec![Count::default(); RANGE_BINS],
-            by_row: vec![Count::default(); rows],
+            rows,
             no_surface: Count::default(),
             residuals: vec![Vec::new(); RANGE_BINS],
             intensity: Vec::new(),
@@ -330,7 +330,7 @@ impl Measure {
     /// Adds a frame: `range` as for [`estimate_frame`]; `intensity` per beam (empty when the
     /// source has none).
     pub fn add_frame(&mut self, cols: usize, dirs: &[DVec3], range: &[f32], intensity: &[f32]) {
-        let rows = self.by_row.len();
+        let rows = self.rows;
         estimate_frame_with(rows, cols, dirs, range, intensity, &mut self.surfaces);
         self.frames += 1;
         self.has_intensity |= !intensity.is_empty();
@@ -346,7 +346,6 @@ impl Measure {
             let hole = r == 0.0;
             self.beam_frames[i] += 1;
             self.beam_holes[i] += u32::from(hole);
-            self.by_row[i / cols].add(hole);
             if !hole {
                 if let Some(&v) = intensity.get(i) {
                     if v.is_finite() {
@@ -378,14 +377,28 @@ impl Measure {
         }
     }
 
+    /// Per row, every beam that is not excluded: the per-beam counts summed along the row.
+    pub fn by_row(&self) -> Vec<Count> {
+        let cols = self.beam_frames.len() / self.rows.max(1);
+        (0..self.rows)
+            .map(|r| {
+                let span = r * cols..(r + 1) * cols;
+                Count {
+                    beams: self.beam_frames.get(span.clone()).map_or(0, |v| v.iter().map(|&n| n as u64).sum()),
+                    holes: self.beam_holes.get(span).map_or(0, |v| v.iter().map(|&n| n as u64).sum()),
+                }
+            })
+            .collect()
+    }
+
     /// Every beam counted (not excluded).
     pub fn beams(&self) -> u64 {
-        self.by_row.iter().map(|c| c.beams).sum()
+        self.beam_frames.iter().map(|&n| n as u64).sum()
     }
 
     /// Every hole counted.
     pub fn holes(&self) -> u64 {
-        self.by_row.iter().map(|c| c.holes).sum()
+        self.beam_holes.iter().map(|&n| n as u64).sum()
     }
 }
 
@@ -597,7 +610,7 @@ pub fn compare(rec_source: &str, rec: &Measure, sim_source: &str, sim: &Measure,
         hole_rate_by_incidence: count_curve("hole rate by incidence", &rec.by_incidence, &sim.by_incidence, inc, MIN_BEAMS),
         hole_rate_by_range: count_curve("hole rate by range", &rec.by_range, &sim.by_range, rng, MIN_BEAMS),
         range_noise_by_range: Curve::new("range noise (robust sd) by range", "m", noise),
-        hole_rate_by_row: count_curve("hole rate by row", &rec.by_row, &sim.by_row, |k| (elevation_deg[k], elevation_deg[k]), MIN_BEAMS),
+        hole_rate_by_row: count_curve("hole rate by row", &rec.by_row(), &sim.by_row(), |k| (elevation_deg[k], elevation_deg[k]), MIN_BEAMS),
         intensity,
         notes,
         min_beams: MIN_BEAMS,
