@@ -233,7 +233,7 @@ def multiply_adds(net: SequenceNet, rows: int, columns: int) -> dict[str, int]:
                 hooks.append(m.register_forward_hook(hook(name)))
     try:
         with torch.no_grad():
-            x = torch.zeros(1, net.cfg.in_channels, rows, columns)
+            x = torch.zeros(1, net.cfg.in_channels, rows, columns, device=next(net.parameters()).device)
             s1, s2, f = net.encode(x)
             enc = counts["encoder"]
             net.decode(s1, s2, f.unsqueeze(1).expand(1, net.cfg.frames, *f.shape[1:]))

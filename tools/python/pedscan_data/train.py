@@ -28,6 +28,15 @@ RUN gets ``run.json`` (configuration, data, device and versions), ``checkpoint.p
 ``predict``), ``metrics.jsonl`` (training loss; with ``--val``, IoU per distance bin and the
 human velocity end-point error) and ``curves.png``. Exit 0 done, 2 bad input, 130 stopped by
 Ctrl-C (the last checkpoint stays).
+
+``--max-minutes M`` bounds one sitting (a batch system's wall-clock limit, a lent GPU): after
+the first step that ends past M minutes of training the run checkpoints, validates and
+calibrates as at its end, logs ``{"kind": "time_limit", "step": K}`` and exits 0 with step K of
+``--steps`` done; ``--resume`` continues it to the end (the model file says which step it is).
+
+On CUDA the run asks PyTorch for deterministic algorithms but only warns where an operation
+has none (``CUBLAS_WORKSPACE_CONFIG`` set to ``:4096:8`` unless given); bit-identical
+resumption is promised on CPU.
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import signal
 import sys
 import time
@@ -323,6 +333,8 @@ def train(args: argparse.Namespace) -> int:
         if s.frames <= score_from:
             raise PedscanError(f"{s.path}: {s.frames} frames, none scored from frame {score_from} (--score-from)")
     cfg.data = describe_data(paths)
+    if args.max_minutes is not None and not (math.isfinite(args.max_minutes) and args.max_minutes > 0):
+        raise PedscanError(f"--max-minutes {args.max_minutes}: not a positive number of minutes")
     device = pick_device(args.device)
     config = json.loads(json.dumps(asdict(cfg)))  # as run.json holds it (tuples become lists)
 
@@ -330,7 +342,13 @@ def train(args: argparse.Namespace) -> int:
     metrics_path = run / "metrics.jsonl"
     start = 0
     torch.manual_seed(cfg.seed)
-    torch.use_deterministic_algorithms(True)
+    if device.type == "cuda":
+        # cuBLAS is deterministic only with a fixed workspace, which must be set before its first use.
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+        torch.backends.cudnn.benchmark = False
+        torch.use_deterministic_algorithms(True, warn_only=True)
+    else:
+        torch.use_deterministic_algorithms(True)
     net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width)).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
@@ -399,6 +417,7 @@ def train(args: argparse.Namespace) -> int:
             f.write(json.dumps(m) + "\n")
 
     stop: list[int] = []
+    timed_out = False
     old_handler = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     net.train()
     step = start
@@ -445,13 +464,16 @@ def train(args: argparse.Namespace) -> int:
                 print(f"\r[{'#' * bar}{'.' * (30 - bar)}] {step}/{args.steps} {rate:.2f} steps/s "
                       f"loss {np.mean(acc[-50:]):.4g} data wait {100 * t_wait / (time.perf_counter() - t_start):.0f}% "
                       f"eta {eta / 60:.0f} min ", end="", file=sys.stderr)
-            if step % args.log_every == 0 or step == args.steps:
+            if args.max_minutes is not None and time.perf_counter() - t_start > 60 * args.max_minutes:
+                timed_out = True
+            last = step == args.steps or timed_out
+            if step % args.log_every == 0 or last:
                 log({"kind": "train", "step": step, "loss": float(np.mean(acc)),
                      **{k: v / len(acc) for k, v in terms.items()}, "lr": sched.get_last_lr()[0],
                      "steps_per_s": rate, "data_wait_share": t_wait / (time.perf_counter() - t_start),
                      "wall_s": time.perf_counter() - t_start})
                 acc, terms = [], {}
-            if val_seqs and (step % args.val_every == 0 or step == args.steps):
+            if val_seqs and (step % args.val_every == 0 or last):
                 v = validate(net, val_seqs, device, score_from)[0]
                 log({"kind": "val", "step": step, **v})
                 if not args.quiet:
@@ -459,9 +481,12 @@ def train(args: argparse.Namespace) -> int:
                     print(f"\n  step {step}: validation IoU {o['iou'] or 0:.4f} "
                           f"({' / '.join(format(b['iou'] or 0, '.3f') for b in v['bins'])} at 0-4/4-8/8+ m), "
                           f"EPE {o['epe_mps'] or 0:.3f} m/s", file=sys.stderr)
-            if step % args.checkpoint_every == 0 or step == args.steps:
+            if step % args.checkpoint_every == 0 or last:
                 save(step)
                 plot_curves(metrics, run / "curves.png", title)
+            if timed_out and step < args.steps:
+                log({"kind": "time_limit", "step": step, "steps": args.steps, "max_minutes": args.max_minutes})
+                break
             if step == args.stop_at_step:
                 stop.append(1)
     except Stop:
@@ -480,7 +505,11 @@ def train(args: argparse.Namespace) -> int:
                   f"{c['iou_argmax']:.4f} at the argmax -> {c['iou_calibrated']:.4f}", file=sys.stderr)
     if not args.quiet:
         print(file=sys.stderr)
-    print(f"{run}: {step} steps; model {run / 'model.pt'}")
+    if timed_out and step < args.steps:
+        print(f"{run}: {step} of {args.steps} steps in the --max-minutes {args.max_minutes:g} budget; "
+              f"model {run / 'model.pt'} (step {step}); --resume continues")
+    else:
+        print(f"{run}: {step} steps; model {run / 'model.pt'}")
     return 0
 
 
@@ -535,6 +564,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--stop-at-step", type=int, metavar="K",
                    help="stop after step K as Ctrl-C would (exit 130; --resume continues): for tests of resuming")
+    p.add_argument("--max-minutes", type=float, metavar="M",
+                   help="end this sitting after M minutes of training: checkpoint, validate, calibrate, exit 0 "
+                        "(--resume continues to --steps)")
     p.add_argument("--bench-loader", type=int, metavar="WINDOWS", help="only time the loader over this many windows")
     return p
 

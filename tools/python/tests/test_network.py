@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from conftest import ROOT
-from pedscan_data.model import NetConfig, SequenceNet, WrapConv, count_parameters, input_channels
+from pedscan_data.model import NetConfig, SequenceNet, WrapConv, count_parameters, describe, input_channels
 from pedscan_data.reader import Sequence
 from pedscan_data.train import paper_loss
 
@@ -178,6 +178,24 @@ def test_streaming_prediction_equals_whole_windows(sample: Path) -> None:
 def test_parameters_are_counted_and_fit_a_small_file() -> None:
     net = SequenceNet(NetConfig(frames=16))
     assert 50_000 < count_parameters(net) < 500_000  # about 0.5 MB of f32
+
+
+def test_the_cost_is_counted_on_the_networks_own_device() -> None:
+    """describe() runs the network once; on a network moved off the CPU (a GPU run) its probe
+    input must follow it (the meta device stands in for CUDA; every convolution checks that its
+    input lies where its weights do, as CUDA's would)."""
+    net = SequenceNet(NetConfig(frames=2, width=4)).to("meta")
+    seen = []
+
+    def same_device(m: torch.nn.Module, inp: tuple[torch.Tensor, ...]) -> None:
+        assert inp[0].device == m.weight.device, (inp[0].device, m.weight.device)
+        seen.append(m)
+
+    for m in net.modules():
+        if isinstance(m, torch.nn.Conv2d):
+            m.register_forward_pre_hook(same_device)
+    assert "multiply-adds per frame" in describe(net, 8, 64)
+    assert len(seen) > 5
 
 
 def test_onnx_export_matches_pytorch(tmp_path: Path) -> None:

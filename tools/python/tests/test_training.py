@@ -114,6 +114,32 @@ def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path,
     assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 9
 
 
+def test_a_time_budget_ends_the_sitting_like_an_end_and_resume_finishes_it(sample: Path, tmp_path: Path,
+                                                                        capsys) -> None:
+    """--max-minutes: the first step past the budget is checkpointed, validated and calibrated
+    as a finished run's last step would be, exit 0; --resume then ends where an uninterrupted
+    run ends."""
+    common = ["--frames", "2", "--steps", "6", "--width", "4", "--checkpoint-every", "4", "--log-every", "1",
+              "--val", str(sample), "--val-every", "100"]
+    assert run_train(sample, "--out", tmp_path / "a", *common) == 0
+    # A budget of a microsecond: the sitting ends after its first step.
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--max-minutes", "1e-8") == 0
+    assert "1 of 6 steps in the --max-minutes" in capsys.readouterr().out
+    assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 1
+    model = load_file(tmp_path / "b" / "model.pt")
+    assert model["training"]["step"] == 1 and 0 < model["human_threshold"] < 1
+    kinds = [json.loads(x) for x in (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    assert [(m["kind"], m["step"]) for m in kinds] == [("train", 1), ("val", 1), ("time_limit", 1), ("calibration", 1)]
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--resume") == 0
+    a, b = weights(tmp_path / "a"), weights(tmp_path / "b")
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+    assert load_file(tmp_path / "b" / "model.pt")["training"]["step"] == 6
+    assert run_train(sample, "--out", tmp_path / "c", *common, "--max-minutes", "0") == 2
+    assert "--max-minutes 0.0: not a positive number" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()
+
+
 def test_predict_then_evaluate_round_trip(sample: Path, tmp_path: Path) -> None:
     run = tmp_path / "run"
     assert run_train(sample, "--frames", "2", "--out", run, "--steps", "20", "--width", "4") == 0
