@@ -87,13 +87,13 @@ pub enum Refine {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum BackendChoice {
-    /// Raster on a GPU, the ray caster on a CPU Vulkan device (lavapipe), where the benchmark
-    /// measures the ray caster faster at better accuracy (README, Performance).
+    /// The ray caster, on every device: the benchmark measures it faster than the raster
+    /// backend on lavapipe and on a GPU alike (README, Performance).
     Auto,
     /// Vulkan rasterization into cube faces, resampled and refined (GPU or lavapipe).
     Raster,
-    /// The CPU ray caster (BVH, watertight f64): exact by construction; on a 2-core machine
-    /// with lavapipe it is the faster of the two (see the README's benchmark).
+    /// The CPU ray caster (BVH, watertight f64): exact by construction; the faster of the two
+    /// on a 2-core machine with lavapipe and on an H200 with 16 host cores (README, Performance).
     Raycast,
 }
 

@@ -53,7 +53,7 @@ impl RunInputs {
         // core), and a backend that needs the Vulkan device opens it meanwhile on its own
         // thread. The first failing file in the list's order is the one reported.
         let files = if cfg.humans.count[1] > 0 { model_files(&cfg.humans.models)? } else { Vec::new() };
-        let opens_device = cfg.render.backend != BackendChoice::Raycast;
+        let opens_device = cfg.render.backend == BackendChoice::Raster;
         let models = std::thread::scope(|scope| {
             let opening = opens_device.then(|| scope.spawn(|| gpu.open_early()));
             let loaded: Vec<Result<HumanModel>> = files.par_iter().map(|f| HumanModel::load(f, needs_animation)).collect();
