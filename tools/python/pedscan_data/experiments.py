@@ -3,6 +3,7 @@ resumable command.
 
     python -m pedscan_data.experiments paper --work DIR [--scale small|full]
         [--pedscan BIN] [--recorded FILE] [--device auto|cpu|cuda] [--only STAGE,...]
+        [--jobs J] [--max-minutes M]
 
 Stages, each skipped when done (so the table survives interruptions and several sittings;
 run the same command again):
@@ -37,6 +38,13 @@ smoke      2         1            1      3 (1)                      17
 =========  ========  ===========  =====  =========================  ======
 
 ``smoke`` checks the pipeline in a minute (the tests run it); its numbers mean nothing.
+
+``--jobs J`` runs J ``pedscan generate --shard I/J`` processes per data set (the same bytes as
+one process: a sequence depends only on the seed and its index); one process keeps about two
+cores busy, so a many-core machine wants J near its cores / 2. ``--max-minutes M`` bounds this
+sitting's training (counted from when training begins; data generation is not counted): each
+run gets what is left of M (``train --max-minutes``), and when it is spent the command stops
+training, tests what is complete and writes the results so far; the same command continues.
 ``--pedscan-flag`` passes a flag to every ``pedscan generate`` (``--pedscan-flag=--sensor=vlp16``).
 """
 
@@ -117,6 +125,12 @@ class Experiment:
         self.workers: int = args.workers
         self.python = sys.executable
         self.extra: list[str] = list(args.pedscan_flag or [])
+        self.jobs: int = args.jobs
+        if self.jobs < 1:
+            raise PedscanError(f"--jobs {self.jobs}: at least one process")
+        if args.max_minutes is not None and not (args.max_minutes > 0 and args.max_minutes < float("inf")):
+            raise PedscanError(f"--max-minutes {args.max_minutes}: not a positive number of minutes")
+        self.max_minutes: float | None = args.max_minutes
         if self.recorded is not None and not self.recorded.exists():
             raise PedscanError(f"--recorded {self.recorded}: no such file or folder")
         self.state_path = self.work / "state.json"
@@ -147,6 +161,22 @@ class Experiment:
             raise KeyboardInterrupt
         if done.returncode != 0:
             raise PedscanError(f"{what}: `{' '.join(cmd)}` exited {done.returncode}")
+
+    def run_shards(self, cmd: list[str], what: str) -> None:
+        """``cmd`` as ``--jobs`` processes, one ``--shard I/J`` each, at once; every one must end well."""
+        print(f"[{what}] {self.jobs} x {' '.join(cmd)} --shard I/{self.jobs}", file=sys.stderr, flush=True)
+        procs = [subprocess.Popen([*cmd, "--shard", f"{i}/{self.jobs}"]) for i in range(self.jobs)]
+        try:
+            codes = [p.wait() for p in procs]
+        except KeyboardInterrupt:
+            for p in procs:
+                p.wait()
+            raise
+        if 130 in codes:
+            raise KeyboardInterrupt
+        bad = [(i, c) for i, c in enumerate(codes) if c != 0]
+        if bad:
+            raise PedscanError(f"{what}: `{' '.join(cmd)} --shard {bad[0][0]}/{self.jobs}` exited {bad[0][1]}")
 
     # ---- stage 1: data -----------------------------------------------------------------
     def datasets(self) -> dict[str, dict[str, Any]]:
@@ -190,7 +220,10 @@ class Experiment:
                                        "remove the folder to make it again, or give another --work")
                 continue
             t0 = time.perf_counter()
-            self.run(cmd, f"data {name}")
+            if self.jobs == 1:
+                self.run(cmd, f"data {name}")
+            else:
+                self.run_shards(cmd, f"data {name}")
             marker.write_text(" ".join(cmd[1:]) + "\n")
             self.add_time("data", time.perf_counter() - t0)
 
@@ -216,13 +249,26 @@ class Experiment:
         ck = run / "checkpoint.pt"
         return int(load_file(ck)["step"]) if ck.is_file() else 0
 
-    def train(self, only: set[str] | None = None) -> None:
+    def train(self, only: set[str] | None = None) -> bool:
+        """Trains every run not yet done; False when ``--max-minutes`` ran out first (counted
+        from here: the first run to train always starts)."""
+        deadline = None if self.max_minutes is None else time.monotonic() + 60.0 * self.max_minutes
+        started = False
         for name, r in self.runs().items():
             if only and name not in only:
                 continue
             run = self.work / "runs" / name
             if self.trained_step(run) >= self.scale.steps:
                 continue
+            budget: list[str] = []
+            if deadline is not None:
+                left = (deadline - time.monotonic()) / 60.0
+                if started and left <= 0:
+                    print(f"[train] the --max-minutes budget is spent before {name}; run the same command to continue",
+                          file=sys.stderr, flush=True)
+                    return False
+                budget = ["--max-minutes", f"{max(left, 1e-9):.6g}"]
+            started = True
             t0 = time.perf_counter()
             cmd = [
                 self.python, "-m", "pedscan_data.train", str(self.work / "data" / r["data"]),
@@ -233,9 +279,14 @@ class Experiment:
             if (run / "run.json").is_file():
                 cmd.append("--resume")
             try:
-                self.run(cmd, f"train {name}")
+                self.run([*cmd, *budget], f"train {name}")
             finally:
                 self.add_time(f"train {name}", time.perf_counter() - t0)
+            if self.trained_step(run) < self.scale.steps:
+                print(f"[train] {name} stopped at step {self.trained_step(run)} of {self.scale.steps} "
+                      "(--max-minutes); run the same command to continue", file=sys.stderr, flush=True)
+                return False
+        return True
 
     # ---- stage 3: test -----------------------------------------------------------------
     def test_sets(self) -> list[str]:
@@ -502,6 +553,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", default=",".join(STAGES), help=f"stages to run, of {','.join(STAGES)}")
     p.add_argument("--runs", help="only these runs (e.g. frames16,frames1): their data sets, the validation "
                    "and test sets, and their training")
+    p.add_argument("--jobs", type=int, default=1, help="pedscan generate processes per data set (--shard I/J)")
+    p.add_argument("--max-minutes", type=float, metavar="M", help="end this sitting's training after M minutes")
     p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
     args = p.parse_args(argv)
     stages = [s.strip() for s in args.only.split(",") if s.strip()]

@@ -301,3 +301,35 @@ def test_the_paper_experiment_makes_only_the_data_of_the_runs_asked_for(tmp_path
     made = sorted(p.parent.name for p in (work / "data").glob("*/.complete"))
     assert made == ["test", "train-sliding", "val"]
     assert "--motion sliding" in (work / "data" / "train-sliding" / ".complete").read_text()
+
+
+def test_the_paper_experiment_trains_in_sittings_and_generates_in_shards(tmp_path: Path, capsys) -> None:
+    """`--jobs 2` writes each set with two `--shard` processes, the same bytes as one process;
+    `--max-minutes` ends the sitting's training at its first step, tests nothing unfinished, and
+    the same command without it finishes the run."""
+    from conftest import find_pedscan
+
+    from pedscan_data import experiments as exp
+
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    common = ["--scale", "smoke", "--pedscan", str(find_pedscan()), "--device", "cpu", "--workers", "0",
+              f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}", "--pedscan-flag=--humans=1..2", "--runs", "frames1"]
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert exp.main(["paper", "--work", str(one), *common, "--only", "data"]) == 0
+    assert exp.main(["paper", "--work", str(two), *common, "--jobs", "2", "--max-minutes", "1e-9"]) == 0
+    assert "the same command to continue" in capsys.readouterr().err
+    for name in ("train", "val", "test"):
+        files = sorted(p.name for p in (one / "data" / name).glob("seq_*.h5"))
+        assert files and files == sorted(p.name for p in (two / "data" / name).glob("seq_*.h5")), name
+        for f in files:
+            assert (one / "data" / name / f).read_bytes() == (two / "data" / name / f).read_bytes(), (name, f)
+        # The same command recorded (the shards are how it ran, not what it made).
+        assert (one / "data" / name / ".complete").read_text() == (
+            (two / "data" / name / ".complete").read_text().replace(str(two), str(one)))
+    assert load_file(two / "runs" / "frames1" / "checkpoint.pt")["step"] == 1
+    assert not (two / "scores" / "frames1--test.json").exists()
+    assert json.loads((two / "results.json").read_text())["runs"]["frames1"]["step"] == 1
+    assert exp.main(["paper", "--work", str(two), *common, "--jobs", "2"]) == 0
+    assert load_file(two / "runs" / "frames1" / "checkpoint.pt")["step"] == 3
+    assert json.loads((two / "scores" / "frames1--test.json").read_text())["model_step"] == 3
+    assert exp.main(["paper", "--work", str(two), *common, "--jobs", "0"]) == 2
