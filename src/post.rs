@@ -206,4 +206,63 @@ mod tests {
         assert!(close(out.velocity[1], -v_s - DVec3::new(0.0, 3.0, 0.0)), "background as rigid: {:?}", out.velocity[1]);
         assert!(close(out.velocity[2], point[2] - v_s - DVec3::new(0.0, 2.0, 0.0)), "{:?}", out.velocity[2]);
     }
+
+    #[test]
+    fn select_keeps_the_range_limits_and_gives_ties_and_empty_hits_to_the_background() {
+        let mut geom = FrameGeometry::default();
+        geom.push_mesh(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], &[0, 1, 2], 1, false);
+        let dirs = vec![DVec3::X; 4];
+        let hv = [DVec3::ZERO];
+        // beams: a person exactly at the wall's range (a tie: the background, which is strictly
+        // nearer-wins), a hit that names a triangle at range 0 (no hit), a person in front of a
+        // wall beyond the sensor's 100 m, and a wall nearer than its 0.5 m.
+        let human = BeamHits { range_m: vec![5.0, 0.0, 3.0, 0.0], triangle: vec![0, 0, 0, NO_TRIANGLE] };
+        let bg = vec![5.0, 4.0, 150.0, 0.3];
+        let mut out = FrameOutput::default();
+        composite(&params(&dirs, &hv, false, VelocityModel::Paper), &human, &geom, &bg, &mut out);
+        assert_eq!(out.range, vec![5.0, 4.0, 3.0, 0.0]);
+        assert_eq!(out.label, vec![0, 0, 1, 0]);
+        assert_eq!(out.instance, vec![0, 0, 1, 0]);
+        // The background's own range obeys the same limits.
+        assert_eq!(out.background_range, vec![5.0, 4.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn the_rolling_shutters_motion_is_taken_per_column_of_the_row_major_grid() {
+        // 2 rows x 3 columns, a wall everywhere, the sensor at a different speed per column.
+        let dirs = vec![DVec3::X; 6];
+        let motion: Vec<ColumnMotion> = (1..=3)
+            .map(|c| ColumnMotion { rot: DMat3::IDENTITY, velocity_mps: DVec3::new(c as f64, 0.0, 0.0), yaw_rate_rps: 0.0 })
+            .collect();
+        let p = PostParams { columns: 3, column_motion: &motion, ..params(&dirs, &[], false, VelocityModel::Paper) };
+        let human = BeamHits { range_m: vec![0.0; 6], triangle: vec![NO_TRIANGLE; 6] };
+        let mut out = FrameOutput::default();
+        composite(&p, &human, &FrameGeometry::default(), &[5.0; 6], &mut out);
+        let vx: Vec<f32> = out.velocity.iter().map(|v| v[0]).collect();
+        assert_eq!(vx, vec![-1.0, -2.0, -3.0, -1.0, -2.0, -3.0]);
+    }
+
+    #[test]
+    fn limb_takes_the_hit_points_velocity_only_for_the_person_the_beam_is_labelled() {
+        // Person 1 owns triangle 0, person 2 triangle 1. Beam 0's nearest triangle is person 1's
+        // while its label says person 2 (as the sensor model's mixed returns can label it): its
+        // velocity is person 2's, not the point's. Beam 1 hits person 2's own triangle.
+        let mut geom = FrameGeometry::default();
+        let tri = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        geom.push_mesh(&tri, &[0, 1, 2], 1, false);
+        geom.push_mesh(&tri, &[0, 1, 2], 2, false);
+        let dirs = vec![DVec3::X; 2];
+        let hv = [DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, 2.0, 0.0)];
+        let point = vec![DVec3::new(9.0, 0.0, 0.0), DVec3::new(7.0, 0.0, 0.0)];
+        let still = [ColumnMotion { rot: DMat3::IDENTITY, velocity_mps: DVec3::ZERO, yaw_rate_rps: 0.0 }];
+        let p = PostParams {
+            point_velocity_mps: &point,
+            column_motion: &still,
+            ..params(&dirs, &hv, false, VelocityModel::Limb)
+        };
+        let human = BeamHits { range_m: vec![4.0, 4.0], triangle: vec![0, 1] };
+        let mut out = FrameOutput { range: vec![4.0, 4.0], label: vec![1, 1], instance: vec![2, 2], ..Default::default() };
+        derive(&p, &human, &geom, &mut out);
+        assert_eq!(out.velocity, vec![[0.0, 2.0, 0.0], [7.0, 0.0, 0.0]]);
+    }
 }
