@@ -299,8 +299,8 @@ pub fn median(v: &mut [f64]) -> f64 {
 }
 
 /// Runs the cross-check over `cfg.sequences` x `cfg.frames` frames. What is checked is the
-/// backend `render.backend` names, the raster backend for `auto` (whatever `auto` would pick
-/// on this device): three of them, with no refinement, the plane and exact refinement (the
+/// backend `render.backend` names, the raster backend for `auto` (the backend the check is
+/// for; `auto` generates with the ray caster): three of them, with no refinement, the plane and exact refinement (the
 /// generator's); for the ray caster the three are the same.
 pub fn crosscheck(mut cfg: Config, opts: &CrosscheckOptions) -> Result<Report> {
     if cfg.render.backend == BackendChoice::Auto {

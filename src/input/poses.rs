@@ -358,6 +358,9 @@ mod tests {
         assert!(m.contains("s.txt:3") && m.contains("not a rotation"), "{m}");
         let m = err(&d, "r.txt", "1 0 0 0 0 1 0 0 0 0 -1 0\n");
         assert!(m.contains("r.txt:1") && m.contains("det = -1"), "{m}");
+        // A shear with det 1: only the orthonormality check can refuse it.
+        let m = err(&d, "sh.txt", "1 0.5 0 0 0 1 0 0 0 0 1 0\n");
+        assert!(m.contains("sh.txt:1") && m.contains("not a rotation") && m.contains("det = 1.000000"), "{m}");
         // Just outside the tolerance.
         let m = err(&d, "tol.txt", "1.002 0 0 0 0 1 0 0 0 0 1 0\n");
         assert!(m.contains("tol.txt:1") && m.contains("not a rotation"), "{m}");
