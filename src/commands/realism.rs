@@ -192,9 +192,17 @@ pub fn measure_recording(path: &Path, grid: &Grid, max_frames: Option<usize>, sa
         if !same_grid(&source, &grid.sensor, 0.05) {
             return Err(Error::input(
                 path.display(),
-                format!("a capture of another sensor ({}) than the pedscan output's ({}); generate with the recording's sensor", describe(&source), describe(&grid.sensor)),
+                format!(
+                    "a capture of another sensor ({}) than the grid it is measured on ({}); measure it on its own \
+                     sensor's (sensor-fit --sensor; realism: a pedscan output generated with that sensor)",
+                    describe(&source),
+                    describe(&grid.sensor)
+                ),
             ));
         }
+    }
+    if let Some(w) = &rec.coverage_warning {
+        eprintln!("warning: {}: {w}", path.display());
     }
     let mut m = Measure::new(grid.sensor.rows());
     if samples {

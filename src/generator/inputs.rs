@@ -125,7 +125,7 @@ impl RunInputs {
         };
         if let Some(rec) = &recording {
             eprintln!("background {}: {}", bg.display(), rec.description);
-            if let Some(w) = &rec.sweep_warning {
+            for w in rec.sweep_warning.iter().chain(&rec.coverage_warning) {
                 eprintln!("warning: {}: {w}", bg.display());
             }
             if rec.poses.is_none() {

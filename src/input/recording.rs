@@ -88,6 +88,9 @@ pub struct Recording {
     /// Why frames of a capture take the uniform sweep instead of their own, once for the
     /// whole recording (how many, and the first frame's reason).
     pub sweep_warning: Option<String>,
+    /// A capture that fires fewer times a turn than the grid has columns leaves columns with
+    /// no return of its own (holes the sensor did not make): how many, and the grid that fits.
+    pub coverage_warning: Option<String>,
     /// The recording sensor's beam elevations, degrees, descending, when the source says
     /// which sensor it is (a Velodyne capture); `None` for frame folders.
     pub source_elevation_deg: Option<Vec<f64>>,
@@ -125,6 +128,7 @@ impl Recording {
         let projector = Projector::new(target);
         let mut column_offsets = Vec::new();
         let mut sweep_warning = None;
+        let mut coverage_warning = None;
         let mut source_elevation_deg = None;
         let (frames, capture_times, description) = if path.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
@@ -158,8 +162,11 @@ impl Recording {
             (Frames::Files(files), None, d)
         } else if is_recording(path) {
             let rec = read_pcap(path)?;
+            let relabelled = rec.relabelled.map_or(String::new(), |(claimed, us)| {
+                format!(" (its packets claim the {}'s product id but come every {us:.1} us, as a {}'s do)", claimed.name(), rec.model.name())
+            });
             let d = format!(
-                "{} capture: {} rotations from {} data packets ({} foreign packets skipped, {} partial rotations dropped)",
+                "{} capture{relabelled}: {} rotations from {} data packets ({} foreign packets skipped, {} partial rotations dropped)",
                 rec.model.name(),
                 rec.scans.len(),
                 rec.data_packets,
@@ -171,6 +178,12 @@ impl Recording {
             el.sort_by(|a, b| b.total_cmp(a));
             source_elevation_deg = Some(el);
             (column_offsets, sweep_warning) = capture_sweeps(&rec.scans, target.columns);
+            // A VLP-16 block holds two firing sequences, each at its own azimuth.
+            let sequences = match rec.model {
+                super::pcap::VelodyneModel::Vlp16 => 2,
+                super::pcap::VelodyneModel::Hdl32e => 1,
+            };
+            coverage_warning = coverage(&rec.scans, sequences, target.columns, rec.model.name());
             let mut images = Vec::with_capacity(rec.scans.len());
             for s in &rec.scans {
                 let mut img = (Vec::new(), Vec::new());
@@ -230,6 +243,7 @@ impl Recording {
             files_read: std::sync::atomic::AtomicUsize::new(0),
             column_offsets,
             sweep_warning,
+            coverage_warning,
             source_elevation_deg,
         })
     }
@@ -343,6 +357,27 @@ impl Recording {
 
 /// Each scan's column boundary times on a grid of `columns` (offsets from the scan's time) from
 /// its firings, and a warning naming how many scans fell back to the uniform sweep and why.
+/// The warning for a capture whose turns hold fewer firings (the median over its turns, times
+/// the firing sequences of a block) than the grid has columns: at least that share of the
+/// columns gets none of its returns.
+fn coverage(scans: &[Scan], sequences: usize, columns: usize, sensor: &str) -> Option<String> {
+    let mut n: Vec<usize> = scans.iter().filter_map(|s| s.firing_times.as_ref().map(Vec::len)).collect();
+    if n.is_empty() {
+        return None;
+    }
+    n.sort_unstable();
+    // A turn's firing list holds the firing where it is cut twice (closing one, opening the next).
+    let firings = n[n.len() / 2].saturating_sub(1) * sequences;
+    (firings < columns).then(|| {
+        format!(
+            "the {sensor} fired {firings} times a turn, fewer than the grid's {columns} columns: at least {:.1} % of \
+             the columns get no return of its own (holes the sensor did not make); a sensor of at most {firings} \
+             columns fits it",
+            100.0 * (columns - firings) as f64 / columns as f64
+        )
+    })
+}
+
 fn capture_sweeps(scans: &[Scan], columns: usize) -> (Vec<ColumnOffsets>, Option<String>) {
     let mut refused: Vec<(usize, String)> = Vec::new();
     let offsets = scans

@@ -13,9 +13,14 @@
 //! Only unfragmented IPv4 UDP is looked at; the UDP port is not checked. A Velodyne data packet
 //! is a UDP payload of exactly 1206 bytes: 12 blocks of 100 bytes (flag `0xFF 0xEE`, azimuth
 //! u16 little endian in 0.01 degree below 36000, then 32 returns of distance u16 LE in 2 mm
-//! units and reflectivity u8), a 4-byte sensor timestamp (ignored: the pcap timestamps are
-//! used) and two factory bytes, return mode (`0x37` strongest, `0x38` last, `0x39` dual) and
-//! product id (`0x21` HDL-32E, `0x22` VLP-16). Every other packet (position/GPS packets of
+//! units and reflectivity u8), a 4-byte sensor timestamp (microseconds past the hour) and two
+//! factory bytes, return mode (`0x37` strongest, `0x38` last, `0x39` dual) and product id
+//! (`0x21` HDL-32E, `0x22` VLP-16). The product id names the sensor unless the packets' own
+//! timestamps say otherwise: a first pass over the first 256 data packets takes the median
+//! step between their timestamps, and a step within 5 % of the other sensor's packet time
+//! (HDL-32E 552.96 us, VLP-16 1327.1 us; half in dual-return mode) and not of the claimed one's
+//! decodes the capture as the other sensor ([`PcapRecording::relabelled`]): some VLP-16
+//! firmware writes the HDL-32E's id. Times themselves come from the pcap timestamps. Every other packet (position/GPS packets of
 //! 512 bytes, other sizes, TCP, non-IPv4, IP fragments, bad block flags, an azimuth of 360
 //! degrees or more, an unknown return mode or product id, frames cut short by the capture's
 //! snap length) is skipped and counted in [`PcapRecording::foreign_packets`].
@@ -140,8 +145,12 @@ impl VelodyneModel {
 /// Everything decoded from one capture.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PcapRecording {
-    /// The sensor, from the data packets' product id.
+    /// The sensor: the data packets' product id, unless their own timestamps say clearly that
+    /// another sensor sent them (then `relabelled`).
     pub model: VelodyneModel,
+    /// The product id the packets claim and their median spacing (us), when the spacing
+    /// overruled it.
+    pub relabelled: Option<(VelodyneModel, f64)>,
     /// One scan per complete turn, seam straight behind, in capture order.
     pub scans: Vec<Scan>,
     /// Velodyne data packets decoded (partial turns included).
@@ -174,6 +183,135 @@ const MAX_RECORD_LEN: usize = 1 << 24;
 
 /// Reads a raw Velodyne capture into one scan per complete turn; see the module docs.
 pub fn read_pcap(path: &Path) -> Result<PcapRecording> {
+    // First pass, over the first data packets only: how far apart the sensor stamps them.
+    let mut stamps: Vec<(VelodyneModel, bool, u32)> = Vec::new();
+    walk_packets(path, |_, payload, _| {
+        if let Some((m, dual)) = payload.and_then(velodyne_packet) {
+            let p = payload.expect("a data packet has a payload");
+            stamps.push((m, dual, u32::from_le_bytes([p[1200], p[1201], p[1202], p[1203]])));
+        }
+        Ok(stamps.len() < SPACING_PACKETS)
+    })?;
+    let timing = packet_timing(&stamps);
+
+    let name = path.display();
+    let mut model: Option<(VelodyneModel, usize)> = None;
+    let mut decoder: Option<Decoder> = None;
+    let mut data_packets = 0usize;
+    let mut foreign_packets = 0usize;
+    let mut rotations = Rotations::new();
+    walk_packets(path, |at, payload, time| {
+        match payload.and_then(velodyne_packet) {
+            None => foreign_packets += 1,
+            Some((m, dual)) => {
+                match model {
+                    None => {
+                        model = Some((m, at.packet));
+                        decoder = Some(Decoder::new(timing.map_or(m, |t| t.decoded_as)));
+                    }
+                    Some((first, first_packet)) if first != m => {
+                        return Err(Error::input(
+                            at.describe(&name),
+                            format!(
+                                "{} data packet in a capture of {} data (from packet \
+                                 {first_packet}); mixed sensors are not supported",
+                                m.name(),
+                                first.name()
+                            ),
+                        ));
+                    }
+                    Some(_) => {}
+                }
+                data_packets += 1;
+                let dec = decoder.as_ref().expect("decoder is set with the model");
+                rotations.packet(dec, payload.expect("a data packet has a payload"), dual, time);
+            }
+        }
+        Ok(true)
+    })?;
+
+    let Some((claimed, _)) = model.filter(|_| !rotations.scans.is_empty()) else {
+        return Err(Error::input(
+            &name,
+            format!("no complete rotation: {data_packets} data packets, {foreign_packets} foreign"),
+        ));
+    };
+    let partial_rotations = rotations.partial + 1; // the turn after the last cut
+    let (model, relabelled) = match timing {
+        Some(t) if t.decoded_as != claimed => (t.decoded_as, Some((claimed, t.spacing_us))),
+        _ => (claimed, None),
+    };
+    Ok(PcapRecording { model, relabelled, scans: rotations.scans, data_packets, foreign_packets, partial_rotations })
+}
+
+/// Data packets whose sensor timestamps the first pass reads.
+const SPACING_PACKETS: usize = 256;
+
+/// How far apart the sensor stamps its data packets, and so which sensor sent them.
+#[derive(Clone, Copy, Debug)]
+struct PacketTiming {
+    /// Median step between consecutive data packets' own timestamps, microseconds.
+    spacing_us: f64,
+    /// The sensor whose packets come at that step.
+    decoded_as: VelodyneModel,
+}
+
+/// The time one data packet covers: 12 blocks of one firing each (HDL-32E, 46.08 us) or of
+/// two firing sequences (VLP-16, 110.592 us); half of that in dual-return mode, where blocks
+/// come in pairs of one firing.
+fn packet_us(model: VelodyneModel, dual: bool) -> f64 {
+    let block = match model {
+        VelodyneModel::Hdl32e => HDL32E_FIRING_US,
+        VelodyneModel::Vlp16 => VLP16_FIRING_US,
+    };
+    BLOCKS as f64 * block / if dual { 2.0 } else { 1.0 }
+}
+
+/// The sensor the packets' own timestamps say sent them, when they say it clearly: the
+/// median step between consecutive data packets (microseconds past the hour, steps of 0 or
+/// over 10 ms left out) within 5 % of one sensor's packet time and not of the other's.
+/// Steps of an HDL-32E are 552.96 us (276.48 dual), of a VLP-16 1327.1 us (663.55 dual), so
+/// a VLP-16 that writes the HDL-32E's product id (some firmware does) is still decoded as
+/// what it is. `None` (the product id decides) when the stamps are absent, too few or fit
+/// neither.
+fn packet_timing(stamps: &[(VelodyneModel, bool, u32)]) -> Option<PacketTiming> {
+    const HOUR_US: u32 = 3_600_000_000;
+    let dual = stamps.first()?.1;
+    let mut steps: Vec<f64> = stamps
+        .windows(2)
+        .map(|w| ((w[1].2 as u64 + HOUR_US as u64 - w[0].2 as u64) % HOUR_US as u64) as f64)
+        .filter(|&d| d > 0.0 && d <= 10_000.0)
+        .collect();
+    if steps.len() < 16 {
+        return None;
+    }
+    steps.sort_by(f64::total_cmp);
+    let spacing_us = steps[steps.len() / 2];
+    let fits = |m: VelodyneModel| (spacing_us / packet_us(m, dual) - 1.0).abs() <= 0.05;
+    let fitting: Vec<VelodyneModel> = [VelodyneModel::Hdl32e, VelodyneModel::Vlp16].into_iter().filter(|&m| fits(m)).collect();
+    match fitting[..] {
+        [m] => Some(PacketTiming { spacing_us, decoded_as: m }),
+        _ => None,
+    }
+}
+
+/// Where a record lies in the capture, for error messages.
+struct At {
+    /// Numbered from 1, as Wireshark does.
+    packet: usize,
+    /// Byte offset of the record header.
+    offset: u64,
+}
+
+impl At {
+    fn describe(&self, name: &impl std::fmt::Display) -> String {
+        format!("{name}: packet {} (byte {})", self.packet, self.offset)
+    }
+}
+
+/// Streams the capture's records to `f(at, udp_payload, pcap_time_s)` until it returns
+/// false or the file ends; the container's errors name the file, packet and offset.
+fn walk_packets(path: &Path, mut f: impl FnMut(&At, Option<&[u8]>, f64) -> Result<bool>) -> Result<()> {
     let (file, file_len) = super::open_file(path)?;
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let name = path.display();
@@ -235,34 +373,27 @@ pub fn read_pcap(path: &Path) -> Result<PcapRecording> {
 
     let mut rec = [0u8; 16];
     let mut buf = vec![0u8; 65536];
-    let mut packet: usize = 0;
-    let mut offset: u64 = 24;
-    let mut model: Option<(VelodyneModel, usize)> = None;
-    let mut decoder: Option<Decoder> = None;
-    let mut data_packets = 0usize;
-    let mut foreign_packets = 0usize;
-    let mut rotations = Rotations::new();
+    let mut at = At { packet: 0, offset: 24 };
     loop {
         let got = read_full(&mut reader, &mut rec).map_err(|e| Error::io(path, e))?;
         if got == 0 {
-            break;
+            return Ok(());
         }
-        packet += 1;
-        let at = || format!("{name}: packet {packet} (byte {offset})");
+        at.packet += 1;
         if got < 16 {
-            return Err(Error::input(at(), format!("truncated record header ({got} of 16 bytes)")));
+            return Err(Error::input(at.describe(&name), format!("truncated record header ({got} of 16 bytes)")));
         }
         let ts_sec = u32_at(&rec, 0);
         let ts_frac = u32_at(&rec, 4);
         let len = u32_at(&rec, 8) as usize;
         if len > MAX_RECORD_LEN {
-            return Err(Error::input(at(), format!("implausible record length {len} bytes")));
+            return Err(Error::input(at.describe(&name), format!("implausible record length {len} bytes")));
         }
         // Checked against the file before the packet buffer grows to it.
-        let left = file_len.saturating_sub(offset + 16);
+        let left = file_len.saturating_sub(at.offset + 16);
         if len as u64 > left {
             return Err(Error::input(
-                at(),
+                at.describe(&name),
                 format!("packet cut short: the record says {len} bytes but only {left} are left in the file"),
             ));
         }
@@ -272,47 +403,14 @@ pub fn read_pcap(path: &Path) -> Result<PcapRecording> {
         let frame = &mut buf[..len];
         let got = read_full(&mut reader, frame).map_err(|e| Error::io(path, e))?;
         if got < len {
-            return Err(Error::input(at(), format!("packet cut short ({got} of {len} bytes)")));
+            return Err(Error::input(at.describe(&name), format!("packet cut short ({got} of {len} bytes)")));
         }
-        let payload = udp_payload(link, frame);
-        match payload.and_then(velodyne_packet) {
-            None => foreign_packets += 1,
-            Some((m, dual)) => {
-                match model {
-                    None => {
-                        model = Some((m, packet));
-                        decoder = Some(Decoder::new(m));
-                    }
-                    Some((first, first_packet)) if first != m => {
-                        return Err(Error::input(
-                            at(),
-                            format!(
-                                "{} data packet in a capture of {} data (from packet \
-                                 {first_packet}); mixed sensors are not supported",
-                                m.name(),
-                                first.name()
-                            ),
-                        ));
-                    }
-                    Some(_) => {}
-                }
-                data_packets += 1;
-                let time = ts_sec as f64 + ts_frac as f64 * frac_s;
-                let dec = decoder.as_ref().expect("decoder is set with the model");
-                rotations.packet(dec, payload.expect("a data packet has a payload"), dual, time);
-            }
+        let time = ts_sec as f64 + ts_frac as f64 * frac_s;
+        if !f(&at, udp_payload(link, frame), time)? {
+            return Ok(());
         }
-        offset += 16 + len as u64;
+        at.offset += 16 + len as u64;
     }
-
-    let Some((model, _)) = model.filter(|_| !rotations.scans.is_empty()) else {
-        return Err(Error::input(
-            &name,
-            format!("no complete rotation: {data_packets} data packets, {foreign_packets} foreign"),
-        ));
-    };
-    let partial_rotations = rotations.partial + 1; // the turn after the last cut
-    Ok(PcapRecording { model, scans: rotations.scans, data_packets, foreign_packets, partial_rotations })
 }
 
 /// Fills `buf` as far as the stream allows; returns the bytes read (short only at the end).

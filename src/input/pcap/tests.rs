@@ -240,6 +240,72 @@ fn vlp16_second_firing_sequence_is_halfway_to_the_next_block() {
     assert_eq!(VelodyneModel::Hdl32e.elevation_deg().len(), 32);
 }
 
+/// `packets` with the sensor's own timestamp of packet k at `t0 + k * step_us` (wrapping at the hour).
+fn stamped(mut packets: Vec<Vec<u8>>, t0: u64, step_us: f64) -> Vec<Vec<u8>> {
+    for (k, p) in packets.iter_mut().enumerate() {
+        let us = ((t0 as f64 + k as f64 * step_us).round() as u64 % 3_600_000_000) as u32;
+        p[1200..1204].copy_from_slice(&us.to_le_bytes());
+    }
+    packets
+}
+
+#[test]
+fn a_vlp16_that_writes_the_hdl32es_product_id_is_told_by_its_packet_spacing() {
+    // The VLP-16 test above, its packets claiming 0x21 (HDL-32E) but stamped 1327.104 us
+    // apart, across the hour's wrap: decoded as a VLP-16, the same points.
+    let dist = |f: usize, _: usize, ch: usize| match (f, ch) {
+        (100, 3) => 5000,
+        (100, 16) => 4000,
+        _ => 0,
+    };
+    let vlp_packet_us = 12.0 * VLP16_FIRING_US;
+    let truth = read(&capture(&spin(VLP, STRONGEST, 9000, 100, 70, dist)).bytes).unwrap();
+    let rec = read(&capture(&stamped(spin(HDL, STRONGEST, 9000, 100, 70, dist), 3_599_990_000, vlp_packet_us)).bytes).unwrap();
+    assert_eq!(rec.model, VelodyneModel::Vlp16);
+    let (claimed, us) = rec.relabelled.unwrap();
+    assert_eq!(claimed, VelodyneModel::Hdl32e);
+    assert!((us - vlp_packet_us).abs() <= 1.0, "{us}");
+    assert_eq!(rec.scans, truth.scans);
+    assert!(truth.relabelled.is_none());
+    // Its own id and its own spacing; an HDL-32E at an HDL-32E's spacing (dual return: half);
+    // stamps that fit neither sensor, or too few of them: the product id decides.
+    for (id, mode, step, want) in [
+        (VLP, STRONGEST, vlp_packet_us, VelodyneModel::Vlp16),
+        (HDL, STRONGEST, 12.0 * HDL32E_FIRING_US, VelodyneModel::Hdl32e),
+        (HDL, DUAL, 6.0 * HDL32E_FIRING_US, VelodyneModel::Hdl32e),
+        (HDL, STRONGEST, 1000.0, VelodyneModel::Hdl32e),
+        (VLP, STRONGEST, 12.0 * HDL32E_FIRING_US * 1.08, VelodyneModel::Vlp16),
+    ] {
+        let n = if mode == DUAL { 140 } else { 70 };
+        let rec = read(&capture(&stamped(spin(id, mode, 9000, 100, n, |_, _, _| 1000), 5, step)).bytes).unwrap();
+        assert_eq!((rec.model, rec.relabelled), (want, None), "id {id:#x}, {step} us");
+    }
+    // A VLP-16 dual-return capture claiming the HDL-32E's id: 663.552 us apart.
+    let rec = read(&capture(&stamped(spin(HDL, DUAL, 9000, 100, 140, |_, _, _| 1000), 5, vlp_packet_us / 2.0)).bytes).unwrap();
+    assert_eq!(rec.model, VelodyneModel::Vlp16);
+    // Only the first packets' stamps are read, and 16 steps are needed: fewer decide nothing.
+    let mut few = stamped(spin(HDL, STRONGEST, 9000, 100, 70, |_, _, _| 1000), 5, vlp_packet_us);
+    for p in few.iter_mut().skip(16) {
+        p[1200..1204].copy_from_slice(&[0; 4]);
+    }
+    assert_eq!(read(&capture(&few).bytes).unwrap().model, VelodyneModel::Hdl32e);
+    few[16][1200..1204].copy_from_slice(&((5.0 + 16.0 * vlp_packet_us).round() as u32).to_le_bytes());
+    assert_eq!(read(&capture(&few).bytes).unwrap().model, VelodyneModel::Vlp16);
+}
+
+#[test]
+fn a_capture_that_fires_fewer_times_a_turn_than_the_grid_has_columns_is_warned_of() {
+    // 0.1 degree a firing: 3,600 firings a turn, enough for 1024 columns, not for 4096.
+    let f = write_file(&capture(&spin(HDL, STRONGEST, 9000, 10, 700, |_, _, _| 1000)).bytes);
+    let open = |columns: usize| {
+        let target = crate::sensor::Sensor { columns, ..crate::sensor::Sensor::hdl32e() };
+        crate::input::recording::Recording::open(f.path(), None, &target).unwrap()
+    };
+    assert!(open(1024).coverage_warning.is_none());
+    let w = open(4096).coverage_warning.unwrap();
+    assert!(w.contains("fired 3600 times a turn, fewer than the grid's 4096 columns: at least 12.1 %"), "{w}");
+}
+
 #[test]
 fn turns_are_cut_at_180_degrees_and_partial_turns_counted() {
     // Blocks at ...51: the crossing falls inside a block, at slot 20 (17951 + 20 * 2.5).
