@@ -207,17 +207,17 @@ pub fn device_choice(s: &str) -> DeviceChoice {
 /// a real GPU too (an NVIDIA H200 with 16 host cores: 77 against 60 frames/s end to end; the
 /// raster path's cost there is per-frame submission and read-back, not drawing: README,
 /// Performance), so `auto` never opens the Vulkan device. Only `raster` does.
-pub fn resolve(choice: BackendChoice, _gpu: &mut Gpu) -> Result<BackendChoice> {
-    Ok(match choice {
+pub fn resolve(choice: BackendChoice) -> BackendChoice {
+    match choice {
         BackendChoice::Auto => BackendChoice::Raycast,
         c => c,
-    })
+    }
 }
 
 /// Creates the backend `cfg.render.backend` names (`auto` resolved by [`resolve`]) for
 /// `sensor` and the people `models`.
 pub fn create(cfg: &Config, sensor: &Sensor, models: &[HumanModel], gpu: &mut Gpu) -> Result<Box<dyn Backend>> {
-    Ok(match resolve(cfg.render.backend, gpu)? {
+    Ok(match resolve(cfg.render.backend) {
         BackendChoice::Raycast => Box::new(RaycastBackend::new(sensor, cfg.debug.caster == Caster::Bvh, cfg.debug.bvh_refit)),
         _ => {
             let ctx = gpu.context().map_err(|e| {
