@@ -251,7 +251,7 @@ pub struct Config {
     pub png: bool,
     /// `auto`, a device index, or a substring of the device name.
     pub device: String,
-    /// A preset (`hdl32e`, `vlp16`) or a sensor TOML file.
+    /// A preset (`hdl32e`, `vlp16`, `hdl64e`, `vlp32c`, `os1-64`, `os1-128`, `os0-128`, `pandar64`) or a sensor file (TOML, Ouster metadata JSON).
     pub sensor: String,
     pub humans: HumansConfig,
     pub scene: SceneConfig,

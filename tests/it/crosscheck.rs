@@ -209,3 +209,40 @@ fn the_gpu_people_path_forced_on_a_cpu_device_is_exact() {
         assert_eq!(j["background_beam_agreement"].as_f64().unwrap(), 1.0, "{projection}: background");
     }
 }
+
+/// Every sensor preset, and a sensor whose beams reach +-80 deg, on both backends (the raster
+/// one with the beam-grid view, the default): every human and background beam agrees with the
+/// reference. The views that cannot cover a sensor refuse it by name: the cube faces past
+/// +-35.26 deg, the cylindrical panorama and the people's proxy panorama past +-45.
+#[test]
+fn every_sensor_preset_and_a_steep_sensor_are_exact_on_both_backends() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let rows: Vec<String> = (0..33).map(|r| (80 - 5 * r).to_string()).collect();
+    std::fs::write(dir.join("steep.toml"), format!("name = \"steep\"\nelevation_deg = [{}]\ncolumns = 512\n", rows.join(", "))).unwrap();
+    let sensors: Vec<&str> = pedscan::sensor::Sensor::PRESETS.iter().copied().chain(["steep.toml"]).collect();
+    for sensor in sensors {
+        for backend in ["raster", "raycast"] {
+            let args = ["crosscheck", "--sensor", sensor, "--backend", backend, "--sequences", "1", "--frames", "1", "--humans", "8", "--seed", "3", "--json", "cc.json"];
+            ok(&pedscan(&args, dir));
+            let j: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("cc.json")).unwrap()).unwrap();
+            let refined = &j["refined"]["overall"];
+            assert!(refined["both_human"].as_u64().unwrap() > 200, "{sensor} {backend}: people were seen: {refined}");
+            assert_eq!(refined["human_beam_agreement"].as_f64().unwrap(), 1.0, "{sensor} {backend}: {refined}");
+            assert_eq!(refined["instance_mixups"].as_u64().unwrap(), 0, "{sensor} {backend}: {refined}");
+            assert_eq!(refined["range_error_m"]["over_1mm"].as_f64().unwrap(), 0.0, "{sensor} {backend}: {refined}");
+            assert_eq!(j["background_beam_agreement"].as_f64().unwrap(), 1.0, "{sensor} {backend}: background");
+        }
+    }
+    std::fs::write(dir.join("proxies.toml"), "[debug]\npeople = \"proxies\"\n").unwrap();
+    for (args, bound) in [
+        (&["--sensor", "os0-128", "--projection", "cube"][..], "past the +-35.26 deg the cube faces cover"),
+        (&["--sensor", "steep.toml", "--projection", "cylinder"][..], "past the +-45 deg a cylindrical panorama covers"),
+        (&["--sensor", "steep.toml", "--config", "proxies.toml"][..], "past the +-45 deg the people's proxy panorama"),
+    ] {
+        let o = pedscan(&[&["crosscheck", "--sequences", "1", "--frames", "1", "--humans", "1"][..], args].concat(), dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(bound), "{args:?}: {err}");
+    }
+}

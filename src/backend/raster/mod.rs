@@ -26,12 +26,12 @@ pub mod resample;
 use super::{cast_in_turn, Backend, BeamHits, FrameSeconds, Layer};
 use crate::backend::raycast::{BeamCaster, Hit};
 use crate::config::{BackendChoice, PeoplePath, Projection, Refine, RenderConfig};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::Context;
 use crate::human::HumanModel;
 use beam_exact::BeamExact;
 use people::PeopleRaster;
-use projection::{CubeFaces, Panorama};
+use projection::{CubeFaces, Panorama, PANORAMA_MAX_ELEVATION_DEG};
 use crate::human::proxy::ModelProxies;
 use rayon::prelude::*;
 use renderer::Renderer;
@@ -88,6 +88,26 @@ impl RasterBackend {
         people: PeoplePath,
         models: &[HumanModel],
     ) -> Result<RasterBackend> {
+        let band = sensor.max_abs_elevation_deg();
+        let too_steep = |limit: f64, what: &str, instead: String| {
+            Error::input(format!("sensor {}", sensor.name), format!("its beams reach +-{band} deg, past the +-{limit} deg {what}; {instead}"))
+        };
+        let other_views = || {
+            format!(
+                "projection = \"beams\" (render.projection) or the ray caster (--backend raycast) take any elevation up to +-{} deg{}",
+                crate::sensor::MAX_ELEVATION_DEG,
+                if band <= PANORAMA_MAX_ELEVATION_DEG { ", projection = \"cylinder\" up to +-45 deg" } else { "" }
+            )
+        };
+        match render.projection {
+            Projection::Cube if band > crate::sensor::CUBE_MAX_ELEVATION_DEG => {
+                return Err(too_steep(crate::sensor::CUBE_MAX_ELEVATION_DEG, "the cube faces cover", other_views()));
+            }
+            Projection::Cylinder if band > PANORAMA_MAX_ELEVATION_DEG => {
+                return Err(too_steep(PANORAMA_MAX_ELEVATION_DEG, "a cylindrical panorama covers", other_views()));
+            }
+            _ => {}
+        }
         let views = match render.projection {
             Projection::Cube => {
                 let cube = CubeFaces::new(sensor, render.oversample);
@@ -100,9 +120,17 @@ impl RasterBackend {
             // Exact by construction: `refine` only decides how the people are drawn.
             Projection::Beams => Views::Beams(BeamExact::new(&ctx, sensor, render.host_cast_beams)?),
         };
+        // The people's proxies are drawn into a panorama: past its band they are binned.
         let binned = match people {
-            PeoplePath::Auto => ctx.is_cpu(),
+            PeoplePath::Auto => ctx.is_cpu() || band > PANORAMA_MAX_ELEVATION_DEG,
             PeoplePath::Binned => true,
+            PeoplePath::Proxies if render.refine == Refine::Exact && band > PANORAMA_MAX_ELEVATION_DEG => {
+                return Err(too_steep(
+                    PANORAMA_MAX_ELEVATION_DEG,
+                    "the people's proxy panorama (debug.people = \"proxies\") covers",
+                    "debug.people = \"binned\" (or \"auto\") casts the people on the CPU at any elevation".into(),
+                ));
+            }
             PeoplePath::Proxies => false,
         };
         let (people, proxies) = match render.refine {

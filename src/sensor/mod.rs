@@ -4,6 +4,8 @@
 //! `col = floor(0.5 * (1 - atan2(y, x) / pi) * W)`; a cell's beam is its centre,
 //! azimuth `pi * (1 - 2 * (col + 0.5) / W)`.
 
+pub mod presets;
+
 use crate::error::{Error, Result};
 use glam::DVec3;
 use serde::Deserialize;
@@ -70,31 +72,63 @@ impl Sensor {
         }
     }
 
-    /// A preset by name (`hdl32e`, `vlp16`) or a TOML file path.
+    /// The presets' names, as `--sensor` takes them.
+    pub const PRESETS: [&'static str; 8] = ["hdl32e", "vlp16", "hdl64e", "vlp32c", "os1-64", "os1-128", "os0-128", "pandar64"];
+
+    /// A preset by name ([`Sensor::PRESETS`], or the HDL-32E's and VLP-16's product names):
+    /// the tables and their sources are in [`presets`]; columns at 10 Hz, near the sensor's
+    /// firings a turn and never more (HDL-64E ~2,083 -> 2,048; VLP-32C and Pandar64 ~1,800;
+    /// Ouster's 1024x10 mode), range limits 0.5 to 100 m as for a sensor file, 120 m for the
+    /// HDL-64E and Ouster OS1 (their datasheets' reach at 80 % reflectivity), 200 m for the
+    /// VLP-32C and Pandar64.
+    pub fn preset(name: &str) -> Option<Sensor> {
+        let s = |name: &str, elevation_deg: Vec<f64>, columns: usize, max_range_m: f64| Sensor {
+            name: name.into(),
+            elevation_deg,
+            columns,
+            rate_hz: 10.0,
+            min_range_m: 0.5,
+            max_range_m,
+        };
+        Some(match name {
+            "hdl32e" | "HDL-32E" => Sensor::hdl32e(),
+            "vlp16" | "VLP-16" => Sensor::vlp16(),
+            "hdl64e" => s("hdl64e", presets::HDL64E_ELEVATION_DEG.to_vec(), 2048, 120.0),
+            "vlp32c" => s("vlp32c", presets::VLP32C_ELEVATION_DEG.to_vec(), 1800, 200.0),
+            "os1-64" => s("os1-64", presets::OS1_64_ELEVATION_DEG.to_vec(), 1024, 120.0),
+            "os1-128" => s("os1-128", presets::OS1_128_ELEVATION_DEG.to_vec(), 1024, 120.0),
+            "os0-128" => s("os0-128", presets::os0_128_elevation_deg(), 1024, 100.0),
+            "pandar64" => s("pandar64", presets::PANDAR64_ELEVATION_DEG.to_vec(), 1800, 200.0),
+            _ => return None,
+        })
+    }
+
+    /// A preset by name ([`Sensor::preset`]) or a sensor file: TOML, or an Ouster metadata JSON.
     pub fn from_name_or_file(spec: &str) -> Result<Sensor> {
-        match spec {
-            "hdl32e" | "HDL-32E" => Ok(Sensor::hdl32e()),
-            "vlp16" | "VLP-16" => Ok(Sensor::vlp16()),
-            path => {
-                let p = Path::new(path);
-                if !p.exists() {
-                    return Err(Error::input(
-                        format!("--sensor {path}"),
-                        "neither a preset (hdl32e, vlp16) nor an existing TOML file or Ouster metadata JSON",
-                    ));
-                }
-                let text = std::fs::read_to_string(p).map_err(|e| Error::input(p.display(), format!("cannot read: {e}")))?;
-                if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
-                    return Sensor::from_ouster_json(&text, &p.display().to_string());
-                }
-                let file: SensorFile =
-                    toml::from_str(&text).map_err(|e| Error::input(p.display(), e))?;
-                let name = file.name.clone().unwrap_or_else(|| {
-                    p.file_stem().map(|s| s.to_string_lossy().into()).unwrap_or_default()
-                });
-                Sensor::from_file(file, name, &p.display().to_string())
-            }
+        if let Some(s) = Sensor::preset(spec) {
+            return Ok(s);
         }
+        let path = spec;
+        let p = Path::new(path);
+        if !p.exists() {
+            return Err(Error::input(
+                format!("--sensor {path}"),
+                format!(
+                    "neither a preset ({}) nor an existing TOML file or Ouster metadata JSON",
+                    Sensor::PRESETS.join(", ")
+                ),
+            ));
+        }
+        let text = std::fs::read_to_string(p).map_err(|e| Error::input(p.display(), format!("cannot read: {e}")))?;
+        if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
+            return Sensor::from_ouster_json(&text, &p.display().to_string());
+        }
+        let file: SensorFile =
+            toml::from_str(&text).map_err(|e| Error::input(p.display(), e))?;
+        let name = file.name.clone().unwrap_or_else(|| {
+            p.file_stem().map(|s| s.to_string_lossy().into()).unwrap_or_default()
+        });
+        Sensor::from_file(file, name, &p.display().to_string())
     }
 
     /// A sensor from an Ouster sensor metadata JSON (what `ouster-cli` and the sensor's HTTP
@@ -266,19 +300,53 @@ fn check_elevations(elevation_deg: &[f64], input: &str) -> Result<()> {
         }
         if e.abs() > MAX_ELEVATION_DEG {
             return bad(format!(
-                "elevation_deg[{k}] = {e} deg is outside the supported band of +-{MAX_ELEVATION_DEG} deg"
+                "elevation_deg[{k}] = {e} deg is outside +-{MAX_ELEVATION_DEG} deg (a beam at the pole has no azimuth)"
             ));
         }
     }
     Ok(())
 }
 
-/// Beams must stay inside the band that 4 side faces of a cube can see (atan(1/sqrt 2)).
-pub const MAX_ELEVATION_DEG: f64 = 35.26;
+/// Steepest beam any sensor may have, degrees: the ray caster and the beam-grid raster take
+/// any elevation short of the poles, where a column has no azimuth.
+pub const MAX_ELEVATION_DEG: f64 = 89.0;
+
+/// Steepest beam the raster backend's cube faces cover: the 4 side faces of a cube see up to
+/// atan(1 / sqrt 2) above and below the horizon at their corners.
+pub const CUBE_MAX_ELEVATION_DEG: f64 = 35.26;
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_preset_is_a_valid_sensor_with_its_sources_rows() {
+        // (preset, rows, top, bottom, columns) as the sources give them (`presets`).
+        let want = [
+            ("hdl32e", 32, 10.67, -30.67, 1024),
+            ("vlp16", 16, 15.0, -15.0, 1024),
+            ("hdl64e", 64, 1.96, -24.555, 2048),
+            ("vlp32c", 32, 15.0, -25.0, 1800),
+            ("os1-64", 64, 21.02, -21.41, 1024),
+            ("os1-128", 128, 21.476, -21.476, 1024),
+            ("os0-128", 128, 45.0, -45.0, 1024),
+            ("pandar64", 64, 14.882, -24.897, 1800),
+        ];
+        assert_eq!(want.map(|w| w.0), Sensor::PRESETS);
+        for (name, rows, top, bottom, columns) in want {
+            let s = Sensor::from_name_or_file(name).unwrap();
+            s.validate(name).unwrap();
+            assert_eq!((s.name.as_str(), s.rows(), s.columns), (name, rows, columns), "{name}");
+            assert!((s.elevation_deg[0] - top).abs() < 1e-9 && (s.elevation_deg[rows - 1] - bottom).abs() < 1e-9, "{name}");
+        }
+        // The VLP-32C's fine band: 1/3 deg from +1.667 down to -4 (the manual's table).
+        let v = Sensor::preset("vlp32c").unwrap().elevation_deg;
+        let fine: Vec<f64> = v.windows(2).filter(|w| w[0] <= 1.7 && w[1] >= -4.01).map(|w| w[0] - w[1]).collect();
+        assert_eq!(fine.len(), 17);
+        assert!(fine.iter().all(|g| (g - 1.0 / 3.0).abs() < 0.002), "{fine:?}");
+        let e = Sensor::from_name_or_file("os2-128").unwrap_err().to_string();
+        assert!(e.contains("neither a preset (hdl32e, vlp16, hdl64e, vlp32c, os1-64, os1-128, os0-128, pandar64)"), "{e}");
+    }
 
     #[test]
     fn an_ouster_metadata_file_gives_its_grid() {
@@ -293,9 +361,12 @@ mod tests {
                          "beam_intrinsics": {"beam_altitude_angles": [30.0, 10.0, -10.0, -30.0]}}"#;
         let s = Sensor::from_ouster_json(nested, "os0.json").unwrap();
         assert_eq!((s.name.as_str(), s.columns, s.rows()), ("os-0-128", 2048, 4));
-        // An OS0's +-45 deg is past what the cube faces cover: refused by name.
+        // An OS0's +-45 deg is a sensor (the cube faces refuse it, the other views take it);
+        // a beam at the pole is not.
         let wide = r#"{"lidar_mode": "1024x10", "beam_altitude_angles": [45.0, 0.0, -45.0]}"#;
-        assert!(Sensor::from_ouster_json(wide, "os0.json").unwrap_err().to_string().contains("outside the supported band"));
+        assert_eq!(Sensor::from_ouster_json(wide, "os0.json").unwrap().max_abs_elevation_deg(), 45.0);
+        let pole = r#"{"lidar_mode": "1024x10", "beam_altitude_angles": [89.5, 0.0]}"#;
+        assert!(Sensor::from_ouster_json(pole, "os0.json").unwrap_err().to_string().contains("outside +-89 deg"));
         for (text, needle) in [
             ("{", "os.json: not JSON"),
             (r#"{"lidar_mode": "1024x10"}"#, "no beam_altitude_angles"),
@@ -391,7 +462,7 @@ mod tests {
     fn impossible_sensors_are_rejected_with_the_input_named() {
         let bad = SensorFile {
             name: None,
-            elevation_deg: vec![10.0, 50.0],
+            elevation_deg: vec![10.0, 89.5],
             columns: 1024,
             rate_hz: None,
             min_range_m: None,
@@ -399,7 +470,7 @@ mod tests {
         };
         let e = Sensor::from_file(bad, "x".into(), "my.toml").unwrap_err();
         assert!(e.is_input());
-        assert!(e.to_string().contains("my.toml"), "{e}");
+        assert!(e.to_string().contains("my.toml: elevation_deg[1] = 89.5 deg is outside +-89 deg"), "{e}");
         let bad_cols = SensorFile {
             name: None,
             elevation_deg: vec![1.0],
