@@ -317,7 +317,7 @@ pub const MIN_NOISE_RESIDUALS: usize = 2_000;
 /// `pedscan sensor-fit`'s arguments.
 #[derive(clap::Args, Debug, Clone)]
 pub struct SensorFitRequest {
-    /// Recordings of one sensor: Velodyne .pcap files, folders of KITTI .bin or .pcd frames,
+    /// Recordings of one sensor: Velodyne or Ouster .pcap files (Ouster: its metadata .json beside it), folders of KITTI .bin or .pcd frames,
     /// or pedscan outputs (their people left out).
     #[arg(required = true)]
     pub recs: Vec<PathBuf>,

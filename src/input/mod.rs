@@ -20,6 +20,7 @@
 //!   (UTM, say) to a local origin first.
 
 pub mod kitti;
+pub mod ouster;
 pub mod pcap;
 pub mod pcd;
 pub mod poses;

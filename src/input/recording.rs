@@ -4,6 +4,9 @@
 //! # Sources
 //! * a Velodyne `.pcap` (HDL-32E / VLP-16): decoded whole when the run starts and kept as
 //!   projected range images (rows x columns x 4 bytes per frame), times from the capture;
+//! * an Ouster `.pcap` ([`super::ouster`]), the same way: a capture whose first UDP packets
+//!   hold no 1206-byte Velodyne payload but payloads of the size its metadata predicts, the
+//!   metadata being the `.json` beside it with the same stem (`x.pcap`, `x.json`);
 //! * a folder of KITTI `.bin` or `.pcd` frames (one kind per folder, in file-name order): read
 //!   and projected when a window uses them, so a folder may hold any number of frames. The
 //!   `.bin` sizes are checked when the run starts. The window's images, read once to find the
@@ -40,6 +43,7 @@
 //! Where people may walk in a recording is the scene's business ([`crate::scene::recorded`]);
 //! this module gives it the window's returns ([`Recording::window_points`]).
 
+use super::ouster::{ouster_metadata_for, read_ouster_pcap};
 use super::pcap::read_pcap;
 use super::poses::{read_poses, read_times};
 use super::project::Projector;
@@ -92,7 +96,8 @@ pub struct Recording {
     /// no return of its own (holes the sensor did not make): how many, and the grid that fits.
     pub coverage_warning: Option<String>,
     /// The recording sensor's beam elevations, degrees, descending, when the source says
-    /// which sensor it is (a Velodyne capture); `None` for frame folders.
+    /// which sensor it is (a Velodyne capture; an Ouster capture's `beam_altitude_angles`);
+    /// `None` for frame folders.
     pub source_elevation_deg: Option<Vec<f64>>,
 }
 
@@ -160,6 +165,30 @@ impl Recording {
             }
             let d = format!("{} {} frames", files.len(), if kind == Some(FileKind::Bin) { "KITTI .bin" } else { "PCD" });
             (Frames::Files(files), None, d)
+        } else if let Some(json) = is_recording(path).then(|| ouster_metadata_for(path)).transpose()?.flatten() {
+            let rec = read_ouster_pcap(path, &json)?;
+            let m = &rec.meta;
+            let d = format!(
+                "{} capture (Ouster, {}): {} frames of {} columns x {} pixels from {} lidar packets ({} other packets \
+                 skipped, {} partial frames dropped, {} invalid columns skipped)",
+                m.prod_line,
+                m.profile.name(),
+                rec.scans.len(),
+                m.columns_per_frame,
+                m.pixels_per_column,
+                rec.data_packets,
+                rec.foreign_packets,
+                rec.partial_frames,
+                rec.invalid_columns
+            );
+            let times: Vec<f64> = rec.scans.iter().map(|s| s.time_s.unwrap_or(f64::NAN)).collect();
+            source_elevation_deg = Some(m.elevation_deg_descending());
+            (column_offsets, sweep_warning) = capture_sweeps(&rec.scans, target.columns);
+            // One firing per column of the column window.
+            let fired = (m.column_window[1] + m.columns_per_frame - m.column_window[0]) % m.columns_per_frame + 1;
+            coverage_warning = coverage(fired, target.columns, &m.prod_line);
+            let images = project_scans(&projector, &rec.scans);
+            (Frames::Images(images), Some(times), d)
         } else if is_recording(path) {
             let rec = read_pcap(path)?;
             let relabelled = rec.relabelled.map_or(String::new(), |(claimed, us)| {
@@ -183,13 +212,8 @@ impl Recording {
                 super::pcap::VelodyneModel::Vlp16 => 2,
                 super::pcap::VelodyneModel::Hdl32e => 1,
             };
-            coverage_warning = coverage(&rec.scans, sequences, target.columns, rec.model.name());
-            let mut images = Vec::with_capacity(rec.scans.len());
-            for s in &rec.scans {
-                let mut img = (Vec::new(), Vec::new());
-                projector.project_with_intensity(s, &mut img.0, &mut img.1);
-                images.push(img);
-            }
+            coverage_warning = coverage(turn_firings(&rec.scans) * sequences, target.columns, rec.model.name());
+            let images = project_scans(&projector, &rec.scans);
             (Frames::Images(images), Some(times), d)
         } else if path.exists() {
             return Err(Error::input(path.display(), "not a recorded background: want a .pcap file or a folder of .bin / .pcd frames"));
@@ -357,25 +381,40 @@ impl Recording {
 
 /// Each scan's column boundary times on a grid of `columns` (offsets from the scan's time) from
 /// its firings, and a warning naming how many scans fell back to the uniform sweep and why.
-/// The warning for a capture whose turns hold fewer firings (the median over its turns, times
-/// the firing sequences of a block) than the grid has columns: at least that share of the
-/// columns gets none of its returns.
-fn coverage(scans: &[Scan], sequences: usize, columns: usize, sensor: &str) -> Option<String> {
+/// The firings of a capture's turn: the median over its turns (a turn's list holds the firing
+/// where it is cut twice, closing one turn and opening the next); 0 without firing times.
+fn turn_firings(scans: &[Scan]) -> usize {
     let mut n: Vec<usize> = scans.iter().filter_map(|s| s.firing_times.as_ref().map(Vec::len)).collect();
     if n.is_empty() {
-        return None;
+        return 0;
     }
     n.sort_unstable();
-    // A turn's firing list holds the firing where it is cut twice (closing one, opening the next).
-    let firings = n[n.len() / 2].saturating_sub(1) * sequences;
-    (firings < columns).then(|| {
+    n[n.len() / 2].saturating_sub(1)
+}
+
+/// The warning for a capture that fires fewer times a turn (`fired` azimuths) than the grid
+/// has columns: at least that share of the columns gets none of its returns.
+fn coverage(fired: usize, columns: usize, sensor: &str) -> Option<String> {
+    (fired > 0 && fired < columns).then(|| {
         format!(
-            "the {sensor} fired {firings} times a turn, fewer than the grid's {columns} columns: at least {:.1} % of \
-             the columns get no return of its own (holes the sensor did not make); a sensor of at most {firings} \
+            "the {sensor} fired {fired} times a turn, fewer than the grid's {columns} columns: at least {:.1} % of \
+             the columns get no return of its own (holes the sensor did not make); a sensor of at most {fired} \
              columns fits it",
-            100.0 * (columns - firings) as f64 / columns as f64
+            100.0 * (columns - fired) as f64 / columns as f64
         )
     })
+}
+
+/// Each scan projected onto the grid (range and intensity images).
+fn project_scans(projector: &Projector, scans: &[Scan]) -> Vec<Image> {
+    scans
+        .iter()
+        .map(|s| {
+            let mut img = (Vec::new(), Vec::new());
+            projector.project_with_intensity(s, &mut img.0, &mut img.1);
+            img
+        })
+        .collect()
 }
 
 fn capture_sweeps(scans: &[Scan], columns: usize) -> (Vec<ColumnOffsets>, Option<String>) {

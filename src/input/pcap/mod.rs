@@ -296,22 +296,22 @@ fn packet_timing(stamps: &[(VelodyneModel, bool, u32)]) -> Option<PacketTiming> 
 }
 
 /// Where a record lies in the capture, for error messages.
-struct At {
+pub(crate) struct At {
     /// Numbered from 1, as Wireshark does.
-    packet: usize,
+    pub(crate) packet: usize,
     /// Byte offset of the record header.
-    offset: u64,
+    pub(crate) offset: u64,
 }
 
 impl At {
-    fn describe(&self, name: &impl std::fmt::Display) -> String {
+    pub(crate) fn describe(&self, name: &impl std::fmt::Display) -> String {
         format!("{name}: packet {} (byte {})", self.packet, self.offset)
     }
 }
 
 /// Streams the capture's records to `f(at, udp_payload, pcap_time_s)` until it returns
 /// false or the file ends; the container's errors name the file, packet and offset.
-fn walk_packets(path: &Path, mut f: impl FnMut(&At, Option<&[u8]>, f64) -> Result<bool>) -> Result<()> {
+pub(crate) fn walk_packets(path: &Path, mut f: impl FnMut(&At, Option<&[u8]>, f64) -> Result<bool>) -> Result<()> {
     let (file, file_len) = super::open_file(path)?;
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let name = path.display();
