@@ -17,7 +17,8 @@ run the same command again):
    composited into that recording (seed 104), with a training (105) and a validation (106)
    set of other people in the same recording. Generation resumes sequence by sequence.
 2. **train**: Table 4's networks (N = 16 first, then 1, 2, 4, 8), the three ablations
-   (N = 16) and, with ``--recorded``, N = 16 and 1 trained on the recording's training set
+   (N = 16), beyond the paper ``frames16-change`` (N = 16 with range-change channels,
+   ``train --range-change``, on Table 4's data) and, with ``--recorded``, N = 16 and 1 trained on the recording's training set
    (the paper's own setting: people composited into the background they are tested on);
    each run resumes from its checkpoint.
 3. **test**: every network predicts the test set(s); scored from frame 15 on, the first frame
@@ -232,6 +233,8 @@ class Experiment:
         r: dict[str, dict[str, Any]] = {f"frames{n}": {"frames": n, "data": "train", "val": "val"} for n in TABLE4_FRAMES}
         for m in ABLATIONS:
             r[f"motion-{m}"] = {"frames": 16, "data": f"train-{m}", "val": "val"}
+        # Beyond the paper: the range-change channels (`train --range-change`) on Table 4's data.
+        r["frames16-change"] = {"frames": 16, "data": "train", "val": "val", "flags": ["--range-change"]}
         if self.recorded is not None:
             # The paper's own setting: people composited into the recording they are tested on
             # (its frames are shared; the people, their paths and places come from other seeds).
@@ -275,6 +278,7 @@ class Experiment:
                 "--frames", str(r["frames"]), "--out", str(run), "--steps", str(self.scale.steps),
                 "--val", str(self.work / "data" / r["val"]), "--score-from", str(SCORE_FROM),
                 "--val-every", str(self.scale.val_every), "--device", self.device, "--workers", str(self.workers),
+                *r.get("flags", []),
             ]
             if (run / "run.json").is_file():
                 cmd.append("--resume")
@@ -477,6 +481,17 @@ def render_markdown(res: dict[str, Any]) -> str:
         if s is not None:
             lines.append(f"| {n} | {_f(s['overall'].get('epe_mps'), 3)} | {_f(s.get('zero_epe_mps'), 3)} | "
                          f"{_f(s.get('ms_per_frame'), 1)} |")
+    if "frames16-change--test" in sc:
+        lines += ["", "## Beyond the paper: range-change channels (N = 16)", "",
+                  "`train --range-change`: the decoder also sees each beam's range change against the "
+                  "earlier frames, and the velocity branch the whole scan's (the sensor's own motion). "
+                  "Same data, steps and test set as Table 4:", "",
+                  "| network | IoU | 0-4 m | 4-8 m | 8+ m | EPE m/s | zero m/s |", "|---|---|---|---|---|---|---|"]
+        for run in ("frames1", "frames16", "frames16-change"):
+            s = sc.get(f"{run}--test")
+            if s is not None:
+                lines.append(f"| {run} | " + " | ".join(_f(v) for v in _iou(sc, f"{run}--test"))
+                             + f" | {_f(s['overall'].get('epe_mps'), 3)} | {_f(s.get('zero_epe_mps'), 3)} |")
     lines += ["", "## Table 5: what the data's motion teaches (N = 16)", "",
               "| training data | IoU ours (generated test set) | paper (its real data) |", "|---|---|---|"]
     for m, label in (("static", "human model only (static)"), ("sliding", "+ trajectory (sliding)"),
@@ -570,13 +585,12 @@ def main(argv: list[str] | None = None) -> int:
         ex.check_scale()
         if "data" in stages:
             ex.data(only)
-        if "train" in stages:
-            ex.train(only)
+        trained = "train" not in stages or ex.train(only)
         if "test" in stages:
             ex.test()
         if "results" in stages:
             ex.results()
-            print(f"wrote {ex.work / 'results.md'}")
+            print(f"wrote {ex.work / 'results.md'}" + ("" if trained else " (training not complete: the same command continues)"))
     except KeyboardInterrupt:
         print("stopped; run the same command again to continue", file=sys.stderr)
         return 130

@@ -17,6 +17,17 @@ W-1 are neighbours) and with zeros along the rows (the top and bottom beams are 
 What the paper's figure does not fix (channel widths, strides, the skips) is chosen here to
 train on two CPU cores in hours (see :func:`describe`); the last frame's full- and
 half-resolution encoder features skip to the decoder, so the mask keeps every column.
+
+With ``range_change`` (not in the paper; off by default) the decoder also sees, at full resolution,
+each beam's **range change**: the last frame's range minus each earlier frame's, where both
+returned (:func:`range_change_channels`). The encoder's features are at a quarter of the columns
+and the range scaled to 0-7, so a person's 0.14 m per frame towards the sensor is a change
+of 0.014 in one input among thousands; given as a difference, a linear layer reads the
+radial speed from it. And the velocity branch gets a **global view** (:class:`EgoMotion`):
+the stored velocity is relative to the sensor (the paper's eq. 1, ``R^T (V_h - V_s)``), so
+every beam's target holds the sensor's own velocity, one vector per frame that no
+convolution's window sees whole; the range changes of the whole scan, pooled with each
+column's direction and projected back onto each beam's, give it.
 """
 
 from __future__ import annotations
@@ -33,6 +44,9 @@ from torch.nn import functional as F
 #: Range scale of the input channel, metres (ranges of 0-70 m become 0-7).
 RANGE_SCALE_M = 10.0
 
+#: Range changes beyond this many metres (a beam that met another surface) are clipped.
+CHANGE_CLIP_M = 3.0
+
 
 @dataclass(frozen=True)
 class NetConfig:
@@ -44,10 +58,20 @@ class NetConfig:
     """a third input channel: the return's intensity"""
     width: int = 16
     """channels of the encoder's first layer; the others are multiples of it"""
+    range_change: bool = False
+    """the decoder also sees each beam's range change against the earlier frames (N >= 2)"""
+
+    def __post_init__(self) -> None:
+        if self.range_change and self.frames < 2:
+            raise ValueError("range-change channels need at least 2 frames")
 
     @property
     def in_channels(self) -> int:
         return 3 if self.intensity else 2
+
+    @property
+    def change_channels(self) -> int:
+        return 2 * (self.frames - 1) if self.range_change else 0
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -66,6 +90,17 @@ def input_channels(range_m: np.ndarray, intensity: np.ndarray | None = None) -> 
         i = np.asarray(intensity, dtype=np.float32)
         chans.append(np.where(valid & np.isfinite(i), i, 0.0))
     return np.stack(chans, axis=-3).astype(np.float32)
+
+
+def range_change_channels(x: torch.Tensor) -> torch.Tensor:
+    """[B, N, C, H, W] network inputs -> [B, 2 (N-1), H, W]: for each earlier frame i, the last
+    frame's range minus frame i's in metres, clipped to +-CHANGE_CLIP_M, where both returned
+    (0 elsewhere), then whether both returned (1 or 0)."""
+    r = x[:, :, 0] * RANGE_SCALE_M
+    v = x[:, :, 1]
+    both = v[:, :-1] * v[:, -1:]
+    diff = torch.clamp(r[:, -1:] - r[:, :-1], -CHANGE_CLIP_M, CHANGE_CLIP_M) * both
+    return torch.cat([diff, both], dim=1)
 
 
 class WrapConv(nn.Module):
@@ -122,6 +157,38 @@ def beam_to_sensor(local: torch.Tensor) -> torch.Tensor:
     return torch.stack([vr * c - vt * s, vr * s + vt * c, vz], dim=1)
 
 
+class EgoMotion(nn.Module):
+    """The whole scan's range changes -> per-beam features of the sensor's own motion.
+
+    Per beam, ``q = relu(1x1 conv(range-change channels))``; pooled over the returned beams, each
+    of its channels gives a scalar ``mean(q)`` and a horizontal vector ``mean(q (cos a, sin a))``
+    (a the column's azimuth: a static wall's range change is minus the sensor's displacement
+    along the beam, so these moments are linear in the sensor's velocity); each vector is
+    projected back onto every beam's horizontal frame (radial, tangential). Returns q and
+    [B, 3 w, H, W]: the scalars, the radial and the tangential projections. A turn of the
+    sensor (a roll of the columns) rolls the outputs and changes nothing else.
+    """
+
+    def __init__(self, cin: int, w: int) -> None:
+        super().__init__()
+        self.q = nn.Conv2d(cin, w, 1)
+
+    def forward(self, change: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        q = F.relu(self.q(change))
+        b, c, h, w = q.shape
+        az = column_azimuth(w, q.device)
+        cos, sin = torch.cos(az), torch.sin(az)
+        n = torch.clamp(mask.sum(dim=(2, 3)), min=1.0)  # [B, 1]
+        qm = q * mask
+        mean = qm.sum(dim=(2, 3)) / n  # [B, C]
+        vx = (qm * cos).sum(dim=(2, 3)) / n
+        vy = (qm * sin).sum(dim=(2, 3)) / n
+        radial = vx[:, :, None, None] * cos + vy[:, :, None, None] * sin  # [B, C, 1, W]
+        tangential = vy[:, :, None, None] * cos - vx[:, :, None, None] * sin
+        glob = torch.cat([mean[:, :, None, None].expand(b, c, 1, w), radial, tangential], dim=1)
+        return q, glob.expand(b, 3 * c, h, w)
+
+
 class Decoder(nn.Module):
     """The concatenated features of N frames and the last frame's skips -> logits and velocity.
 
@@ -149,23 +216,35 @@ class Decoder(nn.Module):
         self.context = WrapConv(fused, fused)
         self.d1 = WrapConv(fused, fused)
         self.d2 = WrapConv(fused + c2, w)
-        self.d3 = WrapConv(w + c1, w)
+        m = w if cfg.range_change else 0
+        self.change = WrapConv(cfg.change_channels, w) if cfg.range_change else None
+        self.ego = EgoMotion(cfg.change_channels, w) if cfg.range_change else None
+        self.d3 = WrapConv(w + c1 + m, w)
         self.seg = nn.Conv2d(w, 2, 1)
         self.vfuse = nn.Conv2d(cfg.frames * cf, fused, 1)
         self.v1 = WrapConv(2 * fused, 2 * w)
-        self.v2 = nn.Conv2d(2 * w + w + 2, w, 1)
+        self.v2 = nn.Conv2d(2 * w + w + 2 + 5 * m, w, 1)
         self.vel = nn.Conv2d(w, 3, 1)
 
     def forward(
-        self, s1: torch.Tensor, s2: torch.Tensor, cat: torch.Tensor
+        self, s1: torch.Tensor, s2: torch.Tensor, cat: torch.Tensor, change: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:
+        if (change is None) != (self.change is None):
+            raise ValueError("range-change channels are given to a network without them, or missing")
+        mf: list[torch.Tensor] = []
+        vf: list[torch.Tensor] = []
+        if change is not None and self.change is not None and self.ego is not None:
+            mf = [self.change(change)]
+            # Beams that returned in the last frame and one earlier frame at least.
+            q, glob = self.ego(change, change[:, change.shape[1] // 2 :].amax(dim=1, keepdim=True))
+            vf = [*mf, q, glob]
         f = F.relu(self.fuse(cat))
         g1 = self.d1(f + _up(self.context(self.down(f)), (2, 2)))
         g = self.d2(torch.cat([_up(g1, (2, 2)), s2], dim=1))
-        g = self.d3(torch.cat([_up(g, (1, 2)), s1], dim=1))
+        g = self.d3(torch.cat([_up(g, (1, 2)), s1, *mf], dim=1))
         logits = self.seg(g)
         v = self.v1(torch.cat([F.relu(self.vfuse(cat)), g1], dim=1))
-        v = torch.cat([_up(v, (2, 4)), g, torch.softmax(logits, dim=1)], dim=1)
+        v = torch.cat([_up(v, (2, 4)), g, torch.softmax(logits, dim=1), *vf], dim=1)
         velocity = beam_to_sensor(self.vel(F.relu(self.v2(v))))
         return logits, velocity
 
@@ -194,11 +273,16 @@ class SequenceNet(nn.Module):
         return self.encoder(x)
 
     def decode(
-        self, s1: torch.Tensor, s2: torch.Tensor, features: torch.Tensor
+        self, s1: torch.Tensor, s2: torch.Tensor, features: torch.Tensor, inputs: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """The last frame's skips s1, s2 and features [B, N, Cf, h, w] of N frames, oldest first."""
+        """The last frame's skips s1, s2 and features [B, N, Cf, h, w] of N frames, oldest first;
+        with ``range_change``, also the N frames' inputs [B, N, C, H, W] (for
+        :func:`range_change_channels`)."""
         b, n, c, h, w = features.shape
-        return self.decoder(s1, s2, features.reshape(b, n * c, h, w))
+        if self.cfg.range_change and inputs is None:
+            raise ValueError("a network with range-change channels decodes from the N frames' inputs too")
+        change = range_change_channels(inputs) if self.cfg.range_change else None
+        return self.decoder(s1, s2, features.reshape(b, n * c, h, w), change)
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         b, n, c, h, w = x.shape
@@ -208,7 +292,7 @@ class SequenceNet(nn.Module):
             )
         s1, s2, f = self.encode(x.reshape(b * n, c, h, w))
         last = torch.arange(b, device=x.device) * n + (n - 1)
-        return self.decode(s1[last], s2[last], f.reshape(b, n, *f.shape[1:]))
+        return self.decode(s1[last], s2[last], f.reshape(b, n, *f.shape[1:]), x)
 
 
 def count_parameters(net: nn.Module) -> int:
@@ -236,7 +320,8 @@ def multiply_adds(net: SequenceNet, rows: int, columns: int) -> dict[str, int]:
             x = torch.zeros(1, net.cfg.in_channels, rows, columns, device=next(net.parameters()).device)
             s1, s2, f = net.encode(x)
             enc = counts["encoder"]
-            net.decode(s1, s2, f.unsqueeze(1).expand(1, net.cfg.frames, *f.shape[1:]))
+            net.decode(s1, s2, f.unsqueeze(1).expand(1, net.cfg.frames, *f.shape[1:]),
+                       x.unsqueeze(1).expand(1, net.cfg.frames, *x.shape[1:]))
     finally:
         for h in hooks:
             h.remove()
@@ -248,7 +333,8 @@ def describe(net: SequenceNet, rows: int = 32, columns: int = 1024) -> str:
     m = multiply_adds(net, rows, columns)
     streaming = m["encoder_per_frame"] + m["decoder_per_window"]
     return (
-        f"N={net.cfg.frames} width={net.cfg.width} inputs={net.cfg.in_channels}: "
+        f"N={net.cfg.frames} width={net.cfg.width} inputs={net.cfg.in_channels}"
+        f"{' range-change' if net.cfg.range_change else ''}: "
         f"{count_parameters(net):,} parameters; at {rows}x{columns}: encoder "
         f"{m['encoder_per_frame'] / 1e6:.1f} M multiply-adds per frame, decoder "
         f"{m['decoder_per_window'] / 1e6:.1f} M per window; streaming "

@@ -81,7 +81,7 @@ def predict_sequence(
     t_total, h, w = seq.frames, seq.rows, seq.columns
     margin = np.zeros((t_total, h, w), dtype=np.float32)
     velocity = np.zeros((t_total, h, w, 3), dtype=np.float32)
-    feats: list[Any] = []  # per frame, on the device: (s1, s2, f) of the last N frames only
+    feats: list[Any] = []  # per frame, on the device: (inputs, features) of the last N frames only
     ms: list[float] = []
     with torch.inference_mode():
         for t0 in range(0, t_total, chunk):
@@ -89,13 +89,16 @@ def predict_sequence(
             for k in range(x.shape[0]):
                 t = t0 + k
                 start = time.perf_counter()
-                s1, s2, f = net.encode(x[k : k + 1].to(device))
-                feats.append((s1, s2, f))
+                xk = x[k : k + 1].to(device)
+                s1, s2, f = net.encode(xk)
+                feats.append((xk, f))
                 if len(feats) > n:
                     feats.pop(0)
                 if t >= first:
-                    window = [feats[0][2]] * (n - len(feats)) + [e[2] for e in feats]
-                    logits, vel = net.decode(s1, s2, torch.stack(window, dim=1))
+                    window = [feats[0]] * (n - len(feats)) + feats
+                    logits, vel = net.decode(
+                        s1, s2, torch.stack([e[1] for e in window], dim=1), torch.stack([e[0] for e in window], dim=1)
+                    )
                     margin[t] = (logits[0, 1] - logits[0, 0]).to("cpu").numpy()
                     velocity[t] = vel[0].permute(1, 2, 0).to("cpu").numpy()
                 ms.append((time.perf_counter() - start) * 1e3)
@@ -171,6 +174,7 @@ def export_onnx(
     onnx.helper.set_model_props(m, {
         "human_threshold": repr(float(human_threshold)), "frames": str(cfg.frames),
         "inputs": "range/10m, valid" + (", intensity" if cfg.intensity else ""),
+        "range_change": str(cfg.range_change).lower(),
     })
     onnx.save(m, str(tmp))
     with torch.no_grad():

@@ -67,6 +67,7 @@ class TrainConfig:
     frames: int = 16
     width: int = 16
     intensity: bool = False
+    range_change: bool = False
     seed: int = 0
     batch: int = 1
     lr: float = 1e-3
@@ -318,11 +319,14 @@ def train(args: argparse.Namespace) -> int:
 
     run: Path = args.out
     cfg = TrainConfig(
-        frames=args.frames, width=args.width, intensity=args.intensity, seed=args.seed, batch=args.batch,
+        frames=args.frames, width=args.width, intensity=args.intensity, range_change=args.range_change, seed=args.seed,
+        batch=args.batch,
         lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights),
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
+    if cfg.range_change and cfg.frames < 2:
+        raise PedscanError("--range-change needs --frames 2 or more (a single frame has no range change)")
     if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, *cfg.loss_weights)):
         raise PedscanError("--lr, --decay and --loss-weights must be finite and not negative")
     paths = training_paths(args.data)
@@ -349,15 +353,18 @@ def train(args: argparse.Namespace) -> int:
         torch.use_deterministic_algorithms(True, warn_only=True)
     else:
         torch.use_deterministic_algorithms(True)
-    net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width)).to(device)
+    net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width,
+                                range_change=cfg.range_change)).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
     if args.resume:
         if not (run / "run.json").is_file():
             raise RunError(f"{run}: no run.json to resume (start it without --resume)")
         before = read_json(run / "run.json")
-        if before.get("config") != config:
-            old = before.get("config", {})
+        # A key added to TrainConfig after the run began holds its default there.
+        old = {**{k: v for k, v in json.loads(json.dumps(asdict(TrainConfig()))).items() if k != "data"},
+               **before.get("config", {})}
+        if old != config:
             diff = sorted(k for k in set(old) | set(config) if old.get(k) != config.get(k))
             raise RunError(f"{run}: a run of another configuration (differs in: {', '.join(diff)}); "
                            "give the same flags and data, or another --out")
@@ -548,6 +555,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--width", type=int, default=16, help="channels of the encoder's first layer (default 16)")
     p.add_argument("--intensity", action="store_true", help="also take the return intensity as input")
+    p.add_argument("--range-change", action="store_true",
+                   help="the decoder also sees each beam's range change against the earlier frames, and the "
+                        "velocity branch the whole scan's (not in the paper; N >= 2)")
     p.add_argument("--batch", type=int, default=1, help="windows per step (paper: 1)")
     p.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (paper: 1e-3)")
     p.add_argument("--decay", type=float, default=1e-3, help="time decay: lr / (1 + decay * step) (paper: 1e-3)")

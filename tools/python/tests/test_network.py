@@ -14,9 +14,9 @@ from pedscan_data.reader import Sequence
 from pedscan_data.train import paper_loss
 
 
-def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False) -> SequenceNet:
+def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False, range_change: bool = False) -> SequenceNet:
     torch.manual_seed(seed)
-    net = SequenceNet(NetConfig(frames=frames, width=width, intensity=intensity)).eval()
+    net = SequenceNet(NetConfig(frames=frames, width=width, intensity=intensity, range_change=range_change)).eval()
     # Random, not trained weights: make the biases nonzero so that zero padding would show.
     with torch.no_grad():
         for p in net.parameters():
@@ -25,9 +25,9 @@ def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False)
     return net
 
 
-@pytest.mark.parametrize("frames", [1, 2, 16])
-def test_shapes(frames: int) -> None:
-    net = net_for(frames)
+@pytest.mark.parametrize("frames,change", [(1, False), (2, False), (16, False), (2, True), (16, True)])
+def test_shapes(frames: int, change: bool) -> None:
+    net = net_for(frames, range_change=change)
     x = torch.rand(2, frames, 2, 16, 64)
     logits, velocity = net(x)
     assert logits.shape == (2, 2, 16, 64)
@@ -57,13 +57,13 @@ def test_wrap_conv_pads_circularly_along_columns_and_with_zeros_along_rows() -> 
     assert float(conv(x).abs().sum()) == 0.0, "the last row must not wrap to the first"
 
 
-@pytest.mark.parametrize("frames", [1, 2, 16])
-def test_the_network_commutes_with_a_turn_of_the_sensor(frames: int) -> None:
+@pytest.mark.parametrize("frames,change", [(1, False), (2, False), (16, False), (2, True), (16, True)])
+def test_the_network_commutes_with_a_turn_of_the_sensor(frames: int, change: bool) -> None:
     """Rolling every input frame by 8 columns (a multiple of the strides) turns the scene by
     delta = 2 pi 8 / W: the mask rolls by 8 columns, and the velocities roll and turn by
     -delta about z (they are in the sensor frame). True only if every layer wraps; zero padding
     at the seam, or a velocity head blind to the column's azimuth, breaks it."""
-    net = net_for(frames)
+    net = net_for(frames, range_change=change)
     w = 32
     x = torch.rand(1, frames, 2, 8, w)
     with torch.no_grad():
@@ -75,6 +75,49 @@ def test_the_network_commutes_with_a_turn_of_the_sensor(frames: int) -> None:
     turned = torch.stack([v[:, 0] * np.cos(d) - v[:, 1] * np.sin(d), v[:, 0] * np.sin(d) + v[:, 1] * np.cos(d), v[:, 2]], 1)
     torch.testing.assert_close(turned, vel_r, rtol=1e-4, atol=1e-5)
     assert float(vel.abs().max()) > 1e-3  # not vacuous
+
+
+def test_range_change_channels_where_both_frames_returned() -> None:
+    from pedscan_data.model import CHANGE_CLIP_M, range_change_channels
+
+    r = np.zeros((3, 1, 8), dtype=np.float32)  # 3 frames, one row of 8 beams
+    r[:, 0, 0] = [10.0, 10.5, 11.0]  # receding at 0.5 m a frame
+    r[:, 0, 1] = [0.0, 4.0, 4.2]  # no return in frame 0
+    r[:, 0, 2] = [5.0, 5.0, 0.0]  # no return in the last frame
+    r[:, 0, 3] = [2.0, 30.0, 30.0]  # met another surface: clipped
+    m = range_change_channels(torch.from_numpy(input_channels(r)).unsqueeze(0))[0, :, 0]
+    assert m.shape == (4, 8)  # 2 (N-1) channels: two range changes, then two validities
+    np.testing.assert_allclose(m[0, :4].numpy(), [1.0, 0.0, 0.0, CHANGE_CLIP_M], atol=1e-5)
+    np.testing.assert_allclose(m[1, :4].numpy(), [0.5, 0.2, 0.0, 0.0], atol=1e-5)
+    np.testing.assert_array_equal(m[2, :4].numpy(), [1, 0, 0, 1])
+    np.testing.assert_array_equal(m[3, :4].numpy(), [1, 1, 0, 1])
+    assert float(m[:, 4:].abs().sum()) == 0.0  # no returns anywhere else
+    with pytest.raises(ValueError, match="at least 2 frames"):
+        NetConfig(frames=1, range_change=True)
+    # The option adds one layer and leaves every other name as it was (older model files load).
+    a, b = net_for(4, range_change=True), net_for(4)
+    assert set(a.state_dict()) - set(b.state_dict()) == {
+        "decoder.change.conv.weight", "decoder.change.conv.bias", "decoder.ego.q.weight", "decoder.ego.q.bias"}
+    assert set(b.state_dict()) <= set(a.state_dict())
+
+
+def test_the_velocity_branch_sees_the_whole_scans_motion_only_with_range_change_channels() -> None:
+    """The sensor's own velocity is in every beam's target and shows in range changes all
+    round the scan: with range-change channels, range changes half a scan away move the velocity of
+    column 0; without them, column 0 sees only its convolutions' window (and its mask never
+    hears of it either way: the global view feeds the velocity branch alone)."""
+    w = 512
+    r = np.full((4, 8, w), 10.0, dtype=np.float32)
+    x = torch.from_numpy(input_channels(r)).unsqueeze(0)
+    r[:3, :, 200:300] -= 0.3  # the far side approached over the window
+    y = torch.from_numpy(input_channels(r)).unsqueeze(0)
+    for change in (False, True):
+        net = net_for(4, range_change=change)
+        with torch.no_grad():
+            (lx, vx), (ly, vy) = net(x), net(y)
+        dv = float((vy - vx)[..., :8].abs().max())
+        assert (dv > 1e-4) == change, (change, dv)
+        assert float((ly - lx)[..., :8].abs().max()) == 0.0
 
 
 def test_velocity_head_turns_the_beam_frame_by_the_column_azimuth() -> None:
@@ -159,11 +202,11 @@ def test_paper_loss_weights_human_beams_by_the_frames_class_ratio() -> None:
     assert t2["ce"] == pytest.approx(np.log(2), rel=1e-6)
 
 
-def test_streaming_prediction_equals_whole_windows(sample: Path) -> None:
+@pytest.mark.parametrize("n,change", [(2, False), (3, True)])
+def test_streaming_prediction_equals_whole_windows(sample: Path, n: int, change: bool) -> None:
     from pedscan_data.predict import predict_sequence, sequence_inputs
 
-    n = 2
-    net = net_for(n)
+    net = net_for(n, range_change=change)
     seq = Sequence(sample / "seq_000000.h5")
     margin, velocity, _ = predict_sequence(net, seq, "cpu", chunk=3)
     x = torch.from_numpy(sequence_inputs(seq, False))
@@ -198,12 +241,13 @@ def test_the_cost_is_counted_on_the_networks_own_device() -> None:
     assert len(seen) > 5
 
 
-def test_onnx_export_matches_pytorch(tmp_path: Path) -> None:
+@pytest.mark.parametrize("change", [False, True])
+def test_onnx_export_matches_pytorch(tmp_path: Path, change: bool) -> None:
     import onnxruntime as ort
 
     from pedscan_data.predict import export_onnx
 
-    net = net_for(2, intensity=True)
+    net = net_for(2, intensity=True, range_change=change)
     diff = export_onnx(net, tmp_path / "net.onnx", 16, 64)
     assert diff <= 1e-4
     # Independently of the export's own check: a second input through both.

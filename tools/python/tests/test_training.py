@@ -186,6 +186,7 @@ def test_training_refuses_bad_input_with_exit_2_and_writes_nothing(
     refused(sample, "--frames", "5", "--out", run, match="seq_000000.h5: 4 frames, shorter than")
     refused(sample_minimal, "--frames", "1", "--out", run, match="no dataset /velocity")
     refused(sample, "--frames", "2", "--out", run, "--val", empty, match="no seq_*.h5")
+    refused(sample, "--frames", "1", "--range-change", "--out", run, match="--range-change needs --frames 2 or more")
 
 
 def test_resume_refuses_another_configuration_and_a_corrupt_checkpoint(
@@ -196,6 +197,8 @@ def test_resume_refuses_another_configuration_and_a_corrupt_checkpoint(
     before = {p.name: p.read_bytes() for p in run.iterdir()}
     assert run_train(sample, "--frames", "3", "--out", run, "--steps", "4", "--width", "4", "--resume") == 2
     assert "another configuration (differs in: frames)" in capsys.readouterr().err
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "4", "--width", "4", "--range-change", "--resume") == 2
+    assert "another configuration (differs in: range_change)" in capsys.readouterr().err
     assert run_train(sample, "--frames", "2", "--out", run, "--steps", "4", "--width", "4") == 2
     assert "not empty" in capsys.readouterr().err
     assert {p.name: p.read_bytes() for p in run.iterdir()} == before
@@ -208,6 +211,19 @@ def test_resume_refuses_another_configuration_and_a_corrupt_checkpoint(
     assert pr.main([str(bad), str(sample), "--out", str(tmp_path / "pred")]) == 2
     assert f"{bad}: not a readable" in capsys.readouterr().err
     assert not (tmp_path / "pred").exists()
+
+
+def test_a_run_begun_before_an_option_existed_resumes_with_its_default(sample: Path, tmp_path: Path) -> None:
+    """run.json of a run started before `range_change` was a TrainConfig key: resuming it with
+    the default flags continues it; asking for the option is another configuration."""
+    run = tmp_path / "run"
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "2", "--width", "4") == 0
+    rj = json.loads((run / "run.json").read_text())
+    del rj["config"]["range_change"]
+    (run / "run.json").write_text(json.dumps(rj))
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "4", "--width", "4", "--resume") == 0
+    assert load_file(run / "checkpoint.pt")["step"] == 4
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "6", "--width", "4", "--range-change", "--resume") == 2
 
 
 def test_predict_refuses_data_the_network_cannot_take(sample_minimal: Path, tmp_path: Path, capsys) -> None:
@@ -249,11 +265,12 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     assert exp.main(args) == 0
     res = json.loads((work / "results.json").read_text())
     runs = [f"frames{n}" for n in (1, 2, 4, 8, 16)] + [f"motion-{m}" for m in ("static", "sliding", "in-place")]
+    runs.append("frames16-change")
     on_rec = ["recorded-frames16", "recorded-frames1"]
     assert sorted(res["runs"]) == sorted(runs + on_rec)
     assert all(r["step"] == 3 for r in res["runs"].values())
     expected = ({f"{r}--test" for r in runs + on_rec} | {f"frames{n}--test-recorded" for n in (1, 2, 4, 8, 16)}
-                | {f"{r}--test-recorded" for r in on_rec})
+                | {f"{r}--test-recorded" for r in on_rec + ["frames16-change"]})
     assert set(res["scores"]) == expected
     for key, s in res["scores"].items():
         assert s["from_frame"] == exp.SCORE_FROM and s["frames"] == 2, key
@@ -273,6 +290,11 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     md = (work / "results.md").read_text()
     assert "| 8+ m |" in md and "0.1622" in md and "A recorded background" in md
     assert "| recorded-frames16 | test-recorded |" in md and "| recorded-frames1 | test |" in md
+    # Beyond the paper: the 16-frame network with range-change channels, on Table 4's data.
+    change = json.loads((work / "runs" / "frames16-change" / "run.json").read_text())
+    assert change["config"]["range_change"] and change["config"]["data"] == json.loads(
+        (work / "runs" / "frames16" / "run.json").read_text())["config"]["data"]
+    assert "## Beyond the paper: range-change channels" in md and "| frames16-change |" in md
     assert (work / "results.png").stat().st_size > 1000
     assert (work / "results-example.png").stat().st_size > 1000
     stamp = {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")}
@@ -317,7 +339,9 @@ def test_the_paper_experiment_trains_in_sittings_and_generates_in_shards(tmp_pat
     one, two = tmp_path / "one", tmp_path / "two"
     assert exp.main(["paper", "--work", str(one), *common, "--only", "data"]) == 0
     assert exp.main(["paper", "--work", str(two), *common, "--jobs", "2", "--max-minutes", "1e-9"]) == 0
-    assert "the same command to continue" in capsys.readouterr().err
+    out = capsys.readouterr()
+    assert "the same command to continue" in out.err
+    assert "results.md (training not complete: the same command continues)" in out.out
     for name in ("train", "val", "test"):
         files = sorted(p.name for p in (one / "data" / name).glob("seq_*.h5"))
         assert files and files == sorted(p.name for p in (two / "data" / name).glob("seq_*.h5")), name
@@ -330,6 +354,7 @@ def test_the_paper_experiment_trains_in_sittings_and_generates_in_shards(tmp_pat
     assert not (two / "scores" / "frames1--test.json").exists()
     assert json.loads((two / "results.json").read_text())["runs"]["frames1"]["step"] == 1
     assert exp.main(["paper", "--work", str(two), *common, "--jobs", "2"]) == 0
+    assert "not complete" not in capsys.readouterr().out
     assert load_file(two / "runs" / "frames1" / "checkpoint.pt")["step"] == 3
     assert json.loads((two / "scores" / "frames1--test.json").read_text())["model_step"] == 3
     assert exp.main(["paper", "--work", str(two), *common, "--jobs", "0"]) == 2
