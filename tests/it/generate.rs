@@ -163,7 +163,7 @@ fn bad_input_is_named_exits_2_and_leaves_no_files() {
     std::fs::write(dir.join("broken.glb"), b"glTF\x02\x00\x00\x00garbage").unwrap();
     expect_input_error(&["generate", "--out", "o5", "--models", "broken.glb"], dir, "broken.glb");
     expect_input_error(&["generate", "--out", "o6", "--sensor", "nosuch.toml"], dir, "nosuch.toml");
-    std::fs::write(dir.join("up.toml"), "elevation_deg = [50.0, 0.0]\ncolumns = 512\n").unwrap();
+    std::fs::write(dir.join("up.toml"), "elevation_deg = [89.5, 0.0]\ncolumns = 512\n").unwrap();
     expect_input_error(&["generate", "--out", "o7", "--sensor", "up.toml"], dir, "up.toml");
     expect_input_error(&["info", "broken.glb"], dir, "broken.glb");
     for o in ["o1", "o2", "o3", "o4", "o5", "o6", "o7"] {
