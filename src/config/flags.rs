@@ -53,6 +53,9 @@ pub struct Flags {
     /// Sensor poses, KITTI poses.txt (3x4 per line) or TUM (t x y z qx qy qz qw).
     #[arg(long)]
     pub poses: Option<PathBuf>,
+    /// An Ouster capture's sensor metadata JSON (default: the .json beside the .pcap, same stem).
+    #[arg(long)]
+    pub ouster_metadata: Option<PathBuf>,
     /// Recorded pedestrian tracks to walk along (see --tracks-format).
     #[arg(long)]
     pub tracks: Option<PathBuf>,
@@ -189,6 +192,9 @@ impl Flags {
         }
         if let Some(v) = &a.poses {
             cfg.scene.poses = v.clone();
+        }
+        if let Some(v) = &a.ouster_metadata {
+            cfg.scene.ouster_metadata = v.clone();
         }
         if let Some(v) = &a.tracks {
             cfg.humans.tracks = v.clone();

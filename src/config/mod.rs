@@ -314,6 +314,10 @@ pub struct SceneConfig {
     /// Sensor poses (KITTI `poses.txt` or TUM): the sensor follows them; required to know the
     /// motion of a recorded background (without, it is taken as static).
     pub poses: PathBuf,
+    /// An Ouster capture's sensor metadata JSON; empty = the `.json` beside the `.pcap` with
+    /// the same stem.
+    #[serde(skip_serializing_if = "path_is_empty")]
+    pub ouster_metadata: PathBuf,
     /// World z of the floor people stand on under a recorded background; unset = estimated
     /// from the recorded points of each window.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -616,6 +620,7 @@ impl Default for SceneConfig {
         SceneConfig {
             background: data_dir().join("scene").join("hall.glb"),
             poses: PathBuf::new(),
+            ouster_metadata: PathBuf::new(),
             floor_z_m: None,
             sensor_height_m: 0.8,
             sensor_speed_mps: [0.3, 1.0],
@@ -675,7 +680,7 @@ impl Config {
         // Only paths the file itself set are relative to it; defaults are absolute already.
         cfg.input_paths_mut().for_each(fix);
         fix(&mut cfg.out);
-        if cfg.sensor.ends_with(".toml") {
+        if cfg.sensor.ends_with(".toml") || cfg.sensor.ends_with(".json") {
             let mut p = PathBuf::from(&cfg.sensor);
             fix(&mut p);
             cfg.sensor = p.display().to_string();
@@ -686,7 +691,12 @@ impl Config {
     /// The input paths the configuration holds (models, background, poses, tracks; the
     /// sensor is a name or a file, handled beside them), for the places that map them all.
     fn input_paths_mut(&mut self) -> impl Iterator<Item = &mut PathBuf> {
-        self.humans.models.iter_mut().chain([&mut self.scene.background, &mut self.scene.poses, &mut self.humans.tracks])
+        self.humans.models.iter_mut().chain([
+            &mut self.scene.background,
+            &mut self.scene.poses,
+            &mut self.scene.ouster_metadata,
+            &mut self.humans.tracks,
+        ])
     }
 
     /// The resolved configuration as TOML text.
@@ -709,7 +719,7 @@ impl Config {
         for p in c.input_paths_mut().filter(|p| !p.as_os_str().is_empty()) {
             *p = recorded_path(p);
         }
-        if c.sensor.ends_with(".toml") {
+        if c.sensor.ends_with(".toml") || c.sensor.ends_with(".json") {
             c.sensor = recorded_path(Path::new(&c.sensor)).display().to_string();
         }
         c.to_toml()
@@ -718,7 +728,8 @@ impl Config {
     /// Every input file this configuration reads, by its recorded name ([`recorded_path`]),
     /// with the SHA-256 of its content, in name order: the human models (unless no person is
     /// asked for), the background (a file, or a folder's files and the KITTI `times.txt`
-    /// beside it), the poses, the tracks and a sensor file.
+    /// beside it; a `.pcap`'s Ouster metadata, given or the `.json` beside it), the poses, the
+    /// tracks and a sensor file (TOML or Ouster JSON).
     pub fn input_digests(&self) -> Result<Vec<(String, String)>> {
         let mut files: Vec<PathBuf> = Vec::new();
         if self.humans.count[1] > 0 {
@@ -736,13 +747,22 @@ impl Config {
             files.extend(bg.parent().map(|p| p.join("times.txt")).filter(|t| t.is_file()));
         } else if !bg.as_os_str().is_empty() {
             files.push(bg.clone());
+            // An Ouster capture's metadata decides its points: given, or the one beside it.
+            let beside = bg.with_extension("json");
+            let pcap = bg.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"));
+            if self.scene.ouster_metadata.as_os_str().is_empty() && pcap && beside.is_file() {
+                files.push(beside);
+            }
+        }
+        if !self.scene.ouster_metadata.as_os_str().is_empty() {
+            files.push(self.scene.ouster_metadata.clone());
         }
         for p in [&self.scene.poses, &self.humans.tracks] {
             if !p.as_os_str().is_empty() {
                 files.push(p.clone());
             }
         }
-        if self.sensor.ends_with(".toml") {
+        if self.sensor.ends_with(".toml") || self.sensor.ends_with(".json") {
             files.push(PathBuf::from(&self.sensor));
         }
         // A recording folder can hold gigabytes: its files are hashed in parallel.
@@ -860,6 +880,11 @@ fn non_negative(key: &str, v: f64) -> Result<()> {
     Ok(())
 }
 
+/// Serde: an unset path (empty) is left out of the written configuration.
+fn path_is_empty(p: &Path) -> bool {
+    p.as_os_str().is_empty()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -915,6 +940,37 @@ mod tests {
             assert!(e.contains("S:frame-K"), "{bad}: {e}");
             assert!(toml::from_str::<Config>(&format!("[debug]\nkill = \"{bad}\"\n")).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn an_ouster_captures_metadata_is_recorded_only_when_given_and_hashed_either_way() {
+        // Unset, it is left out of the record: every earlier run's hash stays the same.
+        assert!(!Config::default().to_recorded_toml().contains("ouster_metadata"));
+        let d = tempfile::tempdir().unwrap();
+        let (pcap, beside, given) = (d.path().join("x.pcap"), d.path().join("x.json"), d.path().join("meta.json"));
+        std::fs::write(&pcap, b"capture").unwrap();
+        let mut c = Config::default();
+        c.humans.count = [0, 0];
+        c.scene.background = pcap.clone();
+        let names = |c: &Config| {
+            let mut n = c.input_digests().unwrap().into_iter().map(|(n, _)| n).collect::<Vec<_>>();
+            n.sort();
+            n
+        };
+        let path = |p: &Path| p.display().to_string();
+        assert_eq!(names(&c), [path(&pcap)]);
+        // The JSON beside the capture is read, so it is an input; one given instead replaces it.
+        std::fs::write(&beside, b"{}").unwrap();
+        assert_eq!(names(&c), [path(&beside), path(&pcap)]);
+        std::fs::write(&given, b"{}").unwrap();
+        let flags = crate::config::flags::Flags { ouster_metadata: Some(given.clone()), ..Default::default() };
+        assert_eq!(flags.config().unwrap().scene.ouster_metadata, given);
+        c.scene.ouster_metadata = given.clone();
+        assert_eq!(names(&c), [path(&given), path(&pcap)]);
+        assert!(c.to_recorded_toml().contains(&format!("ouster_metadata = \"{}\"", given.display())));
+        // A sensor given as Ouster metadata is an input too.
+        c.sensor = path(&given);
+        assert!(c.to_recorded_toml().contains(&format!("sensor = \"{}\"", given.display())));
     }
 
     #[test]

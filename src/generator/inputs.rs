@@ -69,7 +69,8 @@ impl RunInputs {
             (None, None, None)
         } else if is_recording(bg) {
             let poses = (!cfg.scene.poses.as_os_str().is_empty()).then_some(cfg.scene.poses.as_path());
-            (None, None, Some(Recording::open(bg, poses, &sensor)?))
+            let meta = (!cfg.scene.ouster_metadata.as_os_str().is_empty()).then_some(cfg.scene.ouster_metadata.as_path());
+            (None, None, Some(Recording::open_with(bg, poses, meta, &sensor)?))
         } else {
             let env = Environment::load(bg)?;
             let grid = WalkableGrid::from_environment(&env, WALKABLE_CELL_M).map_err(|e| match e {

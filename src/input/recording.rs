@@ -130,6 +130,12 @@ pub fn is_recording(path: &Path) -> bool {
 impl Recording {
     /// Opens a recording and its optional poses; checks counts and times.
     pub fn open(path: &Path, poses_file: Option<&Path>, target: &Sensor) -> Result<Recording> {
+        Recording::open_with(path, poses_file, None, target)
+    }
+
+    /// [`Recording::open`] with an Ouster capture's metadata JSON given (`None`: the `.json`
+    /// beside the `.pcap`).
+    pub fn open_with(path: &Path, poses_file: Option<&Path>, ouster_metadata: Option<&Path>, target: &Sensor) -> Result<Recording> {
         let projector = Projector::new(target);
         let mut column_offsets = Vec::new();
         let mut sweep_warning = None;
@@ -165,7 +171,7 @@ impl Recording {
             }
             let d = format!("{} {} frames", files.len(), if kind == Some(FileKind::Bin) { "KITTI .bin" } else { "PCD" });
             (Frames::Files(files), None, d)
-        } else if let Some(json) = is_recording(path).then(|| ouster_metadata_for(path)).transpose()?.flatten() {
+        } else if let Some(json) = is_recording(path).then(|| ouster_metadata_for(path, ouster_metadata)).transpose()?.flatten() {
             let rec = read_ouster_pcap(path, &json)?;
             let m = &rec.meta;
             let d = format!(

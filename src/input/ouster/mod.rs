@@ -563,12 +563,13 @@ pub fn decode(pcap: &Path, meta: OusterMeta) -> Result<OusterRecording> {
 }
 
 /// Whether a `.pcap` is an Ouster capture, and its metadata: `Some(json)` when its first 256
-/// UDP packets hold no Velodyne-sized (1206-byte) payload and the `.json` beside it with the
-/// same stem predicts the size of some of them. `None` leaves the capture to the Velodyne
-/// reader (which reports what is wrong with it, a broken container too). An error when the
-/// packets look like an Ouster lidar's (larger than any Velodyne packet) but the JSON is
-/// missing, unreadable or predicts another size.
-pub fn ouster_metadata_for(pcap: &Path) -> Result<Option<PathBuf>> {
+/// UDP packets hold no Velodyne-sized (1206-byte) payload and the metadata (`given`, else the
+/// `.json` beside it with the same stem) predicts the size of some of them. `None` leaves the
+/// capture to the Velodyne reader (which reports what is wrong with it, a broken container
+/// too). An error when the packets look like an Ouster lidar's (larger than any Velodyne
+/// packet) but the JSON is missing, unreadable or predicts another size, and when metadata is
+/// given for a capture of Velodyne packets or does not exist.
+pub fn ouster_metadata_for(pcap: &Path, given: Option<&Path>) -> Result<Option<PathBuf>> {
     let mut sizes: Vec<usize> = Vec::new();
     let walked = walk_packets(pcap, |_, payload, _| {
         if let Some(p) = payload {
@@ -576,19 +577,30 @@ pub fn ouster_metadata_for(pcap: &Path) -> Result<Option<PathBuf>> {
         }
         Ok(sizes.len() < SNIFF_PACKETS && !sizes.contains(&1206))
     });
+    if let Some(g) = given {
+        if std::fs::symlink_metadata(g).is_err() {
+            return Err(Error::input(g.display(), "Ouster metadata (scene.ouster_metadata) does not exist"));
+        }
+        if walked.is_ok() && sizes.contains(&1206) {
+            return Err(Error::input(
+                g.display(),
+                format!("Ouster metadata given for {}, a capture of Velodyne data packets", pcap.display()),
+            ));
+        }
+    }
     if walked.is_err() || sizes.contains(&1206) {
         return Ok(None);
     }
     let large = sizes.iter().copied().find(|&s| s > MAX_FOREIGN_LEN);
-    let json = pcap.with_extension("json");
+    let json = given.map_or_else(|| pcap.with_extension("json"), Path::to_path_buf);
     if std::fs::symlink_metadata(&json).is_err() {
         let Some(large) = large else { return Ok(None) };
         return Err(Error::input(
             pcap.display(),
             format!(
                 "holds no Velodyne data packets but {large}-byte UDP packets, as an Ouster lidar sends: an Ouster \
-                 capture is read with its sensor metadata JSON, which must lie beside it with the same name, {} \
-                 (not found)",
+                 capture is read with its sensor metadata JSON, given by --ouster-metadata FILE \
+                 (scene.ouster_metadata) or lying beside it with the same name, {} (not found)",
                 json.display()
             ),
         ));

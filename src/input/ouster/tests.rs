@@ -471,6 +471,21 @@ fn a_recording_opens_an_ouster_capture_with_the_json_beside_it() {
     let e = Recording::open(&small, None, &target).err().unwrap().to_string();
     assert!(e.contains("no complete rotation: 0 data packets, 2 foreign"), "{e}");
 
+    // Metadata given elsewhere, under another name (ouster-sdk names a capture and its JSON
+    // apart): read with it, whatever lies beside the capture; a given file that does not exist,
+    // or metadata given for a Velodyne capture, is named.
+    let elsewhere = tempfile::tempdir().unwrap();
+    let given = elsewhere.path().join("OS-1-16_metadata.json");
+    std::fs::write(&given, spec.json()).unwrap();
+    assert_eq!(Recording::open_with(&pcap_path, None, Some(&given), &target).unwrap().len(), 4);
+    let missing = elsewhere.path().join("nope.json");
+    let e = Recording::open_with(&pcap_path, None, Some(&missing), &target).err().unwrap().to_string();
+    assert!(e.starts_with(&missing.display().to_string()) && e.contains("does not exist"), "{e}");
+    let velodyne = d.path().join("velodyne.pcap");
+    std::fs::write(&velodyne, pcap(&[vec![0u8; 1206]])).unwrap();
+    let e = Recording::open_with(&velodyne, None, Some(&given), &target).err().unwrap().to_string();
+    assert!(e.starts_with(&given.display().to_string()) && e.contains("a capture of Velodyne data packets"), "{e}");
+
     std::fs::write(&json_path, spec.json()).unwrap();
     let rec = Recording::open(&pcap_path, None, &target).unwrap();
     assert_eq!(rec.len(), 4);
