@@ -178,6 +178,18 @@ mod tests {
     use crate::backend::raycast::{cast, cast_brute_force, cast_frame, cast_with_filter, Bvh};
     use std::collections::HashMap;
 
+    /// Whether `intersect_pre` (no culling) gets as far as its zero-area test for this ray and
+    /// triangle: the signs, the ray-space determinant and the range all let it through.
+    fn reaches_area_test(r: &RayPre, tri: &[DVec3; 3]) -> bool {
+        let p = |v: DVec3| (v[r.kx] - r.sx * v[r.kz], v[r.ky] - r.sy * v[r.kz], r.sz * v[r.kz]);
+        let ((ax, ay, az), (bx, by, bz), (cx, cy, cz)) = (p(tri[0]), p(tri[1]), p(tri[2]));
+        let (u, v, w) = (diff_of_products(cx, by, cy, bx), diff_of_products(ax, cy, ay, cx), diff_of_products(bx, ay, by, ax));
+        let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
+        let det = u + v + w;
+        let t = (u * az + v * bz + w * cz) / det;
+        !mixed && det != 0.0 && !det.is_nan() && t > 0.0 && t.is_finite()
+    }
+
     fn flip(idx: &[u32]) -> Vec<u32> {
         idx.chunks(3).flat_map(|t| [t[0], t[2], t[1]]).collect()
     }
@@ -312,6 +324,24 @@ mod tests {
                 }
             }
         }
+        // Exactly collinear triangles (dyadic vertices on a line) met by rays through a point of
+        // their segment, from directions that are not: the shear into ray space rounds, so the
+        // projected triangle can get a nonzero area and an edge-on test alone would let the ray
+        // hit it; only the exact zero-area test refuses every one.
+        let mut reached_area_test = 0;
+        for _ in 0..20000 {
+            let q = |rng: &mut Rng, lo: f64, hi: f64| (rng.range(lo, hi) * 1024.0).round() / 1024.0;
+            let a = DVec3::new(q(&mut rng, 2.0, 9.0), q(&mut rng, -4.0, 4.0), q(&mut rng, -3.0, 3.0));
+            let step = DVec3::new(q(&mut rng, -1.0, 1.0), q(&mut rng, -1.0, 1.0), q(&mut rng, -1.0, 1.0));
+            let tri = [a, a + step, a + step * 3.0];
+            let dir = (a + step * rng.range(0.1, 2.9)).normalize();
+            let r = RayPre::new(dir).unwrap();
+            for cull in [false, true] {
+                assert_eq!(intersect_pre(&r, &tri, cull), None, "{tri:?} {dir:?}");
+            }
+            reached_area_test += usize::from(is_degenerate(&tri) && reaches_area_test(&r, &tri));
+        }
+        assert!(reached_area_test > 100, "only {reached_area_test} rays got past the edge-on test");
         // NaN / infinite vertices and zero / NaN directions: no hit, no NaN.
         let good = [DVec3::new(4.0, 1.0, -1.0), DVec3::new(4.0, 0.0, 1.0), DVec3::new(4.0, -1.0, -1.0)];
         for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
