@@ -120,7 +120,7 @@ pub fn intensity_scale_of(path: &Path) -> Result<f64> {
     if is_output(path) {
         output_intensity_scale(&crate::commands::stats::sequence_files(path)?[0])
     } else {
-        Ok(if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pcap")) { 100.0 } else { 1.0 })
+        Ok(if crate::input::recording::is_pcap(path) { 100.0 } else { 1.0 })
     }
 }
 

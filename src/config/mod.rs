@@ -749,8 +749,7 @@ impl Config {
             files.push(bg.clone());
             // An Ouster capture's metadata decides its points: given, or the one beside it.
             let beside = bg.with_extension("json");
-            let pcap = bg.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"));
-            if self.scene.ouster_metadata.as_os_str().is_empty() && pcap && beside.is_file() {
+            if self.scene.ouster_metadata.as_os_str().is_empty() && crate::input::recording::is_pcap(bg) && beside.is_file() {
                 files.push(beside);
             }
         }

@@ -134,7 +134,7 @@ impl RunInputs {
             }
         }
         let regions = models.iter().map(crate::sensor_model::surfaces::body_regions).collect::<Result<Vec<_>>>()?;
-        let pcap = bg.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"));
+        let pcap = crate::input::recording::is_pcap(bg);
         let intensity_scale = cfg.sensor_model.intensity_scale.unwrap_or(if recording.is_some() && pcap { 100.0 } else { 1.0 });
         let env_meshes = environment.as_ref().map_or_else(Vec::new, Environment::draws);
         let elevation_rad = sensor.elevation_deg.iter().map(|e| e.to_radians()).collect();

@@ -124,7 +124,12 @@ fn kind_of(p: &Path) -> Option<FileKind> {
 
 /// True when `path` names a recorded background (a `.pcap` or a folder), not an environment.
 pub fn is_recording(path: &Path) -> bool {
-    path.is_dir() || path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"))
+    path.is_dir() || is_pcap(path)
+}
+
+/// True when `path` has the `.pcap` extension (any case): a Velodyne or Ouster capture.
+pub fn is_pcap(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"))
 }
 
 impl Recording {
@@ -213,12 +218,8 @@ impl Recording {
             el.sort_by(|a, b| b.total_cmp(a));
             source_elevation_deg = Some(el);
             (column_offsets, sweep_warning) = capture_sweeps(&rec.scans, target.columns);
-            // A VLP-16 block holds two firing sequences, each at its own azimuth.
-            let sequences = match rec.model {
-                super::pcap::VelodyneModel::Vlp16 => 2,
-                super::pcap::VelodyneModel::Hdl32e => 1,
-            };
-            coverage_warning = coverage(turn_firings(&rec.scans) * sequences, target.columns, rec.model.name());
+            let fired = turn_firings(&rec.scans) * rec.model.sequences_per_block();
+            coverage_warning = coverage(fired, target.columns, rec.model.name());
             let images = project_scans(&projector, &rec.scans);
             (Frames::Images(images), Some(times), d)
         } else if path.exists() {

@@ -129,6 +129,23 @@ impl VelodyneModel {
         }
     }
 
+    /// The time one block takes, us: one firing of every laser (HDL-32E) or two firing
+    /// sequences (VLP-16).
+    fn block_us(&self) -> f64 {
+        match self {
+            VelodyneModel::Hdl32e => HDL32E_FIRING_US,
+            VelodyneModel::Vlp16 => VLP16_FIRING_US,
+        }
+    }
+
+    /// Firing sequences a block holds, each at its own azimuth (the VLP-16 fires twice).
+    pub fn sequences_per_block(&self) -> usize {
+        match self {
+            VelodyneModel::Hdl32e => 1,
+            VelodyneModel::Vlp16 => 2,
+        }
+    }
+
     /// Firing time of return slot `ch` (0..32) of a block as a fraction of the time between
     /// two firings (one block; a block pair in dual-return mode).
     fn firing_fraction(&self, ch: usize) -> f64 {
@@ -260,11 +277,7 @@ struct PacketTiming {
 /// two firing sequences (VLP-16, 110.592 us); half of that in dual-return mode, where blocks
 /// come in pairs of one firing.
 fn packet_us(model: VelodyneModel, dual: bool) -> f64 {
-    let block = match model {
-        VelodyneModel::Hdl32e => HDL32E_FIRING_US,
-        VelodyneModel::Vlp16 => VLP16_FIRING_US,
-    };
-    BLOCKS as f64 * block / if dual { 2.0 } else { 1.0 }
+    BLOCKS as f64 * model.block_us() / if dual { 2.0 } else { 1.0 }
 }
 
 /// The sensor the packets' own timestamps say sent them, when they say it clearly: the
@@ -531,11 +544,7 @@ impl Decoder {
                 fraction: model.firing_fraction(ch),
             };
         }
-        let firing_us = match model {
-            VelodyneModel::Hdl32e => HDL32E_FIRING_US,
-            VelodyneModel::Vlp16 => VLP16_FIRING_US,
-        };
-        Decoder { slots, ring_elevation_deg, firing_s: firing_us * 1e-6 }
+        Decoder { slots, ring_elevation_deg, firing_s: model.block_us() * 1e-6 }
     }
 }
 
