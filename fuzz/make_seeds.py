@@ -396,6 +396,110 @@ def gltf_seeds():
     shutil.copyfile(os.path.join(ROOT, "data", "scene", "hall.glb"), os.path.join(CORPUS, "environment_gltf", "seed-hall.glb"))
 
 
+# --- ROS 2 bags (MCAP, CDR) -----------------------------------------------------------------
+# The `rosbag` target's first byte picks what the rest is: 0 an MCAP file (poses from /tf), 4 one
+# with poses from /odom, 1 a PointCloud2 payload, 2 a TFMessage payload, 3 an Odometry payload
+# (CDR, encapsulation header first).
+
+
+class Cdr:
+    def __init__(self, le=True):
+        self.b = bytearray([0, 1 if le else 0, 0, 0])
+        self.e = "<" if le else ">"
+
+    def align(self, n):
+        while (len(self.b) - 4) % n:
+            self.b.append(0)
+
+    def put(self, fmt, *v):
+        self.align(struct.calcsize(fmt.lstrip("0123456789")))
+        self.b += struct.pack(self.e + fmt, *v)
+        return self
+
+    def string(self, s):
+        self.put("I", len(s) + 1)
+        self.b += s.encode() + b"\0"
+        return self
+
+    def header(self, ns, frame):
+        return self.put("i", ns // 10**9).put("I", ns % 10**9).string(frame)
+
+
+BAG_T0 = 1_700_000_000 * 10**9
+
+
+def cloud_cdr(ns, le=True):
+    """8 returns of an HDL-32E-like cloud: x y z intensity (f32), ring (u16), time (f32)."""
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("ring", 16, 4), ("time", 20, 7)]
+    data = bytearray()
+    for k in range(8):
+        a = 2 * math.pi * k / 8
+        data += struct.pack(("<" if le else ">") + "4fH2xf", 5 * math.cos(a), 5 * math.sin(a), -1.0 + 0.1 * (k % 2), 10.0 * k, k % 2, 0.0125 * k)
+    c = Cdr(le).header(ns, "lidar").put("I", 2).put("I", 4).put("I", len(fields))
+    for name, off, ty in fields:
+        c.string(name).put("I", off).put("B", ty).put("I", 1)
+    c.put("B", 0 if le else 1).put("I", 24).put("I", 96).put("I", len(data))
+    c.b += data
+    return bytes(c.put("B", 1).b)
+
+
+def tf_cdr(items):
+    c = Cdr().put("I", len(items))
+    for ns, parent, child, xyz, q in items:
+        c.header(ns, parent).string(child).put("3d", *xyz).put("4d", *q)
+    return bytes(c.b)
+
+
+def odometry_cdr(ns):
+    c = Cdr().header(ns, "odom").string("base").put("3d", 1.0, 2.0, 0.0).put("4d", 0.0, 0.0, 0.0, 1.0)
+    return bytes(c.put("36d", *[0.0] * 36).put("6d", *[0.0] * 6).put("36d", *[0.0] * 36).b)
+
+
+def mcap_record(op, body):
+    return struct.pack("<BQ", op, len(body)) + body
+
+
+def mstr(s):
+    return struct.pack("<I", len(s)) + s.encode()
+
+
+def mcap_file(messages, chunked=False):
+    """An MCAP file (no summary) of (topic, schema name, time ns, payload)."""
+    schemas, channels, records = {}, {}, b""
+    for topic, schema, ns, payload in messages:
+        if schema not in schemas:
+            schemas[schema] = len(schemas) + 1
+            records += mcap_record(0x03, struct.pack("<H", schemas[schema]) + mstr(schema) + mstr("ros2msg") + struct.pack("<I", 0))
+        if topic not in channels:
+            channels[topic] = len(channels)
+            records += mcap_record(0x04, struct.pack("<HH", channels[topic], schemas[schema]) + mstr(topic) + mstr("cdr") + struct.pack("<I", 0))
+        records += mcap_record(0x05, struct.pack("<HIQQ", channels[topic], 0, ns, ns) + payload)
+    body = records
+    if chunked:
+        t = [m[2] for m in messages]
+        chunk = struct.pack("<QQQI", min(t), max(t), len(records), 0) + mstr("") + struct.pack("<Q", len(records)) + records
+        body = mcap_record(0x06, chunk)
+    out = b"\x89MCAP0\r\n" + mcap_record(0x01, mstr("ros2") + mstr("pedscan seeds")) + body
+    out += mcap_record(0x0F, struct.pack("<I", 0)) + mcap_record(0x02, struct.pack("<QQI", 0, 0, 0))
+    return out + b"\x89MCAP0\r\n"
+
+
+def rosbag_seeds():
+    static = ("/tf_static", "tf2_msgs/msg/TFMessage", BAG_T0, tf_cdr([(BAG_T0, "base", "lidar", (0, 0, 1), (0, 0, 0, 1))]))
+    moving = [("/tf", "tf2_msgs/msg/TFMessage", BAG_T0 + k * 10**8,
+               tf_cdr([(BAG_T0 + k * 10**8, "odom", "base", (0.1 * k, 0, 0), (0, 0, math.sin(0.05 * k), math.cos(0.05 * k)))])) for k in range(4)]
+    clouds = [("/points", "sensor_msgs/msg/PointCloud2", BAG_T0 + k * 10**8, cloud_cdr(BAG_T0 + k * 10**8)) for k in range(1, 3)]
+    messages = [static] + sorted(moving + clouds, key=lambda m: m[2])
+    put("rosbag", "tf.mcap", b"\0" + mcap_file(messages))
+    put("rosbag", "chunked.mcap", b"\0" + mcap_file(messages, chunked=True))
+    odom = [("/odom", "nav_msgs/msg/Odometry", BAG_T0 + k * 10**8, odometry_cdr(BAG_T0 + k * 10**8)) for k in range(4)]
+    put("rosbag", "odometry.mcap", b"\4" + mcap_file([static] + sorted(odom + clouds, key=lambda m: m[2])))
+    put("rosbag", "cloud-le.cdr", b"\1" + cloud_cdr(BAG_T0))
+    put("rosbag", "cloud-be.cdr", b"\1" + cloud_cdr(BAG_T0, le=False))
+    put("rosbag", "tf.cdr", b"\2" + moving[1][3])
+    put("rosbag", "odometry.cdr", b"\3" + odometry_cdr(BAG_T0))
+
+
 if __name__ == "__main__":
     pcap_seeds()
     pcd_seeds()
@@ -403,3 +507,4 @@ if __name__ == "__main__":
     track_seeds()
     toml_seeds()
     gltf_seeds()
+    rosbag_seeds()

@@ -34,7 +34,7 @@ export RUST_BACKTRACE=1
 # small enough that one execution stays quick.
 targets="pcap:65536 ouster_pcap:65536 pcd:4096 kitti_bin:4096 kitti_times:2048 poses_kitti:4096 poses_tum:4096
 tracks_eth:4096 tracks_eth4:4096 tracks_atc:4096 tracks_csv:4096 config_toml:4096 sensor_toml:2048
-human_gltf:16384 environment_gltf:32768"
+human_gltf:16384 environment_gltf:32768 rosbag:16384"
 # What bounds one run: memory, seconds per input. Findings go to fuzz/artifacts/TARGET/.
 limits="-rss_limit_mb=2048 -timeout=10"
 

@@ -228,7 +228,7 @@ pub fn measure_with(path: &Path, grid: &Grid, max_frames: Option<usize>, samples
     } else if is_recording(path) {
         measure_recording(path, grid, max_frames, samples)?
     } else if path.exists() {
-        return Err(Error::input(path.display(), "neither a pedscan output (seq_*.h5) nor a recording (.pcap, a folder of .bin or .pcd frames)"));
+        return Err(Error::input(path.display(), "neither a pedscan output (seq_*.h5) nor a recording (.pcap, a ROS 2 bag, a folder of .bin or .pcd frames)"));
     } else {
         return Err(Error::input(path.display(), "no such file or folder"));
     };

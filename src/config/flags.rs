@@ -47,7 +47,7 @@ pub struct Flags {
     #[arg(long)]
     pub sensor: Option<String>,
     /// Background: an environment glTF (.glb/.gltf, rendered), a Velodyne .pcap, or a folder
-    /// of KITTI .bin / PCD frames (recorded); `none` for an empty world.
+    /// of KITTI .bin / PCD frames, a ROS 2 bag (.mcap or its folder) (recorded); `none` for an empty world.
     #[arg(long, visible_alias = "environment")]
     pub background: Option<PathBuf>,
     /// Sensor poses, KITTI poses.txt (3x4 per line) or TUM (t x y z qx qy qz qw).
@@ -56,6 +56,15 @@ pub struct Flags {
     /// An Ouster capture's sensor metadata JSON (default: the .json beside the .pcap, same stem).
     #[arg(long)]
     pub ouster_metadata: Option<PathBuf>,
+    /// A ROS 2 bag background's PointCloud2 topic (default: the bag's only one).
+    #[arg(long)]
+    pub topic: Option<String>,
+    /// A ROS 2 bag background's world frame for the poses from /tf (default: the first of odom, map, world that reaches the clouds' frame).
+    #[arg(long)]
+    pub world_frame: Option<String>,
+    /// A ROS 2 bag background's nav_msgs/msg/Odometry topic giving the sensor's poses instead of /tf.
+    #[arg(long)]
+    pub poses_topic: Option<String>,
     /// Recorded pedestrian tracks to walk along (see --tracks-format).
     #[arg(long)]
     pub tracks: Option<PathBuf>,
@@ -195,6 +204,15 @@ impl Flags {
         }
         if let Some(v) = &a.ouster_metadata {
             cfg.scene.ouster_metadata = v.clone();
+        }
+        if let Some(v) = &a.topic {
+            cfg.scene.topic = v.clone();
+        }
+        if let Some(v) = &a.world_frame {
+            cfg.scene.world_frame = v.clone();
+        }
+        if let Some(v) = &a.poses_topic {
+            cfg.scene.poses_topic = v.clone();
         }
         if let Some(v) = &a.tracks {
             cfg.humans.tracks = v.clone();

@@ -318,6 +318,16 @@ pub struct SceneConfig {
     /// the same stem.
     #[serde(skip_serializing_if = "path_is_empty")]
     pub ouster_metadata: PathBuf,
+    /// A ROS 2 bag's PointCloud2 topic; empty = the bag's only one.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub topic: String,
+    /// A ROS 2 bag's world frame for the poses from `/tf`; empty = the first of `odom`, `map`,
+    /// `world` connected to the clouds' frame.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub world_frame: String,
+    /// A ROS 2 bag's `nav_msgs/msg/Odometry` topic giving the poses instead of `/tf`; empty = `/tf`.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub poses_topic: String,
     /// World z of the floor people stand on under a recorded background; unset = estimated
     /// from the recorded points of each window.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -621,6 +631,9 @@ impl Default for SceneConfig {
             background: data_dir().join("scene").join("hall.glb"),
             poses: PathBuf::new(),
             ouster_metadata: PathBuf::new(),
+            topic: String::new(),
+            world_frame: String::new(),
+            poses_topic: String::new(),
             floor_z_m: None,
             sensor_height_m: 0.8,
             sensor_speed_mps: [0.3, 1.0],

@@ -68,9 +68,8 @@ impl RunInputs {
         let (environment, grid, recording) = if bg.as_os_str().is_empty() {
             (None, None, None)
         } else if is_recording(bg) {
-            let poses = (!cfg.scene.poses.as_os_str().is_empty()).then_some(cfg.scene.poses.as_path());
-            let meta = (!cfg.scene.ouster_metadata.as_os_str().is_empty()).then_some(cfg.scene.ouster_metadata.as_path());
-            (None, None, Some(Recording::open_with(bg, poses, meta, &sensor)?))
+            let options = crate::input::recording::RecordingOptions::of_scene(&cfg.scene);
+            (None, None, Some(Recording::open_with(bg, &options, &sensor)?))
         } else {
             let env = Environment::load(bg)?;
             let grid = WalkableGrid::from_environment(&env, WALKABLE_CELL_M).map_err(|e| match e {
@@ -130,7 +129,7 @@ impl RunInputs {
                 eprintln!("warning: {}: {w}", bg.display());
             }
             if rec.poses.is_none() {
-                eprintln!("warning: {}: no poses given (--poses), so the sensor is taken as static; background velocities are 0", bg.display());
+                eprintln!("warning: {}: no poses given (--poses, or a bag's /tf or --poses-topic), so the sensor is taken as static; background velocities are 0", bg.display());
             }
         }
         let regions = models.iter().map(crate::sensor_model::surfaces::body_regions).collect::<Result<Vec<_>>>()?;

@@ -26,6 +26,7 @@ pub mod pcd;
 pub mod poses;
 pub mod project;
 pub mod recording;
+pub mod rosbag;
 pub mod tracks;
 
 pub use recording::Recording;

@@ -46,6 +46,7 @@
 use super::ouster::{ouster_metadata_for, read_ouster_pcap};
 use super::pcap::read_pcap;
 use super::poses::{read_poses, read_times};
+use super::rosbag::{is_bag, read_bag, BagOptions};
 use super::project::Projector;
 use super::{file_len, kitti, pcd, Scan};
 use crate::error::{Error, Result};
@@ -122,9 +123,39 @@ fn kind_of(p: &Path) -> Option<FileKind> {
     }
 }
 
-/// True when `path` names a recorded background (a `.pcap` or a folder), not an environment.
+/// True when `path` names a recorded background (a `.pcap`, a ROS 2 bag or a folder), not an
+/// environment.
 pub fn is_recording(path: &Path) -> bool {
-    path.is_dir() || is_pcap(path)
+    path.is_dir() || is_pcap(path) || is_bag(path)
+}
+
+/// What a recording is read with besides its path.
+#[derive(Clone, Debug, Default)]
+pub struct RecordingOptions<'a> {
+    /// A poses file (one pose per frame); it wins over a bag's transforms.
+    pub poses: Option<&'a Path>,
+    /// An Ouster capture's metadata JSON (`None`: the `.json` beside the `.pcap`).
+    pub ouster_metadata: Option<&'a Path>,
+    /// A ROS 2 bag's topic, world frame and odometry topic.
+    pub bag: BagOptions,
+}
+
+impl<'a> RecordingOptions<'a> {
+    /// The options of a run's scene configuration.
+    pub fn of_scene(scene: &'a crate::config::SceneConfig) -> RecordingOptions<'a> {
+        let path = |p: &'a Path| (!p.as_os_str().is_empty()).then_some(p);
+        let text = |s: &str| (!s.is_empty()).then(|| s.to_string());
+        RecordingOptions {
+            poses: path(&scene.poses),
+            ouster_metadata: path(&scene.ouster_metadata),
+            bag: BagOptions {
+                topic: text(&scene.topic),
+                world_frame: text(&scene.world_frame),
+                poses_topic: text(&scene.poses_topic),
+                no_poses: false,
+            },
+        }
+    }
 }
 
 /// True when `path` has the `.pcap` extension (any case): a Velodyne or Ouster capture.
@@ -135,18 +166,47 @@ pub fn is_pcap(path: &Path) -> bool {
 impl Recording {
     /// Opens a recording and its optional poses; checks counts and times.
     pub fn open(path: &Path, poses_file: Option<&Path>, target: &Sensor) -> Result<Recording> {
-        Recording::open_with(path, poses_file, None, target)
+        Recording::open_with(path, &RecordingOptions { poses: poses_file, ..Default::default() }, target)
     }
 
-    /// [`Recording::open`] with an Ouster capture's metadata JSON given (`None`: the `.json`
-    /// beside the `.pcap`).
-    pub fn open_with(path: &Path, poses_file: Option<&Path>, ouster_metadata: Option<&Path>, target: &Sensor) -> Result<Recording> {
+    /// [`Recording::open`] with every option.
+    pub fn open_with(path: &Path, options: &RecordingOptions, target: &Sensor) -> Result<Recording> {
+        let (poses_file, ouster_metadata) = (options.poses, options.ouster_metadata);
+        let mut bag_poses = None;
         let projector = Projector::new(target);
         let mut column_offsets = Vec::new();
         let mut sweep_warning = None;
         let mut coverage_warning = None;
         let mut source_elevation_deg = None;
-        let (frames, capture_times, description) = if path.is_dir() {
+        let (frames, capture_times, description) = if is_bag(path) {
+            let opts = BagOptions { no_poses: poses_file.is_some(), ..options.bag.clone() };
+            let bag = read_bag(path, &opts, |scan| {
+                let mut img = (Vec::new(), Vec::new());
+                projector.project_with_intensity(scan, &mut img.0, &mut img.1);
+                Ok((img, scan.firing_times.is_some().then(|| sweep_of(scan, target.columns))))
+            })?;
+            let mut images = Vec::with_capacity(bag.frames.len());
+            let mut refused = Vec::new();
+            for (k, (img, sweep)) in bag.frames.into_iter().enumerate() {
+                images.push(img);
+                column_offsets.push(match sweep {
+                    Some(Ok(b)) => Some(b),
+                    Some(Err(why)) => {
+                        refused.push((k, why));
+                        None
+                    }
+                    None => None,
+                });
+            }
+            sweep_warning = sweeps_warning(&refused, images.len());
+            source_elevation_deg = bag.ring_elevation_deg.map(|e| {
+                let mut e: Vec<f64> = e.into_iter().filter(|x| x.is_finite()).collect();
+                e.sort_by(|a, b| b.total_cmp(a));
+                e
+            });
+            bag_poses = bag.poses;
+            (Frames::Images(images), Some(bag.times_s), bag.description)
+        } else if path.is_dir() {
             let mut files: Vec<PathBuf> = std::fs::read_dir(path)
                 .map_err(|e| Error::input(path.display(), format!("cannot list the folder: {e}")))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
@@ -223,7 +283,10 @@ impl Recording {
             let images = project_scans(&projector, &rec.scans);
             (Frames::Images(images), Some(times), d)
         } else if path.exists() {
-            return Err(Error::input(path.display(), "not a recorded background: want a .pcap file or a folder of .bin / .pcd frames"));
+            return Err(Error::input(
+                path.display(),
+                "not a recorded background: want a .pcap file, a ROS 2 bag (.mcap, or a folder with metadata.yaml) or a folder of .bin / .pcd frames",
+            ));
         } else {
             return Err(Error::input(path.display(), "background does not exist"));
         };
@@ -266,7 +329,7 @@ impl Recording {
             source: path.to_path_buf(),
             frames,
             times_s: times,
-            poses: poses.map(|p| p.world_from_sensor),
+            poses: poses.map(|p| p.world_from_sensor).or(bag_poses),
             description,
             projector,
             dirs: target.beam_dirs(),
@@ -429,30 +492,31 @@ fn capture_sweeps(scans: &[Scan], columns: usize) -> (Vec<ColumnOffsets>, Option
     let offsets = scans
         .iter()
         .enumerate()
-        .map(|(k, s)| {
-            let (Some(firings), Some(t0)) = (&s.firing_times, s.time_s) else {
-                refused.push((k, "no firing times".into()));
-                return None;
-            };
-            // Relative to the frame's time, so a Unix-time clock keeps its microseconds.
-            let relative: Vec<[f64; 2]> = firings.iter().map(|&[a, t]| [a, t - t0]).collect();
-            match crate::sensor_model::shutter::boundary_times(&relative, columns) {
-                Ok(b) => Some(b.into()),
-                Err(why) => {
-                    refused.push((k, why));
-                    None
-                }
-            }
-        })
+        .map(|(k, s)| sweep_of(s, columns).map_err(|why| refused.push((k, why))).ok())
         .collect();
-    let warning = refused.first().map(|(k, why)| {
+    (offsets, sweeps_warning(&refused, scans.len()))
+}
+
+/// A scan's column boundary times on a grid of `columns`, offsets from the scan's time, from
+/// its firings; why not, when it must take the uniform sweep.
+fn sweep_of(s: &Scan, columns: usize) -> std::result::Result<Arc<[f64]>, String> {
+    let (Some(firings), Some(t0)) = (&s.firing_times, s.time_s) else {
+        return Err("no firing times".into());
+    };
+    // Relative to the frame's time, so a Unix-time clock keeps its microseconds.
+    let relative: Vec<[f64; 2]> = firings.iter().map(|&[a, t]| [a, t - t0]).collect();
+    crate::sensor_model::shutter::boundary_times(&relative, columns).map(Into::into)
+}
+
+/// The warning naming how many of `frames` fell back to the uniform sweep (`refused`: frame
+/// and why) and the first one's reason.
+fn sweeps_warning(refused: &[(usize, String)], frames: usize) -> Option<String> {
+    refused.first().map(|(k, why)| {
         format!(
-            "{} of {} frames take the uniform sweep over their recorded step instead of their packets' column times (frame {k}: {why})",
+            "{} of {frames} frames take the uniform sweep over their recorded step instead of their packets' column times (frame {k}: {why})",
             refused.len(),
-            scans.len()
         )
-    });
-    (offsets, warning)
+    })
 }
 
 fn check_times(t: &[f64], path: &Path) -> Result<()> {

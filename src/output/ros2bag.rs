@@ -50,7 +50,7 @@ fn header_deps() -> String {
 }
 
 /// `sensor_msgs/msg/PointCloud2` in the ros2msg schema encoding (dependencies appended).
-fn point_cloud2_schema() -> String {
+pub(crate) fn point_cloud2_schema() -> String {
     format!(
         "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\nbool is_bigendian\n\
          uint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n{}{SEPARATOR}MSG: sensor_msgs/PointField\n\
@@ -61,7 +61,7 @@ fn point_cloud2_schema() -> String {
 }
 
 /// `tf2_msgs/msg/TFMessage` in the ros2msg schema encoding.
-fn tf_message_schema() -> String {
+pub(crate) fn tf_message_schema() -> String {
     format!(
         "geometry_msgs/TransformStamped[] transforms\n{SEPARATOR}MSG: geometry_msgs/TransformStamped\n\
          std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform\n\
@@ -74,38 +74,38 @@ fn tf_message_schema() -> String {
 
 /// A little-endian CDR (XCDR1) message: the encapsulation header, then fields aligned to
 /// their size relative to the end of the header.
-struct Cdr(Vec<u8>);
+pub(crate) struct Cdr(pub(crate) Vec<u8>);
 
 impl Cdr {
-    fn new() -> Cdr {
+    pub(crate) fn new() -> Cdr {
         Cdr(vec![0, 1, 0, 0])
     }
-    fn align(&mut self, n: usize) {
+    pub(crate) fn align(&mut self, n: usize) {
         while (self.0.len() - 4) % n != 0 {
             self.0.push(0);
         }
     }
-    fn u8(&mut self, v: u8) {
+    pub(crate) fn u8(&mut self, v: u8) {
         self.0.push(v);
     }
-    fn u32(&mut self, v: u32) {
+    pub(crate) fn u32(&mut self, v: u32) {
         self.align(4);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn i32(&mut self, v: i32) {
+    pub(crate) fn i32(&mut self, v: i32) {
         self.align(4);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn f64(&mut self, v: f64) {
+    pub(crate) fn f64(&mut self, v: f64) {
         self.align(8);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
-    fn string(&mut self, s: &str) {
+    pub(crate) fn string(&mut self, s: &str) {
         self.u32(s.len() as u32 + 1);
         self.0.extend_from_slice(s.as_bytes());
         self.0.push(0);
     }
-    fn header(&mut self, stamp_ns: u64, frame: &str) {
+    pub(crate) fn header(&mut self, stamp_ns: u64, frame: &str) {
         self.i32((stamp_ns / 1_000_000_000) as i32);
         self.u32((stamp_ns % 1_000_000_000) as u32);
         self.string(frame);

@@ -287,3 +287,78 @@ fn a_window_of_frame_files_is_read_once() {
     assert_eq!(read(&rec), 7, "the window's frames must not be read twice");
     assert_eq!(read(&fresh), 8);
 }
+
+/// A ROS 2 bag pedscan writes, read back as a background with no people and no sensor model,
+/// gives its frames back on the grid: the same returns at the same beams (ranges to f32
+/// rounding of the bag's x y z), the same sensor poses from its `/tf`, the same frame steps
+/// and each frame's column times from its points' `time` field.
+#[test]
+fn a_ros2_bag_pedscan_wrote_is_read_back_as_its_own_background() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    ok(&pedscan(&["generate", "--backend", "raycast", "--frames", "4", "--humans", "2..2", "--seed", "3", "--formats", "h5,mcap", "--out", "a"], dir));
+    let o = pedscan(
+        &[
+            "generate", "--backend", "raycast", "--frames", "4", "--humans", "0..0", "--sensor-model", "off", "--background", "a/seq_000000_bag",
+            "--out", "b",
+        ],
+        dir,
+    );
+    ok(&o);
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(log.contains("ROS 2 bag (1 MCAP file): 4 clouds on /pedscan/points in frame 'pedscan_sensor' (organized 32 x 1024"), "{log}");
+    assert!(log.contains("poses from /tf, 'world' -> 'pedscan_sensor'") && !log.contains("taken as static"), "{log}");
+    let a = hdf5::File::open(dir.join("a/seq_000000.h5")).unwrap();
+    let b = hdf5::File::open(dir.join("b/seq_000000.h5")).unwrap();
+    let read_f32 = |f: &hdf5::File, n: &str| -> Vec<f32> { f.dataset(n).unwrap().read_raw().unwrap() };
+    let read_f64 = |f: &hdf5::File, n: &str| -> Vec<f64> { f.dataset(n).unwrap().read_raw().unwrap() };
+    let (ra, rb) = (read_f32(&a, "range"), read_f32(&b, "range"));
+    assert_eq!(ra.len(), rb.len());
+    let returns = ra.iter().filter(|&&r| r > 0.0).count();
+    assert!(returns > ra.len() / 2, "{returns} returns");
+    for (k, (&x, &y)) in ra.iter().zip(&rb).enumerate() {
+        assert!((x == 0.0) == (y == 0.0) && (x - y).abs() <= 2e-6 * x, "beam {k}: {x} written, {y} read back");
+    }
+    let (pa, pb) = (read_f64(&a, "sensor/world_from_sensor"), read_f64(&b, "sensor/world_from_sensor"));
+    assert!(pa.iter().zip(&pb).all(|(x, y)| (x - y).abs() < 1e-9), "poses {pa:?} {pb:?}");
+    let (ta, tb) = (read_f64(&a, "sensor/time_s"), read_f64(&b, "sensor/time_s"));
+    for k in 1..4 {
+        assert!(((ta[k] - ta[0]) - (tb[k] - tb[0])).abs() < 2e-9, "frame {k}: {ta:?} {tb:?}");
+    }
+    // Each frame's sweep from its points' `time` field (a run with the sensor model off
+    // takes every column at the frame's time, so the recording is asked directly): each
+    // column's written time lies at the middle of its boundaries.
+    let rec = pedscan::input::Recording::open(&dir.join("a/seq_000000_bag"), None, &Sensor::hdl32e()).unwrap();
+    let ca = read_f64(&a, "sensor/column_time_s");
+    let columns = ca.len() / 4;
+    for k in 0..4 {
+        let bounds = rec.column_offsets(k).expect("the frame's own sweep");
+        let worst = (0..columns).map(|c| (0.5 * (bounds[c] + bounds[c + 1]) - (ca[k * columns + c] - ta[k])).abs()).fold(0.0, f64::max);
+        assert!(worst < 1e-6, "frame {k}: column times differ by up to {worst} s");
+    }
+    // What cannot be read from it is named, exits 2 and writes nothing.
+    let bag = ["--background", "a/seq_000000_bag", "--frames", "4", "--humans", "0..0"];
+    let run = |out: &str, more: &[&str], needle: &str| {
+        let mut args = vec!["generate", "--out", out];
+        args.extend(bag);
+        args.extend(more);
+        expect_input_error(&args, dir, needle);
+        assert!(!dir.join(out).exists(), "{out} was created for a run that failed on its input");
+    };
+    run("e1", &["--topic", "/nope"], "has no PointCloud2 topic '/nope' (it has: /pedscan/points)");
+    run("e2", &["--world-frame", "map"], "no transform chain from the world frame 'map' to the clouds' frame 'pedscan_sensor'");
+    run("e3", &["--poses-topic", "/odom"], "has no nav_msgs/msg/Odometry message on '/odom'");
+    let mcap = std::fs::read(dir.join("a/seq_000000_bag/seq_000000.mcap")).unwrap();
+    std::fs::write(dir.join("cut.mcap"), &mcap[..mcap.len() / 2]).unwrap();
+    expect_input_error(&["generate", "--out", "e4", "--background", "cut.mcap", "--frames", "2"], dir, "cut.mcap");
+    // A record claiming 2^62 bytes: refused within a bounded memory.
+    let mut lying = mcap[..8].to_vec();
+    lying.extend([0x05]);
+    lying.extend((1u64 << 62).to_le_bytes());
+    lying.extend([0u8; 64]);
+    std::fs::write(dir.join("lying.mcap"), &lying).unwrap();
+    let o = crate::common::pedscan_bounded(&["generate", "--out", "e5", "--background", "lying.mcap", "--frames", "2"], dir, 1 << 30);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(2) && err.contains("lying.mcap"), "{:?}: {err}", o.status.code());
+    assert!(!dir.join("e4").exists() && !dir.join("e5").exists());
+}

@@ -3,6 +3,7 @@
 //! `ouster_core/src/xyzlut.cpp`, worked out for simple angles.
 
 use super::*;
+use crate::input::recording::RecordingOptions;
 use crate::input::Recording;
 use crate::sensor::Sensor;
 
@@ -477,13 +478,13 @@ fn a_recording_opens_an_ouster_capture_with_the_json_beside_it() {
     let elsewhere = tempfile::tempdir().unwrap();
     let given = elsewhere.path().join("OS-1-16_metadata.json");
     std::fs::write(&given, spec.json()).unwrap();
-    assert_eq!(Recording::open_with(&pcap_path, None, Some(&given), &target).unwrap().len(), 4);
+    assert_eq!(Recording::open_with(&pcap_path, &RecordingOptions { ouster_metadata: Some(&given), ..Default::default() }, &target).unwrap().len(), 4);
     let missing = elsewhere.path().join("nope.json");
-    let e = Recording::open_with(&pcap_path, None, Some(&missing), &target).err().unwrap().to_string();
+    let e = Recording::open_with(&pcap_path, &RecordingOptions { ouster_metadata: Some(&missing), ..Default::default() }, &target).err().unwrap().to_string();
     assert!(e.starts_with(&missing.display().to_string()) && e.contains("does not exist"), "{e}");
     let velodyne = d.path().join("velodyne.pcap");
     std::fs::write(&velodyne, pcap(&[vec![0u8; 1206]])).unwrap();
-    let e = Recording::open_with(&velodyne, None, Some(&given), &target).err().unwrap().to_string();
+    let e = Recording::open_with(&velodyne, &RecordingOptions { ouster_metadata: Some(&given), ..Default::default() }, &target).err().unwrap().to_string();
     assert!(e.starts_with(&given.display().to_string()) && e.contains("a capture of Velodyne data packets"), "{e}");
 
     std::fs::write(&json_path, spec.json()).unwrap();
