@@ -25,7 +25,7 @@ fuzz_target!(|data: &[u8]| {
             let path = pedscan_fuzz::input_file("bag.mcap", rest);
             let odometry = mode % 5 == 4;
             let opts = BagOptions { poses_topic: odometry.then(|| "/odom".to_string()), ..Default::default() };
-            if let Ok(bag) = read_bag(&path, &opts, |s| {
+            if let Ok(bag) = read_bag(&path, &opts, |s, _| {
                 scan_of(s);
                 Ok(s.points.len())
             }) {

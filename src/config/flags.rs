@@ -43,7 +43,7 @@ pub struct Flags {
     /// Keep background holes where a person stands in front of them (the paper's choice).
     #[arg(long)]
     pub keep_holes: bool,
-    /// Sensor preset (`hdl32e`, `vlp16`, `hdl64e`, `vlp32c`, `os1-64`, `os1-128`, `os0-128`, `pandar64`) or a sensor file (TOML, Ouster metadata JSON).
+    /// Sensor preset (`hdl32e`, `vlp16`, `hdl64e`, `vlp32c`, `os1-64`, `os1-128`, `os0-128`, `pandar64`), a sensor file (TOML, Ouster metadata JSON), or `background`: the recorded background's own grid (a ROS 2 bag's rings, an Ouster capture's metadata).
     #[arg(long)]
     pub sensor: Option<String>,
     /// Background: an environment glTF (.glb/.gltf, rendered), a Velodyne .pcap, or a folder

@@ -47,7 +47,20 @@ impl RunInputs {
     /// Reads and checks every input of a checked configuration. A backend that needs the
     /// Vulkan device opens it on `gpu` meanwhile, on its own thread.
     pub fn load(cfg: &Config, gpu: &mut Gpu) -> Result<RunInputs> {
-        let sensor = Sensor::from_name_or_file(&cfg.sensor)?;
+        let sensor = if cfg.sensor == crate::input::recording::BACKGROUND_SENSOR {
+            let s = crate::input::recording::own_sensor(&cfg.scene.background, &crate::input::recording::RecordingOptions::of_scene(&cfg.scene))?;
+            eprintln!(
+                "sensor: the background's own grid, {} rows from {:.2} to {:.2} deg, {} columns, {:.2} Hz",
+                s.rows(),
+                s.elevation_deg[0],
+                s.elevation_deg[s.rows() - 1],
+                s.columns,
+                s.rate_hz
+            );
+            s
+        } else {
+            Sensor::from_name_or_file(&cfg.sensor)?
+        };
         let needs_animation = cfg.humans.motion.animates();
         // The people load in parallel (~13 ms of CPU each, the bundled 15 in ~200 ms on one
         // core), and a backend that needs the Vulkan device opens it meanwhile on its own

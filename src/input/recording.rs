@@ -152,7 +152,7 @@ impl<'a> RecordingOptions<'a> {
                 topic: text(&scene.topic),
                 world_frame: text(&scene.world_frame),
                 poses_topic: text(&scene.poses_topic),
-                no_poses: false,
+                ..BagOptions::default()
             },
         }
     }
@@ -161,6 +161,31 @@ impl<'a> RecordingOptions<'a> {
 /// True when `path` has the `.pcap` extension (any case): a Velodyne or Ouster capture.
 pub fn is_pcap(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("pcap"))
+}
+
+/// The value of `sensor` that takes the recorded background's own grid.
+pub const BACKGROUND_SENSOR: &str = "background";
+
+/// The grid a recorded background was taken on, when the recording says it: a ROS 2 bag's from
+/// its clouds' rings ([`super::rosbag::sensor_of_bag`]), an Ouster capture's from its metadata.
+/// Any other background is an error naming it and asking for `--sensor`.
+pub fn own_sensor(path: &Path, options: &RecordingOptions) -> Result<Sensor> {
+    if path.as_os_str().is_empty() {
+        return Err(Error::input("config key `sensor`", "`background` takes the recorded background's grid, and there is no background"));
+    }
+    if is_bag(path) {
+        return super::rosbag::sensor_of_bag(path, &options.bag);
+    }
+    if is_pcap(path) {
+        if let Some(json) = ouster_metadata_for(path, options.ouster_metadata)? {
+            return Sensor::from_ouster_json(&super::read_text(&json)?, &json.display().to_string());
+        }
+    }
+    Err(Error::input(
+        path.display(),
+        "does not say the grid it was taken on (sensor = \"background\" reads it from a ROS 2 bag with a `ring` field or an Ouster \
+         capture's metadata): name the sensor (--sensor, a preset such as hdl32e or vlp16)",
+    ))
 }
 
 impl Recording {
@@ -180,7 +205,7 @@ impl Recording {
         let mut source_elevation_deg = None;
         let (frames, capture_times, description) = if is_bag(path) {
             let opts = BagOptions { no_poses: poses_file.is_some(), ..options.bag.clone() };
-            let bag = read_bag(path, &opts, |scan| {
+            let bag = read_bag(path, &opts, |scan, _| {
                 let mut img = (Vec::new(), Vec::new());
                 projector.project_with_intensity(scan, &mut img.0, &mut img.1);
                 Ok((img, scan.firing_times.is_some().then(|| sweep_of(scan, target.columns))))

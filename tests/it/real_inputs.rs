@@ -336,6 +336,24 @@ fn a_ros2_bag_pedscan_wrote_is_read_back_as_its_own_background() {
         let worst = (0..columns).map(|c| (0.5 * (bounds[c] + bounds[c + 1]) - (ca[k * columns + c] - ta[k])).abs()).fold(0.0, f64::max);
         assert!(worst < 1e-6, "frame {k}: column times differ by up to {worst} s");
     }
+    // The bag's own grid (`--sensor background`): its 32 rings at their measured elevations,
+    // the organized clouds' 1024 columns, 10 Hz; the same returns on the same beams.
+    let o = pedscan(
+        &[
+            "generate", "--backend", "raycast", "--frames", "4", "--humans", "0..0", "--sensor-model", "off", "--background", "a/seq_000000_bag",
+            "--sensor", "background", "--out", "c",
+        ],
+        dir,
+    );
+    ok(&o);
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(log.contains("sensor: the background's own grid, 32 rows from 10.67 to -30.67 deg, 1024 columns, 10.00 Hz"), "{log}");
+    let c = hdf5::File::open(dir.join("c/seq_000000.h5")).unwrap();
+    assert_eq!(read_f32(&c, "range"), rb);
+    let elevation = read_f32(&c, "sensor/elevation_deg");
+    let hdl = Sensor::hdl32e().elevation_deg;
+    assert!(elevation.len() == 32 && elevation.iter().zip(&hdl).all(|(&a, b)| (a as f64 - b).abs() < 1e-4), "{elevation:?}");
+    expect_input_error(&["generate", "--out", "e0", "--sensor", "background", "--frames", "2"], dir, "does not say the grid it was taken on");
     // What cannot be read from it is named, exits 2 and writes nothing.
     let bag = ["--background", "a/seq_000000_bag", "--frames", "4", "--humans", "0..0"];
     let run = |out: &str, more: &[&str], needle: &str| {

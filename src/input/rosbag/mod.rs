@@ -65,6 +65,8 @@ pub struct BagOptions {
     pub poses_topic: Option<String>,
     /// Poses come from elsewhere (a poses file): the transforms are not needed.
     pub no_poses: bool,
+    /// Stop after this many clouds of the topic (a look at the data, not a background).
+    pub max_clouds: Option<usize>,
 }
 
 /// A bag read: per kept cloud, what the caller made of it, its stamp and pose.
@@ -151,8 +153,8 @@ fn at(file: &Path, index: usize, topic: &str) -> String {
 }
 
 /// Reads the bag at `path`; `per_cloud` turns each kept cloud (as a [`Scan`] in the cloud's
-/// frame, `time_s` its stamp) into what the caller keeps, as it is read.
-pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Scan) -> Result<T>) -> Result<Bag<T>> {
+/// frame, `time_s` its stamp, beside the message) into what the caller keeps, as it is read.
+pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Scan, &Cloud) -> Result<T>) -> Result<Bag<T>> {
     let files = mcap_files(path)?;
     let mut clouds_topics: BTreeSet<String> = BTreeSet::new();
     let mut chosen: Option<String> = opts.topic.clone();
@@ -163,7 +165,7 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
     let mut total_points = 0u64;
     let mut first_layout = String::new();
     let mut epoch_ns: Option<i64> = None;
-    for file in &files {
+    'files: for file in &files {
         let (f, _) = super::open_file(file)?;
         let options = mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(RECORD_LIMIT).with_prevalidate_chunk_crcs(true);
         let reader = mcap::io::MessageReader::new_with_options(std::io::BufReader::new(f), options);
@@ -200,8 +202,11 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
                     if scan.ring.is_some() {
                         scan.ring_elevation_deg = ring_elevation.clone();
                     }
-                    let made = per_cloud(&scan)?;
+                    let made = per_cloud(&scan, &cloud)?;
                     kept.push((cloud.stamp_ns, cloud.frame_id, made));
+                    if opts.max_clouds.is_some_and(|n| kept.len() >= n) {
+                        break 'files;
+                    }
                 }
                 TF_MESSAGE if (topic == "/tf" || topic == "/tf_static") && !opts.no_poses => {
                     for t in cdr::decode_tf(&msg.data).map_err(bad)? {
@@ -291,6 +296,41 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
     );
     let start_ns = start_ns.expect("a frame was kept");
     Ok(Bag { frames, times_s, start_ns, poses: has_poses.then_some(kept_poses), ring_elevation_deg: ring_elevation, description })
+}
+
+/// The grid a bag's clouds were taken on, from their `ring` field and its first clouds: a row
+/// per ring at its measured elevation, as many columns as an organized cloud's width (when its
+/// height is the ring count) or else the most returns one ring gave in one cloud, the rate
+/// from the median step of their stamps (10 Hz from a single cloud), the range limits of a
+/// sensor file (0.5 to 100 m).
+pub fn sensor_of_bag(path: &Path, opts: &BagOptions) -> Result<crate::sensor::Sensor> {
+    /// Clouds looked at.
+    const CLOUDS: usize = 10;
+    let look = BagOptions { no_poses: true, max_clouds: Some(CLOUDS), ..opts.clone() };
+    let bag = read_bag(path, &look, |scan, cloud| {
+        let Some(rings) = &scan.ring else { return Ok((0, 0, 0)) };
+        let mut per = vec![0usize; rings.iter().map(|&r| r as usize + 1).max().unwrap_or(0)];
+        for &r in rings {
+            per[r as usize] += 1;
+        }
+        let most = per.iter().copied().max().unwrap_or(0);
+        Ok((most, cloud.height as usize, cloud.width as usize))
+    })?;
+    let name = path.display();
+    let Some(elevation) = bag.ring_elevation_deg else {
+        return Err(Error::input(name, "its clouds have no `ring` field (or no returns), so the data does not give the grid: name the sensor (--sensor)"));
+    };
+    if let Some(r) = elevation.iter().position(|e| !e.is_finite()) {
+        return Err(Error::input(name, format!("ring {r} has no return in the first cloud, so its elevation is unknown: name the sensor (--sensor)")));
+    }
+    let rows = elevation.len();
+    let organized = bag.frames.iter().find(|f| f.1 == rows).map(|f| f.2);
+    let columns = organized.unwrap_or_else(|| bag.frames.iter().map(|f| f.0).max().unwrap_or(0));
+    let mut steps: Vec<f64> = bag.times_s.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let rate_hz = steps.get(steps.len() / 2).map_or(10.0, |s| 1.0 / s);
+    let file = crate::sensor::SensorFile { name: None, elevation_deg: elevation, columns, rate_hz: Some(rate_hz), min_range_m: None, max_range_m: None };
+    crate::sensor::Sensor::from_file(file, "background".into(), &format!("{name} (the grid of its clouds)"))
 }
 
 /// The world frame: the one given, which must connect to `frame`, or the first default that does.

@@ -309,7 +309,7 @@ fn moving_bag() -> Vec<(&'static str, &'static str, i64, Vec<u8>)> {
 }
 
 fn points_of(bag: &Path, opts: &BagOptions) -> Result<Bag<Vec<[f32; 3]>>> {
-    read_bag(bag, opts, |s| Ok(s.points.clone()))
+    read_bag(bag, opts, |s, _| Ok(s.points.clone()))
 }
 
 #[test]
@@ -437,4 +437,41 @@ fn a_rosbag2_folder_reads_its_listed_files_in_order() {
     std::fs::write(d.path().join("metadata.yaml"), "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n").unwrap();
     let e = points_of(d.path(), &BagOptions::default()).err().unwrap().to_string();
     assert!(e.contains("the bag is stored as 'sqlite3'; pedscan reads MCAP bags"), "{e}");
+}
+
+#[test]
+fn a_bags_own_grid_comes_from_its_rings() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("g.mcap");
+    // Unorganized clouds of two rings at +2 and -3 degrees, 12 and 10 returns a turn, 20 Hz.
+    let cloud = |stamp: i64, with_ring: bool| {
+        let mut x = Vec::new();
+        let mut y = Vec::new();
+        let mut z = Vec::new();
+        let mut ring = Vec::new();
+        for (r, (el, n)) in [(-3.0f64, 10), (2.0, 12)].into_iter().enumerate() {
+            for k in 0..n {
+                let az = std::f64::consts::TAU * k as f64 / n as f64;
+                x.push(10.0 * az.cos());
+                y.push(10.0 * az.sin());
+                z.push(10.0 * el.to_radians().tan());
+                ring.push(r as f64);
+            }
+        }
+        let mut cols = vec![col("x", 7, &x), col("y", 7, &y), col("z", 7, &z)];
+        if with_ring {
+            cols.push(col("ring", 2, &ring));
+        }
+        cloud_msg(stamp, "lidar", 1, &cols, true, 0)
+    };
+    let msgs: Vec<_> = (0..3).map(|k| ("/p", "sensor_msgs/msg/PointCloud2", BASE + k * S / 20, cloud(BASE + k * S / 20, true))).collect();
+    write_bag(&p, &msgs, None);
+    let s = sensor_of_bag(&p, &BagOptions::default()).unwrap();
+    assert_eq!((s.rows(), s.columns, s.name.as_str()), (2, 12, "background"));
+    assert!((s.rate_hz - 20.0).abs() < 1e-9, "{}", s.rate_hz);
+    assert!((s.elevation_deg[0] - 2.0).abs() < 1e-5 && (s.elevation_deg[1] + 3.0).abs() < 1e-5, "{:?}", s.elevation_deg);
+    let msgs: Vec<_> = (0..3).map(|k| ("/p", "sensor_msgs/msg/PointCloud2", BASE + k * S / 20, cloud(BASE + k * S / 20, false))).collect();
+    write_bag(&p, &msgs, None);
+    let e = sensor_of_bag(&p, &BagOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("its clouds have no `ring` field"), "{e}");
 }
