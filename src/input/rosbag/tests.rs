@@ -475,3 +475,21 @@ fn a_bags_own_grid_comes_from_its_rings() {
     let e = sensor_of_bag(&p, &BagOptions::default()).unwrap_err().to_string();
     assert!(e.contains("its clouds have no `ring` field"), "{e}");
 }
+
+/// An uncompressed chunk whose inner record claims more bytes than the chunk holds (what the
+/// fuzzer found): an input error naming the file, never a panic.
+#[test]
+fn a_chunk_whose_record_overruns_it_is_an_input_error() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("overrun.mcap");
+    let record = |op: u8, body: &[u8]| [&[op][..], &(body.len() as u64).to_le_bytes(), body].concat();
+    let string = |s: &str| [&(s.len() as u32).to_le_bytes()[..], s.as_bytes()].concat();
+    // Inside the chunk: a message record claiming 100 bytes, 20 given.
+    let inner = [&[0x05u8][..], &100u64.to_le_bytes(), &[0u8; 20]].concat();
+    let chunk = [&0u64.to_le_bytes()[..], &0u64.to_le_bytes(), &(inner.len() as u64).to_le_bytes(), &0u32.to_le_bytes(), &string(""), &(inner.len() as u64).to_le_bytes(), &inner].concat();
+    let magic = b"\x89MCAP0\r\n";
+    let bytes = [&magic[..], &record(0x01, &[string("ros2"), string("x")].concat()), &record(0x06, &chunk), &[0u8; 200], magic].concat();
+    std::fs::write(&p, bytes).unwrap();
+    let e = points_of(&p, &BagOptions::default()).err().unwrap();
+    assert!(e.is_input() && e.to_string().starts_with(&p.display().to_string()), "{e}");
+}
