@@ -34,6 +34,7 @@
 //! as it is read, so memory stays bounded by what the caller keeps.
 
 pub mod cdr;
+pub mod records;
 pub mod tf;
 
 use super::Scan;
@@ -43,8 +44,7 @@ use glam::DMat4;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-/// The longest record (chunk or message) read, bytes.
-pub const RECORD_LIMIT: usize = 256 << 20;
+pub use records::RECORD_LIMIT;
 /// The most points one cloud may hold.
 pub const MAX_POINTS: u64 = 1 << 24;
 /// The world frames tried, in order, when none is given.
@@ -165,18 +165,18 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
     let mut total_points = 0u64;
     let mut first_layout = String::new();
     let mut epoch_ns: Option<i64> = None;
+    let mut cut_short = 0;
     'files: for file in &files {
-        let (f, _) = super::open_file(file)?;
-        let options = mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(RECORD_LIMIT).with_prevalidate_chunk_crcs(true);
-        let reader = mcap::io::MessageReader::new_with_options(std::io::BufReader::new(f), options);
-        for (index, msg) in reader.enumerate() {
-            let msg = msg.map_err(|e| match e {
-                mcap::McapError::Io(io) => Error::io(file, io),
-                other => Error::input(file.display(), format!("record after message {index}: not a readable MCAP file: {other}")),
-            })?;
-            let topic = msg.channel.topic.as_str();
-            let schema = msg.channel.schema.as_ref().map_or("", |s| s.name.as_str());
-            let encoding = msg.channel.message_encoding.as_str();
+        let (f, len) = super::open_file(file)?;
+        let named = |b: records::Bad| Error::input(format!("{} (byte {})", file.display(), b.at), b.why);
+        let mut reader = records::Reader::new(std::io::BufReader::new(f), Some(len)).map_err(named)?;
+        let mut index = 0;
+        while let Some((channel, data)) = reader.next_message().map_err(named)? {
+            index += 1;
+            let index = index - 1;
+            let topic = channel.topic.as_str();
+            let schema = channel.schema.as_str();
+            let encoding = channel.message_encoding.as_str();
             let wanted = schema == POINT_CLOUD2 || schema == TF_MESSAGE || schema == ODOMETRY;
             if wanted && encoding != "cdr" {
                 return Err(Error::input(at(file, index, topic), format!("{schema} in encoding '{encoding}'; pedscan reads CDR")));
@@ -189,7 +189,7 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
                     if chosen != topic {
                         continue;
                     }
-                    let cloud = Cloud::decode(&msg.data).map_err(bad)?;
+                    let cloud = Cloud::decode(&data).map_err(bad)?;
                     if first_layout.is_empty() {
                         first_layout = layout(&cloud);
                     }
@@ -209,16 +209,17 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
                     }
                 }
                 TF_MESSAGE if (topic == "/tf" || topic == "/tf_static") && !opts.no_poses => {
-                    for t in cdr::decode_tf(&msg.data).map_err(bad)? {
+                    for t in cdr::decode_tf(&data).map_err(bad)? {
                         tree.add(&t, topic == "/tf_static").map_err(bad)?;
                     }
                 }
                 ODOMETRY if opts.poses_topic.as_deref() == Some(topic) && !opts.no_poses => {
-                    odometry.push(cdr::decode_odometry(&msg.data).map_err(bad)?);
+                    odometry.push(cdr::decode_odometry(&data).map_err(bad)?);
                 }
                 _ => {}
             }
         }
+        cut_short += reader.cut_short as usize;
     }
     tree.finish();
     let name = path.display();
@@ -286,13 +287,14 @@ pub fn read_bag<T>(path: &Path, opts: &BagOptions, mut per_cloud: impl FnMut(&Sc
     }
     let has_poses = !kept_poses.is_empty();
     let description = format!(
-        "ROS 2 bag ({} MCAP file{}): {} clouds on {topic} in frame '{frame}' ({first_layout}; {:.0} points a cloud), {pose_note}{}{}",
+        "ROS 2 bag ({} MCAP file{}): {} clouds on {topic} in frame '{frame}' ({first_layout}; {:.0} points a cloud), {pose_note}{}{}{}",
         files.len(),
         if files.len() == 1 { "" } else { "s" },
         frames.len(),
         total_points as f64 / clouds as f64,
         if outside > 0 { format!(", {outside} clouds outside the transforms' times dropped") } else { String::new() },
         if repeated > 0 { format!(", {repeated} clouds repeating a stamp dropped") } else { String::new() },
+        if cut_short > 0 { format!(", {cut_short} file(s) end without their data end record (read up to there)") } else { String::new() },
     );
     let start_ns = start_ns.expect("a frame was kept");
     Ok(Bag { frames, times_s, start_ns, poses: has_poses.then_some(kept_poses), ring_elevation_deg: ring_elevation, description })

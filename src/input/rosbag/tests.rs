@@ -405,14 +405,23 @@ fn bags_that_cannot_give_a_background_say_why() {
     // Not an MCAP file, and a bag cut short.
     std::fs::write(&p, b"not a bag at all, just text").unwrap();
     let e = points_of(&p, &BagOptions::default()).err().unwrap();
-    assert!(e.is_input() && e.to_string().contains("not a readable MCAP file"), "{e}");
+    assert_eq!(e.to_string(), format!("{} (byte 0): does not start with the MCAP magic (not an MCAP file)", p.display()));
     write_bag(&p, &moving_bag(), None);
     let whole = std::fs::read(&p).unwrap();
-    for cut in [whole.len() / 3, whole.len() / 2, whole.len() - 9] {
+    // Cut inside a record: an error naming the file and the record's byte.
+    for cut in [whole.len() / 3, whole.len() / 2] {
         std::fs::write(&p, &whole[..cut]).unwrap();
         let e = points_of(&p, &BagOptions::default()).err().unwrap_or_else(|| panic!("{cut} bytes read"));
-        assert!(e.is_input() && e.to_string().starts_with(&p.display().to_string()), "{e}");
+        assert!(e.is_input() && e.to_string().starts_with(&format!("{} (byte ", p.display())) && e.to_string().contains("(cut short?)"), "{e}");
     }
+    // The data section whole and the summary cut: every cloud is there.
+    std::fs::write(&p, &whole[..whole.len() - 9]).unwrap();
+    assert_eq!(points_of(&p, &BagOptions::default()).unwrap().frames.len(), 3);
+    // Cut at a record boundary before the data end (a recorder stopped): read up to there.
+    let data_end = (8..whole.len() - 9).find(|&i| whole[i] == 0x0F && whole[i + 1..i + 9] == 4u64.to_le_bytes()).expect("a data end record");
+    std::fs::write(&p, &whole[..data_end]).unwrap();
+    let bag = points_of(&p, &BagOptions::default()).unwrap();
+    assert!(bag.frames.len() == 3 && bag.description.ends_with("1 file(s) end without their data end record (read up to there)"), "{}", bag.description);
 }
 
 #[test]
@@ -476,8 +485,10 @@ fn a_bags_own_grid_comes_from_its_rings() {
     assert!(e.contains("its clouds have no `ring` field"), "{e}");
 }
 
-/// An uncompressed chunk whose inner record claims more bytes than the chunk holds (what the
-/// fuzzer found): an input error naming the file, never a panic.
+/// Records the `mcap` crate's reader panics on (what the fuzzer found): an uncompressed chunk
+/// whose inner record claims more bytes than the chunk holds is an input error naming the
+/// file; an attachment shorter than its own header is skipped, as every record a background
+/// does not need.
 #[test]
 fn a_chunk_whose_record_overruns_it_is_an_input_error() {
     let d = tempfile::tempdir().unwrap();
@@ -486,10 +497,26 @@ fn a_chunk_whose_record_overruns_it_is_an_input_error() {
     let string = |s: &str| [&(s.len() as u32).to_le_bytes()[..], s.as_bytes()].concat();
     // Inside the chunk: a message record claiming 100 bytes, 20 given.
     let inner = [&[0x05u8][..], &100u64.to_le_bytes(), &[0u8; 20]].concat();
-    let chunk = [&0u64.to_le_bytes()[..], &0u64.to_le_bytes(), &(inner.len() as u64).to_le_bytes(), &0u32.to_le_bytes(), &string(""), &(inner.len() as u64).to_le_bytes(), &inner].concat();
+    let chunk = [
+        &0u64.to_le_bytes()[..],
+        &0u64.to_le_bytes(),
+        &(inner.len() as u64).to_le_bytes(),
+        &0u32.to_le_bytes(),
+        &string(""),
+        &(inner.len() as u64).to_le_bytes(),
+        &inner,
+    ]
+    .concat();
     let magic = b"\x89MCAP0\r\n";
     let bytes = [&magic[..], &record(0x01, &[string("ros2"), string("x")].concat()), &record(0x06, &chunk), &[0u8; 200], magic].concat();
     std::fs::write(&p, bytes).unwrap();
     let e = points_of(&p, &BagOptions::default()).err().unwrap();
-    assert!(e.is_input() && e.to_string().starts_with(&p.display().to_string()), "{e}");
+    assert!(e.is_input() && e.to_string().starts_with(&format!("{} (byte 30): chunk: inner record runs past", p.display())), "{e}");
+    write_bag(&p, &moving_bag(), None);
+    let good = std::fs::read(&p).unwrap();
+    // A 3-byte attachment record right after the header record.
+    let after_header = 8 + 9 + u64::from_le_bytes(good[9..17].try_into().unwrap()) as usize;
+    let with_attachment = [&good[..after_header], &record(0x09, &[1, 2, 3]), &good[after_header..]].concat();
+    std::fs::write(&p, with_attachment).unwrap();
+    assert_eq!(points_of(&p, &BagOptions::default()).unwrap().frames.len(), 3);
 }
