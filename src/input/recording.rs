@@ -556,3 +556,114 @@ fn check_times(t: &[f64], path: &Path) -> Result<()> {
     Ok(())
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input::rosbag::tests::{moving_bag, write_bag};
+
+    /// A KITTI `.bin` of one return straight ahead at `range` metres.
+    fn bin(path: &Path, range: f32) {
+        let rec: Vec<u8> = [range, 0.0, 0.0, 0.5].iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(path, rec).unwrap();
+    }
+
+    /// The range of the beam straight ahead in the row nearest the horizon.
+    fn ahead(rec: &Recording, k: usize) -> f32 {
+        let s = Sensor::hdl32e();
+        let row = (0..s.rows()).min_by(|&a, &b| s.elevation_deg[a].abs().total_cmp(&s.elevation_deg[b].abs())).unwrap();
+        let mut r = Vec::new();
+        rec.frame_ranges(k, &mut r).unwrap();
+        r[row * s.columns + s.column_of(1.0, 0.0)]
+    }
+
+    #[test]
+    fn a_folder_of_frames_reads_in_name_order_at_its_times() {
+        let d = tempfile::tempdir().unwrap();
+        // Written out of order, one in capitals; other files are not frames.
+        for (name, range) in [("000002.BIN", 7.0), ("000000.bin", 5.0), ("000001.bin", 6.0)] {
+            bin(&d.path().join(name), range);
+        }
+        std::fs::write(d.path().join("README.txt"), "not a frame").unwrap();
+        std::fs::write(d.path().join("times.txt"), "0.0\n0.11\n0.19\n").unwrap();
+        let rec = Recording::open(d.path(), None, &Sensor::hdl32e()).unwrap();
+        assert_eq!((rec.len(), rec.description.as_str()), (3, "3 KITTI .bin frames"));
+        assert_eq!(rec.times_s, vec![0.0, 0.11, 0.19]);
+        assert_eq!([ahead(&rec, 0), ahead(&rec, 1), ahead(&rec, 2)], [5.0, 6.0, 7.0]);
+        assert!(rec.poses.is_none() && rec.column_offsets(0).is_none() && rec.source_elevation_deg.is_none());
+        // With a poses file (KITTI: no times), its poses; the times still from times.txt.
+        std::fs::write(d.path().join("poses.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 1 0 1 0 0 0 0 1 0\n1 0 0 2 0 1 0 0 0 0 1 0\n").unwrap();
+        let rec = Recording::open(d.path(), Some(&d.path().join("poses.txt")), &Sensor::hdl32e()).unwrap();
+        assert_eq!(rec.pose(2).w_axis.truncate(), DVec3::new(2.0, 0.0, 0.0));
+        assert_eq!(rec.times_s, vec![0.0, 0.11, 0.19]);
+        // Without times.txt, the sensor's rate.
+        std::fs::remove_file(d.path().join("times.txt")).unwrap();
+        let rec = Recording::open(d.path(), None, &Sensor { rate_hz: 20.0, ..Sensor::hdl32e() }).unwrap();
+        assert_eq!(rec.times_s, vec![0.0, 0.05, 0.1]);
+    }
+
+    #[test]
+    fn folders_that_are_not_one_kind_of_whole_frames_are_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let err = |p: &Path| Recording::open(p, None, &Sensor::hdl32e()).err().expect("refused").to_string();
+        assert!(err(d.path()).ends_with("folder holds no .bin or .pcd frame"));
+        bin(&d.path().join("a.bin"), 5.0);
+        std::fs::write(d.path().join("b.pcd"), "not read").unwrap();
+        assert!(err(d.path()).contains("mixes .bin and .pcd frames"));
+        std::fs::remove_file(d.path().join("b.pcd")).unwrap();
+        std::fs::write(d.path().join("b.bin"), [0u8; 17]).unwrap();
+        assert_eq!(err(d.path()), format!("{}: truncated: 17 bytes is not a whole number of 16-byte points", d.path().join("b.bin").display()));
+        std::fs::write(d.path().join("b.bin"), [0u8; 32]).unwrap();
+        assert_eq!(Recording::open(d.path(), None, &Sensor::hdl32e()).unwrap().len(), 2);
+    }
+
+    #[test]
+    fn recordings_are_told_from_environments_by_their_names() {
+        let d = tempfile::tempdir().unwrap();
+        for (name, recording, pcap) in
+            [("x.pcap", true, true), ("X.PCAP", true, true), ("x.mcap", true, false), ("x.glb", false, false), ("x.gltf", false, false), ("x.txt", false, false)]
+        {
+            let p = d.path().join(name);
+            assert_eq!((is_recording(&p), is_pcap(&p)), (recording, pcap), "{name}");
+        }
+        assert!(is_recording(d.path()) && !is_pcap(d.path()));
+    }
+
+    #[test]
+    fn a_scenes_options_reach_the_recording() {
+        let mut scene = crate::config::Config::default().scene;
+        let none = RecordingOptions::of_scene(&scene);
+        assert!(none.poses.is_none() && none.ouster_metadata.is_none());
+        assert!(none.bag.topic.is_none() && none.bag.world_frame.is_none() && none.bag.poses_topic.is_none());
+        scene.poses = "p.txt".into();
+        scene.ouster_metadata = "m.json".into();
+        scene.topic = "/points".into();
+        scene.world_frame = "map".into();
+        scene.poses_topic = "/odom".into();
+        let o = RecordingOptions::of_scene(&scene);
+        assert_eq!((o.poses, o.ouster_metadata), (Some(Path::new("p.txt")), Some(Path::new("m.json"))));
+        assert_eq!((o.bag.topic.as_deref(), o.bag.world_frame.as_deref(), o.bag.poses_topic.as_deref()), (Some("/points"), Some("map"), Some("/odom")));
+    }
+
+    #[test]
+    fn a_bags_poses_come_from_its_transforms_unless_a_poses_file_is_given() {
+        let d = tempfile::tempdir().unwrap();
+        let bag = d.path().join("b.mcap");
+        write_bag(&bag, &moving_bag(), None);
+        // From /tf: the cloud before the first transform is dropped; the others' poses follow it.
+        let rec = Recording::open(&bag, None, &Sensor::hdl32e()).unwrap();
+        assert_eq!(rec.times_s, vec![0.0, 1.0, 2.0]);
+        assert_eq!(rec.pose(1).w_axis.truncate(), DVec3::new(2.0, 0.0, 1.0));
+        // Rings measured: the recording's two elevations, highest first.
+        let e = rec.source_elevation_deg.clone().unwrap();
+        assert!(e.len() == 2 && e[0] > 14.0 && e[1] < -14.0, "{e:?}");
+        // Its points' `time` gives every frame its own sweep.
+        assert!(rec.column_offsets(0).is_some());
+        // A poses file wins: every cloud is kept, at its pose, at the bag's times.
+        let poses = d.path().join("poses.txt");
+        std::fs::write(&poses, "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 5 0 1 0 0 0 0 1 0\n1 0 0 6 0 1 0 0 0 0 1 0\n1 0 0 7 0 1 0 0 0 0 1 0\n").unwrap();
+        let rec = Recording::open(&bag, Some(&poses), &Sensor::hdl32e()).unwrap();
+        assert!(rec.times_s.iter().zip([0.0, 0.95, 1.95, 2.95]).all(|(a, b)| (a - b).abs() < 1e-12), "{:?}", rec.times_s);
+        assert_eq!(rec.pose(1).w_axis.truncate(), DVec3::new(5.0, 0.0, 0.0));
+    }
+}

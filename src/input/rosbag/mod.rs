@@ -493,7 +493,9 @@ pub fn to_scan(c: &Cloud, epoch_ns: i64) -> std::result::Result<Scan, String> {
     let mut rings = Vec::new();
     let mut intensities = Vec::new();
     let mut timed: Vec<[f64; 2]> = Vec::new();
-    for row in 0..c.height as usize {
+    // Rows of no points are not visited (a width of 0 may come with any height).
+    let rows = if c.width == 0 { 0 } else { c.height as usize };
+    for row in 0..rows {
         let base = row * c.row_step as usize;
         for col in 0..c.width as usize {
             let p = &c.data[base + col * step as usize..][..step as usize];
@@ -565,4 +567,4 @@ pub fn measure_rings(scan: &Scan) -> Option<Vec<f64>> {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -51,19 +51,19 @@ impl Msg {
 }
 
 /// A field of a test cloud: name, datatype, and per point its value.
-struct Col {
+pub(crate) struct Col {
     name: &'static str,
     datatype: u8,
     values: Vec<f64>,
 }
 
-fn col(name: &'static str, datatype: u8, values: &[f64]) -> Col {
+pub(crate) fn col(name: &'static str, datatype: u8, values: &[f64]) -> Col {
     Col { name, datatype, values: values.to_vec() }
 }
 
 /// A PointCloud2 of `height` rows with the given fields packed in order (each aligned to its
 /// size), `pad` spare bytes a point, in byte order `le`.
-fn cloud_msg(stamp_ns: i64, frame: &str, height: u32, cols: &[Col], le: bool, pad: u32) -> Vec<u8> {
+pub(crate) fn cloud_msg(stamp_ns: i64, frame: &str, height: u32, cols: &[Col], le: bool, pad: u32) -> Vec<u8> {
     let n = cols[0].values.len();
     let mut offsets = Vec::new();
     let mut step = 0u32;
@@ -105,7 +105,7 @@ fn cloud_msg(stamp_ns: i64, frame: &str, height: u32, cols: &[Col], le: bool, pa
     m.v
 }
 
-fn tf_msg(transforms: &[(i64, &str, &str, DQuat, DVec3)]) -> Vec<u8> {
+pub(crate) fn tf_msg(transforms: &[(i64, &str, &str, DQuat, DVec3)]) -> Vec<u8> {
     let mut m = Msg::new(true);
     m.u32(transforms.len() as u32);
     for &(t, parent, child, q, v) in transforms {
@@ -130,7 +130,7 @@ fn odometry_msg(t: i64, parent: &str, child: &str, q: DQuat, v: DVec3) -> Vec<u8
 }
 
 /// Writes an MCAP bag of `(topic, schema, log time ns, message)`.
-fn write_bag(path: &Path, msgs: &[(&str, &str, i64, Vec<u8>)], compression: Option<mcap::Compression>) {
+pub(crate) fn write_bag(path: &Path, msgs: &[(&str, &str, i64, Vec<u8>)], compression: Option<mcap::Compression>) {
     let opts = mcap::WriteOptions::new().profile("ros2").compression(compression).chunk_size(Some(4096));
     let mut w = mcap::Writer::with_options(std::io::BufWriter::new(std::fs::File::create(path).unwrap()), opts).unwrap();
     let mut channels: BTreeMap<String, u16> = BTreeMap::new();
@@ -145,10 +145,10 @@ fn write_bag(path: &Path, msgs: &[(&str, &str, i64, Vec<u8>)], compression: Opti
     w.finish().unwrap();
 }
 
-const S: i64 = 1_000_000_000;
-const BASE: i64 = 1_700_000_000 * S;
+pub(crate) const S: i64 = 1_000_000_000;
+pub(crate) const BASE: i64 = 1_700_000_000 * S;
 
-fn yaw(deg: f64) -> DQuat {
+pub(crate) fn yaw(deg: f64) -> DQuat {
     DQuat::from_rotation_z(deg.to_radians())
 }
 
@@ -277,10 +277,11 @@ fn transforms_interpolate_compose_and_never_extrapolate() {
     assert!(tree.add(&t(0, "a", "b", yaw(0.0), DVec3::new(1e6, 0.0, 0.0)), true).is_err());
 }
 
-/// A cloud of four returns in frame `frame` at `stamp` (a ring each; `time` after the stamp).
-fn small_cloud(stamp: i64, frame: &str) -> Vec<u8> {
+/// A cloud of four returns in frame `frame` at `stamp`, two rings, fired clockwise from behind
+/// the sensor over 75 ms (`time` after the stamp), as a spinning lidar does.
+pub(crate) fn small_cloud(stamp: i64, frame: &str) -> Vec<u8> {
     let cols = [
-        col("x", 7, &[4.0, 0.0, -4.0, 0.0]),
+        col("x", 7, &[-4.0, 0.0, 4.0, 0.0]),
         col("y", 7, &[0.0, 4.0, 0.0, -4.0]),
         col("z", 7, &[-1.0, -1.0, 1.0, 1.0]),
         col("ring", 4, &[0.0, 0.0, 1.0, 1.0]),
@@ -291,7 +292,7 @@ fn small_cloud(stamp: i64, frame: &str) -> Vec<u8> {
 
 /// A bag: clouds at 0.05, 1, 2, 3 s in `lidar`, base moving 1 m/s along x from 0.1 s to 3 s,
 /// lidar 1 m above base, map -> odom static.
-fn moving_bag() -> Vec<(&'static str, &'static str, i64, Vec<u8>)> {
+pub(crate) fn moving_bag() -> Vec<(&'static str, &'static str, i64, Vec<u8>)> {
     let mut msgs = vec![(
         "/tf_static",
         "tf2_msgs/msg/TFMessage",
@@ -325,7 +326,7 @@ fn poses_come_from_the_transform_tree_at_each_stamp() {
         let o = m.transform_point3(DVec3::ZERO);
         assert!((o - DVec3::new(1.0 + k as f64, 0.0, 1.0)).length() < 1e-9, "{k}: {o}");
     }
-    assert_eq!(bag.frames[0], vec![[4.0, 0.0, -1.0], [0.0, 4.0, -1.0], [-4.0, 0.0, 1.0], [0.0, -4.0, 1.0]]);
+    assert_eq!(bag.frames[0], vec![[-4.0, 0.0, -1.0], [0.0, 4.0, -1.0], [4.0, 0.0, 1.0], [0.0, -4.0, 1.0]]);
     // Ring elevations measured: atan(-1/4) and atan(1/4).
     let e = bag.ring_elevation_deg.unwrap();
     assert!((e[0] + 14.036243467926479).abs() < 1e-9 && (e[1] - 14.036243467926479).abs() < 1e-9, "{e:?}");
