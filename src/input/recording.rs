@@ -587,7 +587,7 @@ mod tests {
         std::fs::write(d.path().join("README.txt"), "not a frame").unwrap();
         std::fs::write(d.path().join("times.txt"), "0.0\n0.11\n0.19\n").unwrap();
         let rec = Recording::open(d.path(), None, &Sensor::hdl32e()).unwrap();
-        assert_eq!((rec.len(), rec.description.as_str()), (3, "3 KITTI .bin frames"));
+        assert_eq!((rec.len(), rec.is_empty(), rec.description.as_str()), (3, false, "3 KITTI .bin frames"));
         assert_eq!(rec.times_s, vec![0.0, 0.11, 0.19]);
         assert_eq!([ahead(&rec, 0), ahead(&rec, 1), ahead(&rec, 2)], [5.0, 6.0, 7.0]);
         assert!(rec.poses.is_none() && rec.column_offsets(0).is_none() && rec.source_elevation_deg.is_none());
@@ -596,6 +596,15 @@ mod tests {
         let rec = Recording::open(d.path(), Some(&d.path().join("poses.txt")), &Sensor::hdl32e()).unwrap();
         assert_eq!(rec.pose(2).w_axis.truncate(), DVec3::new(2.0, 0.0, 0.0));
         assert_eq!(rec.times_s, vec![0.0, 0.11, 0.19]);
+        // A window's returns in the world, beside their sensor's position; its frames are
+        // read once, then served from the window's images.
+        let before = rec.files_read.load(std::sync::atomic::Ordering::Relaxed);
+        let pts = rec.window_points(1..3).unwrap();
+        // (The beam's centre is half a column, 0.18 degrees, off straight ahead.)
+        let from = |k: usize| pts.iter().filter(|(_, o)| *o == DVec3::new(k as f64, 0.0, 0.0)).map(|(p, _)| p.x.round()).collect::<Vec<_>>();
+        assert_eq!((pts.len(), from(1), from(2)), (2, vec![1.0 + 6.0], vec![2.0 + 7.0]));
+        assert_eq!((ahead(&rec, 1), ahead(&rec, 2)), (6.0, 7.0));
+        assert_eq!(rec.files_read.load(std::sync::atomic::Ordering::Relaxed) - before, 2);
         // Without times.txt, the sensor's rate.
         std::fs::remove_file(d.path().join("times.txt")).unwrap();
         let rec = Recording::open(d.path(), None, &Sensor { rate_hz: 20.0, ..Sensor::hdl32e() }).unwrap();

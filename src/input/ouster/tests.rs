@@ -498,6 +498,10 @@ fn a_recording_opens_an_ouster_capture_with_the_json_beside_it() {
     assert!(rec.times_s.iter().zip([5.0, 5.1, 5.2, 5.3]).all(|(a, b)| (a - b).abs() < 1e-9), "{:?}", rec.times_s);
     assert_eq!(rec.source_elevation_deg.as_deref(), Some(&spec.altitude[..]));
     assert!(rec.coverage_warning.is_none() && rec.sweep_warning.is_none(), "{:?} {:?}", rec.coverage_warning, rec.sweep_warning);
+    // Its 32 columns a turn on a grid of 64: half the columns get no return of their own.
+    let wide = Sensor { columns: 64, ..target.clone() };
+    let w = Recording::open(&pcap_path, None, &wide).unwrap().coverage_warning.unwrap();
+    assert!(w.starts_with("the OS-1-16 fired 32 times a turn, fewer than the grid's 64 columns: at least 50.0 %"), "{w}");
     assert!(rec.column_offsets(0).is_some());
     // Every beam of the grid sees its return, at about its range (the beam origin offset and
     // the 36 mm lift move it by a few cm).

@@ -304,6 +304,11 @@ fn a_capture_that_fires_fewer_times_a_turn_than_the_grid_has_columns_is_warned_o
     assert!(open(1024).coverage_warning.is_none());
     let w = open(4096).coverage_warning.unwrap();
     assert!(w.contains("fired 3600 times a turn, fewer than the grid's 4096 columns: at least 12.1 %"), "{w}");
+    // A VLP-16 fires two sequences a block: 0.2 degree a block is 3,600 firings a turn too.
+    let f = write_file(&capture(&spin(VLP, STRONGEST, 9000, 20, 400, |_, _, _| 1000)).bytes);
+    let target = crate::sensor::Sensor { columns: 4096, ..crate::sensor::Sensor::vlp16() };
+    let w = crate::input::recording::Recording::open(f.path(), None, &target).unwrap().coverage_warning.unwrap();
+    assert!(w.starts_with("the VLP-16 fired 3600 times a turn, fewer than the grid's 4096 columns"), "{w}");
 }
 
 #[test]
