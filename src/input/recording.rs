@@ -538,7 +538,7 @@ fn sweep_of(s: &Scan, columns: usize) -> std::result::Result<Arc<[f64]>, String>
 fn sweeps_warning(refused: &[(usize, String)], frames: usize) -> Option<String> {
     refused.first().map(|(k, why)| {
         format!(
-            "{} of {frames} frames take the uniform sweep over their recorded step instead of their packets' column times (frame {k}: {why})",
+            "{} of {frames} frames take the uniform sweep over their recorded step instead of their own recorded column times (frame {k}: {why})",
             refused.len(),
         )
     })
