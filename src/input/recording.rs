@@ -605,6 +605,7 @@ mod tests {
         assert_eq!((pts.len(), from(1), from(2)), (2, vec![1.0 + 6.0], vec![2.0 + 7.0]));
         assert_eq!((ahead(&rec, 1), ahead(&rec, 2)), (6.0, 7.0));
         assert_eq!(rec.files_read.load(std::sync::atomic::Ordering::Relaxed) - before, 2);
+        assert_eq!(rec.window_name(1..3), format!("{} (frames 1..3)", d.path().display()));
         // Without times.txt, the sensor's rate.
         std::fs::remove_file(d.path().join("times.txt")).unwrap();
         let rec = Recording::open(d.path(), None, &Sensor { rate_hz: 20.0, ..Sensor::hdl32e() }).unwrap();

@@ -301,7 +301,9 @@ fn a_capture_that_fires_fewer_times_a_turn_than_the_grid_has_columns_is_warned_o
         let target = crate::sensor::Sensor { columns, ..crate::sensor::Sensor::hdl32e() };
         crate::input::recording::Recording::open(f.path(), None, &target).unwrap()
     };
-    assert!(open(1024).coverage_warning.is_none());
+    assert!(open(1024).coverage_warning.is_none() && open(3600).coverage_warning.is_none());
+    let w = open(3601).coverage_warning.unwrap();
+    assert!(w.contains("fired 3600 times a turn, fewer than the grid's 3601 columns"), "{w}");
     let w = open(4096).coverage_warning.unwrap();
     assert!(w.contains("fired 3600 times a turn, fewer than the grid's 4096 columns: at least 12.1 %"), "{w}");
     // A VLP-16 fires two sequences a block: 0.2 degree a block is 3,600 firings a turn too.
