@@ -88,23 +88,10 @@ impl<'a> Body<'a> {
 
 impl<R: Read> Reader<R> {
     /// Starts reading `src` (`len` bytes long, when known), which must begin with the MCAP magic.
-    pub fn new(mut src: R, len: Option<u64>) -> Result<Reader<R>, Bad> {
-        let mut magic = [0u8; 8];
-        let mut got = 0;
-        while got < 8 {
-            match src.read(&mut magic[got..]) {
-                Ok(0) => break,
-                Ok(n) => got += n,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(Bad { at: 0, why: format!("cannot read: {e}") }),
-            }
-        }
-        if got < 8 || &magic != MAGIC {
-            return Err(Bad { at: 0, why: "does not start with the MCAP magic (not an MCAP file)".into() });
-        }
-        Ok(Reader {
+    pub fn new(src: R, len: Option<u64>) -> Result<Reader<R>, Bad> {
+        let mut r = Reader {
             src,
-            pos: 8,
+            pos: 0,
             len,
             schemas: HashMap::new(),
             channels: HashMap::new(),
@@ -112,7 +99,12 @@ impl<R: Read> Reader<R> {
             pending: Default::default(),
             done: false,
             cut_short: false,
-        })
+        };
+        let mut magic = [0u8; 8];
+        if r.fill(&mut magic)? < 8 || &magic != MAGIC {
+            return Err(Bad { at: 0, why: "does not start with the MCAP magic (not an MCAP file)".into() });
+        }
+        Ok(r)
     }
 
     /// Fills `buf` from the source; the bytes read (fewer only at the end).
