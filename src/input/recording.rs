@@ -281,8 +281,7 @@ impl Recording {
             source_elevation_deg = Some(m.elevation_deg_descending());
             (column_offsets, sweep_warning) = capture_sweeps(&rec.scans, target.columns);
             // One firing per column of the column window.
-            let fired = (m.column_window[1] + m.columns_per_frame - m.column_window[0]) % m.columns_per_frame + 1;
-            coverage_warning = coverage(fired, target.columns, &m.prod_line);
+            coverage_warning = coverage(m.window_len(), target.columns, &m.prod_line);
             let images = project_scans(&projector, &rec.scans);
             (Frames::Images(images), Some(times), d)
         } else if is_recording(path) {
@@ -675,5 +674,37 @@ mod tests {
         let rec = Recording::open(&bag, Some(&poses), &Sensor::hdl32e()).unwrap();
         assert!(rec.times_s.iter().zip([0.0, 0.95, 1.95, 2.95]).all(|(a, b)| (a - b).abs() < 1e-12), "{:?}", rec.times_s);
         assert_eq!(rec.pose(1).w_axis.truncate(), DVec3::new(5.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn frame_times_must_be_finite_and_rise_strictly() {
+        let path = Path::new("times.txt");
+        assert!(check_times(&[], path).is_ok());
+        assert!(check_times(&[3.0], path).is_ok());
+        assert!(check_times(&[0.0, 0.1, 0.25, 0.3], path).is_ok());
+        for (bad, at) in [
+            (vec![0.0, 0.1, 0.1], "frame 1 at 0.1 s, frame 2 at 0.1 s"),
+            (vec![0.0, 0.2, 0.1, 0.3], "frame 1 at 0.2 s, frame 2 at 0.1 s"),
+            (vec![f64::NAN, 0.1], "frame 0 at NaN s"),
+            (vec![0.0, f64::NAN], "frame 1 at NaN s"),
+            (vec![0.0, f64::INFINITY], "frame 1 at inf s"),
+            (vec![f64::NEG_INFINITY, 0.0], "frame 0 at -inf s"),
+        ] {
+            let e = check_times(&bad, path).unwrap_err().to_string();
+            assert!(e.contains("times.txt") && e.contains(at), "{bad:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_turns_firings_are_the_median_captures_count_less_the_closing_one() {
+        let scan = |n: Option<usize>| Scan { firing_times: n.map(|n| vec![[0.0, 0.0]; n]), ..Scan::default() };
+        assert_eq!(turn_firings(&[]), 0);
+        assert_eq!(turn_firings(&[scan(None), scan(None)]), 0);
+        assert_eq!(turn_firings(&[scan(Some(7))]), 6);
+        // Sorted 10, 20, 30, 40, 50 (and a scan without times, not counted): the median is 30.
+        let scans: Vec<Scan> = [50, 10, 40, 30, 20].map(Some).into_iter().chain([None]).map(scan).collect();
+        assert_eq!(turn_firings(&scans), 29);
+        // An even count takes the upper middle: 10, 20, 30, 40 -> 30.
+        assert_eq!(turn_firings(&[40, 10, 30, 20].map(|n| scan(Some(n)))), 29);
     }
 }

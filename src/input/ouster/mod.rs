@@ -182,6 +182,13 @@ impl OusterMeta {
         p.col_header_len() + self.pixels_per_column * p.pixel_len() + p.col_footer_len()
     }
 
+    /// How many columns (measurement ids) the sensor fires a frame: those of `column_window`,
+    /// which may wrap past the last id.
+    pub fn window_len(&self) -> usize {
+        let w = self.columns_per_frame;
+        (self.column_window[1] + w - self.column_window[0]) % w + 1
+    }
+
     /// The altitudes sorted descending (the recording sensor's rows for the target grid).
     pub fn elevation_deg_descending(&self) -> Vec<f64> {
         let mut el = self.altitude_deg.clone();
@@ -437,7 +444,7 @@ pub fn decode(pcap: &Path, meta: OusterMeta) -> Result<OusterRecording> {
     let t = &meta.lidar_to_sensor;
     // The sensor-frame yaw of the lidar's x axis: a column's azimuth from the encoder angle.
     let yaw_turns = t[4].atan2(t[0]) / std::f64::consts::TAU;
-    let window_len = (meta.column_window[1] + w - meta.column_window[0]) % w + 1;
+    let window_len = meta.window_len();
     let cpp = meta.columns_per_packet;
 
     let mut frames: Vec<Frame> = Vec::new();

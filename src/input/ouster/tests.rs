@@ -197,6 +197,16 @@ fn close(a: [f32; 3], b: [f64; 3]) -> bool {
 }
 
 #[test]
+fn the_column_window_counts_its_ids_inclusively_and_may_wrap() {
+    let mut m = Spec::new(Profile::Legacy, 1024, 16, &[0.0]).meta();
+    assert_eq!(m.window_len(), 1024);
+    for (window, fired) in [([100, 200], 101), ([5, 5], 1), ([1000, 23], 48), ([1023, 0], 2), ([0, 511], 512)] {
+        m.column_window = window;
+        assert_eq!(m.window_len(), fired, "{window:?}");
+    }
+}
+
+#[test]
 fn a_known_range_decodes_to_the_documented_xyz_in_every_profile() {
     for profile in [Profile::Legacy, Profile::Rng19Rfl8Sig16Nir16, Profile::Rng15Rfl8Nir8] {
         // Row 0 level, row 1 10 degrees down; 8 columns, 4 per packet.
