@@ -267,11 +267,10 @@ impl Sensor {
         el - half <= top && el + half >= bottom
     }
 
-    /// Column of a sensor-frame direction (x, y): `floor(0.5 * (1 - atan2(y, x) / pi) * W)`,
-    /// wrapped into `0..W`.
+    /// Column of a sensor-frame direction (x, y): `floor(turn_of(x, y) * W)`, wrapped into `0..W`.
     pub fn column_of(&self, x: f64, y: f64) -> usize {
         let w = self.columns as f64;
-        let c = (0.5 * (1.0 - y.atan2(x) / std::f64::consts::PI) * w).floor();
+        let c = (turn_of(x, y) * w).floor();
         (c as i64).rem_euclid(self.columns as i64) as usize
     }
 
@@ -279,6 +278,14 @@ impl Sensor {
     pub fn max_abs_elevation_deg(&self) -> f64 {
         self.elevation_deg.iter().fold(0.0f64, |m, e| m.max(e.abs()))
     }
+}
+
+/// Where a sensor-frame direction (x, y) lies in a turn: `0.5 * (1 - atan2(y, x) / pi)`, 0 straight
+/// behind, growing clockwise seen from above (0.5 straight ahead), in `[0, 1]` (1 only straight
+/// behind with y = -0). Every column coordinate of the grid is this times the columns.
+#[inline]
+pub fn turn_of(x: f64, y: f64) -> f64 {
+    0.5 * (1.0 - y.atan2(x) / std::f64::consts::PI)
 }
 
 /// Most rows a sensor may have.

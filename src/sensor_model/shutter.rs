@@ -83,7 +83,7 @@ impl Sweep {
     #[inline]
     pub fn u_of(&self, x: f64, y: f64) -> f64 {
         let w = self.columns as f64;
-        (0.5 * (1.0 - y.atan2(x) / std::f64::consts::PI) * w).rem_euclid(w)
+        (crate::sensor::turn_of(x, y) * w).rem_euclid(w)
     }
 
     /// `u` moved by whole revolutions to within half a revolution of `reference`.

@@ -523,7 +523,7 @@ pub fn to_scan(c: &Cloud, epoch_ns: i64) -> std::result::Result<Scan, String> {
                 if !abs.is_finite() || (abs - stamp_s).abs() > 10.0 {
                     return Err(format!("point {} has time {abs} s, more than 10 s from its stamp {stamp_s} s", row * c.width as usize + col));
                 }
-                let turn = (0.5 * (1.0 - v[1].atan2(v[0]) / std::f64::consts::PI)).rem_euclid(1.0);
+                let turn = crate::sensor::turn_of(v[0], v[1]).rem_euclid(1.0);
                 timed.push([turn, abs]);
             }
             scan.points.push(pf);
