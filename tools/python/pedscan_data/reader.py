@@ -191,7 +191,7 @@ class Sequence:
 
     def __getstate__(self) -> dict[str, object]:
         """Pickles without the file handle (DataLoader workers started by spawn reopen it)."""
-        return {**self.__dict__, "_file": None, "_pid": -1}
+        return {**self.__dict__, "_file": None}
 
     def close(self) -> None:
         """Closes the file; a later read opens it again."""

@@ -56,6 +56,12 @@ def test_frames_match_the_file(sample: Path) -> None:
                 np.testing.assert_array_equal(got, f[key][t])
         np.testing.assert_array_equal(seq.read("range", slice(1, 3)), f["range"][1:3])
         np.testing.assert_array_equal(seq.frame(-1).label, f["label"][3])
+        # The first frame counted from the end; each frame carries its own pose.
+        first = seq.frame(-4)
+        assert first.index == 0 and first.time_s == f["sensor/time_s"][0]
+        for t in range(4):
+            np.testing.assert_array_equal(seq.frame(t).world_from_sensor, f["sensor/world_from_sensor"][t])
+        assert not np.array_equal(f["sensor/world_from_sensor"][0], f["sensor/world_from_sensor"][3])
 
 
 def test_frame_reads_only_what_is_asked(sample: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -109,3 +115,5 @@ def test_files_that_are_not_sequences_are_named(tmp_path: Path) -> None:
 def test_frame_out_of_range_names_the_file(sample: Path) -> None:
     with pytest.raises(IndexError, match=r"seq_000000\.h5: frame 4 of 4"):
         Sequence(sample / "seq_000000.h5").frame(4)
+    with pytest.raises(IndexError, match=r"seq_000000\.h5: frame -5 of 4"):
+        Sequence(sample / "seq_000000.h5").frame(-5)

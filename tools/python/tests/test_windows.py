@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from pedscan_data import PedscanError, TorchWindowDataset, WindowDataset, class_weight
+from pedscan_data import PedscanError, TorchWindowDataset, WindowDataset, class_weight, open_sequences
 
 
 def test_windows_stay_inside_their_sequence(sample: Path) -> None:
@@ -39,6 +39,25 @@ def test_window_holds_n_ranges_and_the_last_frames_targets(sample: Path) -> None
         np.testing.assert_array_equal(with_instance["instance"], f["instance"][3])
 
 
+def test_lengths_and_strides_below_one_are_refused_and_one_is_a_single_frame(sample: Path) -> None:
+    for length, stride in ((0, 1), (1, 0), (0, 0), (-2, 1)):
+        with pytest.raises(ValueError, match="length and stride must be at least 1"):
+            WindowDataset(sample, length=length, stride=stride)
+    single = WindowDataset(sample, length=1)
+    assert len(single) == 8
+    with h5py.File(sample / "seq_000001.h5", "r") as f:
+        item = single[6]
+        assert (item["sequence"], item["frame"]) == (1, 2) and item["range"].shape == (1, 16, 512)
+        np.testing.assert_array_equal(item["range"][0], f["range"][2])
+
+
+def test_a_list_of_open_sequences_is_used_as_given(sample: Path) -> None:
+    sequences = open_sequences(sample)
+    ds = WindowDataset(sequences, length=2)
+    assert ds.sequences is sequences
+    np.testing.assert_array_equal(ds[4]["range"], WindowDataset(sample, length=2)[4]["range"])
+
+
 def test_class_weight_is_background_over_human_beams(sample: Path) -> None:
     label = np.array([[1, 1, 0, 0], [0, 0, 0, 0], [1, 0, 0, 0]], np.uint8)
     range_m = np.array([[2, 3, 4, 5], [6, 7, 8, 9], [0, 0, 1, 1]], np.float32)
@@ -52,6 +71,10 @@ def test_class_weight_is_background_over_human_beams(sample: Path) -> None:
             expected = (np.count_nonzero(r > 0) - humans) / humans
             assert ds[i]["class_weight"] == pytest.approx(expected, rel=1e-6)
             assert ds[i]["class_weight"].dtype == np.float32
+        # In a longer window, of its last frame alone (frame 3 of frames 1-3).
+        r, lab = f["range"][3], f["label"][3]
+        humans = np.count_nonzero((r > 0) & (lab == 1))
+        assert WindowDataset(sample, length=3)[1]["class_weight"] == pytest.approx((np.count_nonzero(r > 0) - humans) / humans, rel=1e-6)
 
 
 def test_missing_target_is_named(sample_minimal: Path) -> None:
@@ -70,7 +93,7 @@ def test_pickles_for_spawned_workers(sample: Path) -> None:
 
 def test_torch_dataset_without_torch_says_so(sample: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "torch", None)
-    with pytest.raises(ImportError, match="TorchWindowDataset needs PyTorch"):
+    with pytest.raises(ImportError, match=r"^TorchWindowDataset needs PyTorch \(pip install torch; .* as numpy arrays$"):
         TorchWindowDataset(sample, length=2)
 
 
@@ -84,3 +107,7 @@ def test_torch_dataset_batches(sample: Path) -> None:
     assert batch["class_weight"].shape == (4,)
     assert batch["sequence"].tolist() == [0, 0, 1, 1] and batch["frame"].tolist() == [2, 3, 2, 3]
     np.testing.assert_array_equal(batch["label"][3].numpy(), WindowDataset(sample, length=3)[3]["label"])
+    # An instance target is an index too: int64.
+    item = TorchWindowDataset(sample, length=2, targets=("label", "instance"))[0]
+    assert item["instance"].dtype == torch.int64
+    np.testing.assert_array_equal(item["instance"].numpy(), WindowDataset(sample, length=2, targets=("instance",))[0]["instance"])
