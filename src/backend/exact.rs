@@ -105,4 +105,19 @@ mod tests {
         }
         assert!(fallbacks > 1000, "{fallbacks}");
     }
+
+    /// The plain f64 value is trusted (no exact expansion) once the products differ by more
+    /// than a few ulps of their size, and not where rounding could hide the sign.
+    #[test]
+    fn the_plain_value_is_trusted_only_beyond_its_rounding_bound() {
+        assert!(certainly_nonzero(3.0, 1.0, 1.0, 1.0));
+        assert!(certainly_nonzero(1.0, 1.0 + 1e-12, 1.0, 1.0));
+        assert!(certainly_nonzero(-2.5, 4.0, 7.0, 1.5));
+        let e = 2f64.powi(-30);
+        assert!(!certainly_nonzero(1.0 + e, 1.0 - e, 1.0, 1.0));
+        assert!(!certainly_nonzero(3.0, 5.0, 5.0, 3.0));
+        // 8 ulps apart is trusted, 1 ulp (within the 2-epsilon bound of the sum) is not.
+        assert!(certainly_nonzero(1.0, 1.0 + 8.0 * f64::EPSILON, 1.0, 1.0));
+        assert!(!certainly_nonzero(1.0, 1.0 + f64::EPSILON, 1.0, 1.0));
+    }
 }
