@@ -119,5 +119,10 @@ mod tests {
         // 8 ulps apart is trusted, 1 ulp (within the 2-epsilon bound of the sum) is not.
         assert!(certainly_nonzero(1.0, 1.0 + 8.0 * f64::EPSILON, 1.0, 1.0));
         assert!(!certainly_nonzero(1.0, 1.0 + f64::EPSILON, 1.0, 1.0));
+        // The bound scales with the products' size (their sum, not their product): the same
+        // at 2^20.
+        let k = 1024.0;
+        assert!(certainly_nonzero(k, k * (1.0 + 8.0 * f64::EPSILON), k, k));
+        assert!(!certainly_nonzero(k, k * (1.0 + f64::EPSILON), k, k));
     }
 }
