@@ -65,16 +65,17 @@ def test_class_weight_is_background_over_human_beams(sample: Path) -> None:
     assert class_weight(np.zeros_like(label), range_m) == 1.0
     ds = WindowDataset(sample, length=2)
     with h5py.File(sample / "seq_000000.h5", "r") as f:
-        for i in range(3):
-            r, lab = f["range"][i + 1], f["label"][i + 1]
+
+        def expected(t: int) -> float:
+            r, lab = f["range"][t], f["label"][t]
             humans = np.count_nonzero((r > 0) & (lab == 1))
-            expected = (np.count_nonzero(r > 0) - humans) / humans
-            assert ds[i]["class_weight"] == pytest.approx(expected, rel=1e-6)
+            return (np.count_nonzero(r > 0) - humans) / humans
+
+        for i in range(3):
+            assert ds[i]["class_weight"] == pytest.approx(expected(i + 1), rel=1e-6)
             assert ds[i]["class_weight"].dtype == np.float32
         # In a longer window, of its last frame alone (frame 3 of frames 1-3).
-        r, lab = f["range"][3], f["label"][3]
-        humans = np.count_nonzero((r > 0) & (lab == 1))
-        assert WindowDataset(sample, length=3)[1]["class_weight"] == pytest.approx((np.count_nonzero(r > 0) - humans) / humans, rel=1e-6)
+        assert WindowDataset(sample, length=3)[1]["class_weight"] == pytest.approx(expected(3), rel=1e-6)
 
 
 def test_missing_target_is_named(sample_minimal: Path) -> None:
