@@ -563,6 +563,19 @@ mod tests {
         assert!(free_bytes(Path::new("/no/such/folder")).is_none());
     }
 
+    /// The free bytes are what `df` (coreutils, its own arithmetic over the same counters)
+    /// reports as available, to within what other processes write meanwhile.
+    #[test]
+    fn free_bytes_agree_with_df() {
+        let out = std::process::Command::new("df").args(["-B1", "--output=avail", "."]).output().expect("df runs");
+        assert!(out.status.success(), "df failed: {out:?}");
+        let text = String::from_utf8(out.stdout).expect("df prints text");
+        let df: u64 = text.lines().nth(1).and_then(|l| l.trim().parse().ok()).unwrap_or_else(|| panic!("df printed {text:?}"));
+        let ours = free_bytes(Path::new(".")).expect("statvfs of the working folder");
+        let apart = ours.abs_diff(df);
+        assert!(apart <= (64 << 20).max(df / 100), "free_bytes {ours} against df's {df}");
+    }
+
     #[test]
     fn shuffle_matches_hdf5_layout() {
         let src: Vec<u8> = (0..12).collect();

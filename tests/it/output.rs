@@ -469,6 +469,28 @@ fn info_summarises_a_sequence() {
     ] {
         assert!(s.contains(want), "missing {want:?} in\n{s}");
     }
+    // The numbers, from the frames written: returns, human beams, the median range (the
+    // ceil(n/2)-th smallest return, reported at the centre of its 1 cm bin), the extremes,
+    // and the range's compression ratio from the file's own storage size.
+    let frames: Vec<FrameOutput> = (0..3).map(|t| frame(&m, t)).collect();
+    let mut ranges: Vec<f32> = frames.iter().flat_map(|f| f.range.iter().copied()).filter(|&r| r > 0.0).collect();
+    ranges.sort_by(f32::total_cmp);
+    let beams = 3 * 4 * 16;
+    let human: usize = frames.iter().map(|f| f.label.iter().filter(|&&l| l == 1).count()).sum();
+    assert!(human > 0 && human < ranges.len());
+    let returns = ranges.len();
+    let pct = |a: usize, b: usize| 100.0 * a as f64 / b as f64;
+    let median = ((ranges[returns.div_ceil(2) - 1] as f64 / 0.01).floor() + 0.5) * 0.01;
+    let stored = hdf5::File::open(&paths[0]).unwrap().dataset("range").unwrap().storage_size();
+    let ratio = (beams * 4) as f64 / stored as f64;
+    for want in [
+        format!("returns:   {returns} of {beams} beams ({:.1} %)", pct(returns, beams)),
+        format!("human:     {human} beams ({:.3} % of beams, {:.3} % of returns)", pct(human, beams), pct(human, returns)),
+        format!("range:     min {:.3} m, median {median:.2} m, max {:.3} m", ranges[0], ranges[returns - 1]),
+        format!("({} stored, {ratio:.2}x)", if stored < 1024 { format!("{stored} B") } else { format!("{:.1} KiB", stored as f64 / 1024.0) }),
+    ] {
+        assert!(s.contains(&want), "missing {want:?} in\n{s}");
+    }
 }
 
 #[test]
