@@ -436,6 +436,115 @@ mod tests {
         assert!(p[0] > p[1] && p[0] > p[2], "+x is red-ish: {p:?}");
     }
 
+    /// Turbo is Mikhailov's published degree-5 polynomial: here evaluated by Horner's rule
+    /// (another order of operations than `turbo`'s powers), within one 8-bit step, and at the
+    /// points whose colours the map is known for (dark blue, cyan, green-yellow, orange, dark
+    /// red), clamped outside [0, 1].
+    #[test]
+    fn turbo_is_the_published_polynomial() {
+        let coefficients: [[f64; 6]; 3] = [
+            [0.13572138, 4.61539260, -42.66032258, 132.13108234, -152.94239396, 59.28637943],
+            [0.09140261, 2.19418839, 4.84296658, -14.18503333, 4.27729857, 2.82956604],
+            [0.10667330, 12.64194608, -60.58204836, 110.36276771, -89.90310912, 27.34824973],
+        ];
+        for k in 0..=100 {
+            let t = k as f64 / 100.0;
+            let got = turbo(t as f32);
+            for (c, coef) in coefficients.iter().enumerate() {
+                let v = coef.iter().rev().fold(0.0, |acc, &a| acc * t + a);
+                let want = (v.clamp(0.0, 1.0) * 255.0).round();
+                assert!((got[c] as f64 - want).abs() <= 1.0, "turbo({t}) channel {c}: {} against {want}", got[c]);
+            }
+        }
+        assert_eq!(turbo(0.0), [35, 23, 27]);
+        assert_eq!(turbo(0.25), [38, 189, 225]);
+        assert_eq!(turbo(0.5), [150, 250, 80]);
+        assert_eq!(turbo(0.75), [255, 128, 29]);
+        assert_eq!(turbo(1.0), [144, 13, 0]);
+        assert_eq!(turbo(-3.0), turbo(0.0));
+        assert_eq!(turbo(7.0), turbo(1.0));
+        assert_eq!(turbo(f32::NAN), turbo(0.0));
+    }
+
+    /// Whether `text` is written in black at (x, y) of `img`: every pixel of its box is black
+    /// exactly where the font draws it.
+    fn written(img: &RgbImage, x: i64, y: i64, text: &str) -> bool {
+        use crate::plot::font::{draw_text, text_width, GLYPH_H};
+        let mut want = RgbImage::from_pixel(img.width(), img.height(), image::Rgb(LEGEND_BG));
+        draw_text(&mut want, x, y, text, 1, LEGEND_INK);
+        let inked = |im: &RgbImage, px: i64, py: i64| im.get_pixel(px as u32, py as u32).0 == LEGEND_INK;
+        let xs = x.max(0)..(x + text_width(text, 1) as i64).min(img.width() as i64);
+        let ys = y.max(0)..(y + GLYPH_H as i64).min(img.height() as i64);
+        ys.clone().all(|py| xs.clone().all(|px| inked(img, px, py) == inked(&want, px, py)))
+            && ys.clone().any(|py| xs.clone().any(|px| inked(&want, px, py)))
+    }
+
+    /// Black columns of row `y` between `x0` and `x1` (exclusive).
+    fn black_columns(img: &RgbImage, y: u32, x0: u32, x1: u32) -> Vec<u32> {
+        (x0..x1).filter(|&x| img.get_pixel(x, y).0 == [0, 0, 0]).collect()
+    }
+
+    /// The range key: the Turbo bar from its first to its last pixel (8 px from the left,
+    /// the image's width less 16, at most 600), and a tick at every 1-2-5 step up to and
+    /// including the maximum range, where ln(1 + tick) / ln(1 + max) puts it.
+    #[test]
+    fn the_range_key_has_its_ticks_on_the_log_scale() {
+        let (w, max) = (1000u32, 50.0f32);
+        let img = range_png(&vec![0.0; w as usize], 1, w as usize, max, 1);
+        let top = 1;
+        let bar_w = (w - 16).min(600) as i64;
+        for (x, t) in [(0, 0.0), (bar_w - 1, 1.0), ((bar_w - 1) / 2, ((bar_w - 1) / 2) as f32 / (bar_w - 1) as f32)] {
+            for y in top + 6..top + 18 {
+                assert_eq!(img.get_pixel(8 + x as u32, y).0, turbo(t), "bar at x {x}, y {y}");
+            }
+        }
+        assert_eq!(img.get_pixel(8 + bar_w as u32, top + 10).0, LEGEND_BG, "the bar ends at its width");
+        let want: Vec<u32> = [0.5f64, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0]
+            .iter()
+            .map(|&tick| 8 + ((1.0 + tick).ln() / (1.0 + max as f64).ln() * (bar_w - 1) as f64).round() as u32)
+            .collect();
+        for y in top + 18..top + 22 {
+            assert_eq!(black_columns(&img, y, 0, w), want, "tick marks in row {y}");
+        }
+        assert!(black_columns(&img, top + 22, 0, w).is_empty(), "tick marks are 4 px long");
+        for (x, label) in want.iter().zip(["0.5", "1", "2", "5", "10", "20", "50"]) {
+            let half = crate::plot::font::text_width(label, 1) as i64 / 2;
+            assert!(written(&img, *x as i64 - half, top as i64 + 24, label), "tick label {label}");
+        }
+        assert!(written(&img, 8 + bar_w + 10, top as i64 + 10, "range, m (log scale); black: no return"), "caption");
+    }
+
+    /// The velocity key: a colour wheel of radius 17 centred 25 px from the left, hue the
+    /// direction (+x red to the right, +y drawn upwards, then cyan and violet), saturation and
+    /// brightness growing from dark grey at the centre; a 200 px speed bar 24 px to its right,
+    /// with four ticks at thirds of the maximum speed.
+    #[test]
+    fn the_velocity_key_is_a_direction_wheel_and_a_speed_bar() {
+        let img = velocity_png(&[0.0; 400], &[[0.0; 3]; 400], |_| [0.0; 3], 1, 400, 3.0, 1);
+        let (r, cx, cy) = (17u32, 25u32, 1 + 3 + 17u32);
+        assert_eq!(img.get_pixel(cx, cy).0, [64, 64, 64], "centre: no speed");
+        assert_eq!(img.get_pixel(cx + r, cy).0, [255, 0, 0], "+x");
+        assert_eq!(img.get_pixel(cx, cy - r).0, [128, 255, 0], "+y, drawn upwards");
+        assert_eq!(img.get_pixel(cx - r, cy).0, [0, 255, 255], "-x");
+        assert_eq!(img.get_pixel(cx, cy + r).0, [128, 0, 255], "-y");
+        assert_eq!(img.get_pixel(cx + r - 1, cy - r + 1).0, LEGEND_BG, "outside the wheel");
+        let halfway = img.get_pixel(cx + r / 2 + 1, cy).0;
+        assert_eq!(halfway, hsv(0.0, 9.0 / 17.0, 0.25 + 0.75 * 9.0 / 17.0), "saturation grows with the radius");
+        let x0 = cx + r + 24;
+        assert_eq!(img.get_pixel(x0, 1 + 6).0, [64, 64, 64], "speed 0");
+        assert_eq!(img.get_pixel(x0 + 199, 1 + 17).0, [255, 0, 0], "full speed");
+        assert_eq!(img.get_pixel(x0 + 200, 1 + 10).0, LEGEND_BG, "the bar is 200 px wide");
+        for y in 1 + 18..1 + 22 {
+            assert_eq!(black_columns(&img, y, x0 - 2, x0 + 202), vec![x0, x0 + 66, x0 + 132, x0 + 199], "speed ticks in row {y}");
+        }
+        for (x, label) in [(x0, "0.0"), (x0 + 66, "1.0"), (x0 + 132, "2.0"), (x0 + 199, "3.0")] {
+            let half = crate::plot::font::text_width(label, 1) as i64 / 2;
+            assert!(written(&img, x as i64 - half, 1 + 24, label), "speed label {label}");
+        }
+        assert!(written(&img, (cx + r + 4) as i64, cy as i64 - 4, "+x"), "the wheel's +x");
+        assert!(written(&img, (x0 + 210) as i64, 1 + 10, "speed over the ground, m/s (hue: direction, sensor frame)"), "caption");
+    }
+
     #[test]
     fn instance_colours_differ() {
         let cs: Vec<_> = (1..=8).map(instance_colour).collect();
