@@ -546,6 +546,41 @@ mod tests {
     }
 
     #[test]
+    fn the_range_scale_is_logarithmic_from_zero_to_the_maximum() {
+        let e = std::f32::consts::E;
+        assert_eq!(range_display(0.0, 50.0), 0.0);
+        assert_eq!(range_display(50.0, 50.0), 1.0);
+        assert!((range_display(e - 1.0, e * e - 1.0) - 0.5).abs() < 1e-6);
+        assert_eq!(range_display(80.0, 50.0), 1.0, "clamped beyond the maximum");
+        assert_eq!(range_display(-2.0, 50.0), 0.0);
+        assert_eq!(range_display(5.0, 0.0), 0.0, "no scale without a maximum");
+    }
+
+    /// Intensity: grey from 40 to 255 at the 99th percentile of the *returned* intensities
+    /// (a no-return beam's intensity, however bright, neither counts nor shows); label: people
+    /// in their colour, the rest grey by range, no return black.
+    #[test]
+    fn only_returns_are_shaded_and_only_people_coloured() {
+        let (rows, cols) = (1, 200);
+        let range: Vec<f32> = (0..cols).map(|c| if c < 100 { 10.0 } else { 0.0 }).collect();
+        let intensity: Vec<f32> = (0..cols).map(|c| if c < 100 { c as f32 / 99.0 } else { 100.0 }).collect();
+        let img = intensity_png(&intensity, &range, rows, cols, 1);
+        // The 99th percentile of the 100 returns is the 100th smallest: 1.0.
+        assert_eq!(img.get_pixel(99, 0).0, [255, 255, 255]);
+        assert_eq!(img.get_pixel(0, 0).0, [40, 40, 40]);
+        let g = (40.0 + 215.0 * (49.0f32 / 99.0)) as u8;
+        assert_eq!(img.get_pixel(49, 0).0, [g, g, g]);
+        assert_eq!(img.get_pixel(150, 0).0, [0, 0, 0], "no return: black");
+        let mut instance = vec![0u16; cols];
+        instance[3] = 2;
+        let lab = label_png(&range, &instance, rows, cols, 50.0, 1);
+        assert_eq!(lab.get_pixel(3, 0).0, instance_colour(2));
+        let grey = to_u8((1.0 - 0.8 * range_display(10.0, 50.0)) as f64 * 0.9);
+        assert_eq!(lab.get_pixel(4, 0).0, [grey, grey, grey], "background: grey by range");
+        assert_eq!(lab.get_pixel(150, 0).0, [0, 0, 0], "no return: black");
+    }
+
+    #[test]
     fn instance_colours_differ() {
         let cs: Vec<_> = (1..=8).map(instance_colour).collect();
         for i in 0..cs.len() {
