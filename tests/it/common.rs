@@ -96,7 +96,7 @@ fn command(args: &[&str], dir: &Path, envs: &[(&str, &str)]) -> Command {
 
 /// How long a bounded run or load may go on before it is taken for a hang and fails the test.
 /// Generous on purpose: it catches a hang, never a slow or busy machine (speed is measured by
-/// `pedscan bench` and farm-bench comparisons, never asserted).
+/// `pedscan bench` and whole processes timed in turn, A B A B, never asserted).
 pub const HANG: Duration = Duration::from_secs(300);
 
 /// The data-segment cap for runs that are to be refused as bad input: a refused run loads the
