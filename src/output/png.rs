@@ -545,6 +545,34 @@ mod tests {
         assert!(written(&img, (x0 + 210) as i64, 1 + 10, "speed over the ground, m/s (hue: direction, sensor frame)"), "caption");
     }
 
+    /// The rigid model's `w x p` about the vertical: (-w p_y, w p_x).
+    #[test]
+    fn the_rigid_ego_term_is_the_yaw_rate_crossed_with_the_point() {
+        let identity = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        assert_eq!(ego_velocity(&identity, [0.0; 3], 0.5, true, [4.0, 2.0, 1.0]), [-1.0, 2.0, 0.0]);
+        assert_eq!(ego_velocity(&identity, [0.0; 3], 0.5, false, [4.0, 2.0, 1.0]), [0.0, 0.0, 0.0]);
+        assert_eq!(ego_velocity(&identity, [1.0, -2.0, 3.0], 0.0, true, [4.0, 2.0, 1.0]), [1.0, -2.0, 3.0]);
+    }
+
+    /// 16 px a metre around the centre (320, 320): rings every 5 m all the way round, and a
+    /// person at (10, 0) m walking (1, 2) m/s has its 1 s arrow from (320, 160) to (288, 144),
+    /// through (304, 152), and nothing on the mirrored side.
+    #[test]
+    fn the_birds_eye_view_draws_rings_and_arrows() {
+        let img = bev_png(&[], &[], &[], &[([10.0, 0.0, 0.0], [1.0, 2.0, 0.0])], [0.0; 3]);
+        for (u, v) in [(400, 320), (320, 400), (240, 320), (320, 240)] {
+            assert_eq!(img.get_pixel(u, v).0, [48, 48, 48], "the 5 m ring at ({u}, {v})");
+        }
+        let c = instance_colour(1);
+        assert_eq!(img.get_pixel(320, 160).0, c, "the person");
+        assert_eq!(img.get_pixel(304, 152).0, c, "the arrow's middle");
+        assert_eq!(img.get_pixel(288, 144).0, c, "the arrow's head");
+        for (u, v) in [(352, 144), (336, 152), (304, 168), (288, 176)] {
+            assert_eq!(img.get_pixel(u, v).0, [16, 16, 16], "nothing at ({u}, {v})");
+        }
+        assert_eq!(img.get_pixel(320, 320).0, [255, 255, 255], "the sensor");
+    }
+
     #[test]
     fn the_range_scale_is_logarithmic_from_zero_to_the_maximum() {
         let e = std::f32::consts::E;
