@@ -570,7 +570,12 @@ mod tests {
         for (u, v) in [(352, 144), (336, 152), (304, 168), (288, 176)] {
             assert_eq!(img.get_pixel(u, v).0, [16, 16, 16], "nothing at ({u}, {v})");
         }
-        assert_eq!(img.get_pixel(320, 320).0, [255, 255, 255], "the sensor");
+        assert_eq!(img.get_pixel(317, 157).0, c, "the person's 7 px square, top left");
+        assert_eq!(img.get_pixel(323, 163).0, c, "the person's 7 px square, bottom right");
+        for (u, v) in [(320, 316), (317, 323), (324, 323)] {
+            assert_eq!(img.get_pixel(u, v).0, [255, 255, 255], "the sensor's triangle, pointing up, at ({u}, {v})");
+        }
+        assert_eq!(img.get_pixel(317, 317).0, [16, 16, 16], "beside the triangle's tip");
     }
 
     #[test]

@@ -116,6 +116,55 @@ fn rangenet_projection_puts_every_hdl32e_point_in_its_own_cell() {
     }
 }
 
+/// A ros2msg schema as ROS 2 defines its messages (`ros2 interface show`): the message's
+/// fields, then a section per type it uses (a line of 80 `=`, `MSG: package/Type`, its
+/// fields), every type used defined, and the fields of the types pedscan writes as in ROS 2.
+fn check_ros2msg_schema(name: &str, text: &str) {
+    let separator = "=".repeat(80);
+    let mut sections: Vec<(String, Vec<String>)> = vec![(name.replace("/msg/", "/"), Vec::new())];
+    for line in text.lines() {
+        if line == separator {
+            sections.push((String::new(), Vec::new()));
+        } else if let Some(t) = line.strip_prefix("MSG: ") {
+            let last = sections.last_mut().unwrap();
+            assert!(last.0.is_empty() && last.1.is_empty(), "{name}: MSG line {line:?} not after a separator");
+            last.0 = t.to_string();
+        } else if !line.is_empty() {
+            sections.last_mut().unwrap().1.push(line.to_string());
+        }
+    }
+    let defined: std::collections::BTreeMap<&str, &Vec<String>> = sections.iter().map(|(t, f)| (t.as_str(), f)).collect();
+    assert_eq!(defined.len(), sections.len(), "{name}: a type defined twice");
+    for (t, fields) in &sections {
+        assert!(!t.is_empty() && !fields.is_empty(), "{name}: an empty section");
+        for f in fields.iter() {
+            let ty = f.split_whitespace().next().unwrap().trim_end_matches("[]");
+            if ty.contains('/') {
+                assert!(defined.contains_key(ty), "{name}: {t} uses {ty}, not defined");
+            }
+        }
+    }
+    let want: &[(&str, &[&str])] = &[
+        ("std_msgs/Header", &["builtin_interfaces/Time stamp", "string frame_id"]),
+        ("builtin_interfaces/Time", &["int32 sec", "uint32 nanosec"]),
+        ("tf2_msgs/TFMessage", &["geometry_msgs/TransformStamped[] transforms"]),
+        ("geometry_msgs/TransformStamped", &["std_msgs/Header header", "string child_frame_id", "geometry_msgs/Transform transform"]),
+        ("geometry_msgs/Transform", &["geometry_msgs/Vector3 translation", "geometry_msgs/Quaternion rotation"]),
+        ("geometry_msgs/Vector3", &["float64 x", "float64 y", "float64 z"]),
+        ("geometry_msgs/Quaternion", &["float64 x 0", "float64 y 0", "float64 z 0", "float64 w 1"]),
+        (
+            "sensor_msgs/PointCloud2",
+            &["std_msgs/Header header", "uint32 height", "uint32 width", "sensor_msgs/PointField[] fields", "bool is_bigendian", "uint32 point_step", "uint32 row_step", "uint8[] data", "bool is_dense"],
+        ),
+    ];
+    for (t, fields) in want {
+        if let Some(got) = defined.get(t) {
+            assert_eq!(got.as_slice(), *fields, "{name}: the fields of {t}");
+        }
+    }
+    assert!(defined.contains_key("std_msgs/Header"), "{name}: no header");
+}
+
 #[test]
 fn the_ros2_bag_is_read_back_by_the_mcap_crate() {
     let tmp = tempfile::tempdir().unwrap();
@@ -133,6 +182,7 @@ fn the_ros2_bag_is_read_back_by_the_mcap_crate() {
         let m = m.unwrap();
         let schema = m.channel.schema.as_ref().unwrap();
         assert_eq!((schema.encoding.as_str(), m.channel.message_encoding.as_str()), ("ros2msg", "cdr"));
+        check_ros2msg_schema(&schema.name, std::str::from_utf8(&schema.data).unwrap());
         *topics.entry((m.channel.topic.clone(), schema.name.clone())).or_insert(0) += 1;
         // CDR little endian, and for the cloud: 32 x 1024 points of 40 bytes after the header.
         assert_eq!(&m.data[..4], &[0, 1, 0, 0]);
