@@ -522,3 +522,62 @@ fn info_rejects_missing_garbage_and_foreign_files() {
     let e = info(&cut).unwrap_err();
     assert!(e.to_string().contains("cut.h5"), "{e}");
 }
+
+/// A bag's clouds beam by beam against the frames written, reading the CDR by the
+/// PointCloud2 layout the bag declares (ROS 2's sensor_msgs definition): x, y, z, intensity,
+/// ring (0 = lowest beam), instance, time from the frame's stamp, velocity, label; a beam
+/// without a return is NaN with zero velocity; `is_dense` only when every beam returned.
+#[test]
+fn a_bags_points_hold_each_beam_of_the_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(0, 2, 2, OutputSet::default());
+    let opts = WriterOptions { h5: false, mcap: true, png: false, ..Default::default() };
+    let mut frames = vec![frame(&m, 0), frame(&m, 1)];
+    for r in frames[1].range.iter_mut() {
+        if *r <= 0.0 {
+            *r = 42.0;
+        }
+    }
+    let mut w = SequenceWriter::create(dir.path(), &m, &opts).unwrap();
+    for f in &frames {
+        w.write_frame(f).unwrap();
+    }
+    w.finish().unwrap();
+    let bytes = std::fs::read(dir.path().join("seq_000000_bag/seq_000000.mcap")).unwrap();
+    let (rows, cols) = (4usize, 16usize);
+    let mut seen = 0;
+    for msg in mcap::MessageStream::new(&bytes).unwrap() {
+        let msg = msg.unwrap();
+        if msg.channel.topic != "/pedscan/points" {
+            continue;
+        }
+        let f = &frames[seen];
+        seen += 1;
+        let d = &msg.data;
+        let u32_at = |at: usize| u32::from_le_bytes(d[at..at + 4].try_into().unwrap());
+        // After the header (stamp 8 bytes, frame id) and height, width, the fields; the data's
+        // length precedes the points, and is_dense follows them.
+        let n = rows * cols * 40;
+        let start = d.len() - 1 - n;
+        assert_eq!(u32_at(start - 4) as usize, n, "the data's length");
+        assert_eq!(d[d.len() - 1], (seen == 2) as u8, "is_dense of frame {}", seen - 1);
+        for b in 0..rows * cols {
+            let p = &d[start + 40 * b..start + 40 * (b + 1)];
+            let f32_at = |at: usize| f32::from_le_bytes(p[at..at + 4].try_into().unwrap());
+            let u16_at = |at: usize| u16::from_le_bytes(p[at..at + 2].try_into().unwrap());
+            let returned = f.range[b] > 0.0;
+            for k in 0..3 {
+                let want = if returned { f.xyz[b][k] } else { f32::NAN };
+                assert_eq!(f32_at(4 * k).to_bits(), want.to_bits(), "beam {b} coordinate {k}");
+                let v = if returned { f.velocity[b][k] } else { 0.0 };
+                assert_eq!(f32_at(24 + 4 * k), v, "beam {b} velocity {k}");
+            }
+            assert_eq!(f32_at(12), f.intensity[b], "beam {b} intensity");
+            assert_eq!(u16_at(16) as usize, rows - 1 - b / cols, "beam {b} ring");
+            assert_eq!(u16_at(18), f.instance[b], "beam {b} instance");
+            assert_eq!(f32_at(20), (f.column_time_s[b % cols] - f.time_s) as f32, "beam {b} time");
+            assert_eq!(p[36], f.label[b], "beam {b} label");
+        }
+    }
+    assert_eq!(seen, 2);
+}
