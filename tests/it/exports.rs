@@ -41,7 +41,7 @@ fn the_semantickitti_export_holds_what_the_hdf5_holds() {
     std::fs::write(dir.join("c.toml"), "[humans]\nspeed_mps = [0.0, 0.2]\n").unwrap();
     let args = ["generate", "--config", "c.toml", "--backend", "raycast", "--sensor", "s.toml", "--sequences", "2", "--frames", "3", "--humans", "3..5", "--formats", "h5,semantickitti", "--out", "o"];
     ok(&pedscan(&args, dir));
-    let (mut holes, mut moving, mut people) = (0, 0, 0);
+    let (mut holes, mut moving, mut people, mut background) = (0, 0, 0, 0);
     for seq in 0..2 {
         let f = hdf5::File::open(dir.join(format!("o/seq_{seq:06}.h5"))).unwrap();
         let range: Vec<f32> = f.dataset("range").unwrap().read_raw().unwrap();
@@ -79,6 +79,7 @@ fn the_semantickitti_export_holds_what_the_hdf5_holds() {
                 let class = labels[i] & 0xffff;
                 if k == 0 {
                     assert_eq!(class, 50);
+                    background += 1;
                 } else {
                     let v = &speed[(t * n + k - 1) * 3..][..2];
                     let walking = (v[0] as f64).hypot(v[1] as f64) > 0.1;
@@ -97,6 +98,12 @@ fn the_semantickitti_export_holds_what_the_hdf5_holds() {
     assert!(holes > 0 && moving > 0 && people > moving, "holes {holes}, person points {people}, moving {moving}");
     let yaml = std::fs::read_to_string(dir.join("o/semantickitti/pedscan.yaml")).unwrap();
     assert!(yaml.contains("254: \"moving-person\"") && yaml.contains("30: \"person\"") && yaml.contains("train: [0, 1]"), "{yaml}");
+    // Each class's share of the points of both sequences, as counted above.
+    let total = (background + people) as f64;
+    for (class, n) in [(30, people - moving), (50, background), (254, moving)] {
+        let share = format!("  {class}: {:.9}\n", n as f64 / total);
+        assert!(yaml.contains(&share), "{share:?} in\n{yaml}");
+    }
     ok(&pedscan(&["verify", "o"], dir));
     expect_input_error(&["generate", "--formats", "h5,las", "--out", "x"], dir, "las");
 }
