@@ -581,3 +581,32 @@ fn a_bags_points_hold_each_beam_of_the_frames() {
     }
     assert_eq!(seen, 2);
 }
+
+/// What no sequence can be is refused before anything is written: a deflate level past 9, no
+/// frames, a grid without rows or without columns, more people than u16 instance ids.
+#[test]
+fn a_writer_refuses_what_no_sequence_can_be() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let m = meta(0, 2, 1, OutputSet::default());
+    let refused = |m: &SequenceMeta, opts: &WriterOptions| SequenceWriter::create(&out, m, opts).err().expect("refused");
+    let e = refused(&m, &WriterOptions { compression: Compression::Deflate(10), ..Default::default() });
+    assert!(e.to_string().contains("deflate level 10"), "{e}");
+    assert!(SequenceWriter::create(&out, &m, &WriterOptions { compression: Compression::Deflate(9), ..Default::default() }).is_ok(), "level 9 is deflate's best");
+    assert!(refused(&SequenceMeta { frames: 0, ..m.clone() }, &WriterOptions::default()).to_string().contains("at least one frame"));
+    let mut no_columns = m.clone();
+    no_columns.sensor.columns = 0;
+    let mut no_rows = m.clone();
+    no_rows.sensor.elevation_deg.clear();
+    for bad in [no_columns, no_rows] {
+        assert!(matches!(refused(&bad, &WriterOptions::default()), pedscan::Error::Internal(_)));
+    }
+    let mut crowd = m.clone();
+    crowd.humans = vec![m.humans[0].clone(); u16::MAX as usize + 1];
+    assert!(refused(&crowd, &WriterOptions::default()).to_string().contains("65536 humans"));
+    crowd.humans.pop();
+    if let Err(e) = SequenceWriter::create(&out, &crowd, &WriterOptions::default()) {
+        panic!("65,535 people fit: {e}");
+    }
+    assert!(dir_names(dir.path()).iter().all(|n| n == "o"));
+}
