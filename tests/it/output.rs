@@ -432,6 +432,9 @@ fn xml_is_well_formed_and_matches_the_frames() {
                     let f = frame(&m, t);
                     let x: f64 = attr(&e, "y").parse().unwrap();
                     assert!((x - f.humans[k - 1].position_m[1]).abs() < 1e-3);
+                    let v = f.humans[k - 1].velocity_mps.map(|c| c as f64);
+                    let speed: f64 = attr(&e, "speed_mps").parse().unwrap();
+                    assert!((speed - v[0].hypot(v[1]).hypot(v[2])).abs() <= 5e-4, "speed of person {k}: {speed}");
                     assert_eq!(attr(&e, "height_m"), format!("{:.3}", m.humans[k - 1].height_m));
                     beams_in_frame.push(attr(&e, "beams").parse().unwrap());
                 } else {
@@ -609,4 +612,27 @@ fn a_writer_refuses_what_no_sequence_can_be() {
         panic!("65,535 people fit: {e}");
     }
     assert!(dir_names(dir.path()).iter().all(|n| n == "o"));
+}
+
+/// The bird's-eye view shows people in the sensor frame however the sensor is turned: under a
+/// sensor pitched so that its +x is the world's +z, a person 10 m above the sensor is drawn
+/// 10 m ahead (160 px above the centre of the 640 px view, 16 px a metre).
+#[test]
+fn the_birds_eye_view_takes_people_into_a_tilted_sensors_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(0, 1, 1, OutputSet::default());
+    let mut f = frame(&m, 0);
+    let t = [f.world_from_sensor[0][3], f.world_from_sensor[1][3], f.world_from_sensor[2][3]];
+    // Columns: the sensor's axes in the world: x -> +z, y -> +y, z -> -x.
+    f.world_from_sensor = [[0.0, 0.0, -1.0, t[0]], [0.0, 1.0, 0.0, t[1]], [1.0, 0.0, 0.0, t[2]], [0.0, 0.0, 0.0, 1.0]];
+    f.humans[0].position_m = [t[0], t[1], t[2] + 10.0];
+    f.humans[0].velocity_mps = [0.0; 3];
+    let opts = WriterOptions { png: true, ..Default::default() };
+    let mut w = SequenceWriter::create(dir.path(), &m, &opts).unwrap();
+    w.write_frame(&f).unwrap();
+    w.finish().unwrap();
+    let bev = image::open(dir.path().join("seq_000000_png/bev_0000.png")).unwrap().to_rgb8();
+    let colour = pedscan::output::png::instance_colour(1);
+    assert_eq!(bev.get_pixel(320, 160).0, colour, "the person 10 m ahead");
+    assert_ne!(bev.get_pixel(320, 102).0, colour);
 }
