@@ -852,6 +852,35 @@ mod tests {
         assert_eq!(path.distance(0.0), 0.0);
     }
 
+    /// The path passes through the track's samples (sequence time t is track time t0 + t),
+    /// and `time_at_distance` inverts `distance`: inside the 10 ms table to well under a
+    /// millisecond, before 0 and past the table at the speed there.
+    #[test]
+    fn track_time_at_distance_inverts_the_distance() {
+        let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+        let xy: Vec<DVec2> = times.iter().map(|t| DVec2::new(1.3 * t, (0.5 * t).sin() * 2.0)).collect();
+        let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+        let path = HumanPath::Track(TrackPath::new(track, 1.7, 0.0, 3.0));
+        let HumanPath::Track(tp) = &path else { unreachable!() };
+        for (t, k) in [(0.3, 5), (2.3, 10)] {
+            let (p, v, _) = tp.state(t);
+            assert!(p.distance(DVec2::new(1.3 * 0.4 * k as f64, (0.2 * k as f64).sin() * 2.0)) < 1e-9, "t {t}: {p}");
+            assert!(v.length() > 1.0, "walking at t {t}: {v}");
+        }
+        for t in [0.004, 0.25, 1.0, 2.345, 2.99] {
+            let d = path.distance(t);
+            let back = path.time_at_distance(d).unwrap();
+            assert!((back - t).abs() < 1e-4, "t {t}: distance {d} gives back {back}");
+        }
+        // Before 0 and past the table (3 s): at the speed at 0 and at the table's end.
+        let v0 = tp.state(0.0).1.length();
+        assert!((path.time_at_distance(-0.5).unwrap() - (-0.5 / v0)).abs() < 1e-12);
+        let (end, d_end) = (3.0, path.distance(3.0));
+        let v_end = tp.state(end).1.length();
+        let past = path.time_at_distance(d_end + 0.8).unwrap();
+        assert!((past - (end + 0.8 / v_end)).abs() < 1e-6, "{past}");
+    }
+
     #[test]
     fn gait_phase_advances_by_distance_over_stride() {
         let p = plan(MotionMode::Full);
