@@ -117,3 +117,22 @@ def test_frame_out_of_range_names_the_file(sample: Path) -> None:
         Sequence(sample / "seq_000000.h5").frame(4)
     with pytest.raises(IndexError, match=r"seq_000000\.h5: frame -5 of 4"):
         Sequence(sample / "seq_000000.h5").frame(-5)
+    seq = Sequence(sample / "seq_000000.h5")
+    np.testing.assert_array_equal(seq.read("range", -4), seq.read("range", 0))
+    for t in (4, -5):
+        with pytest.raises(IndexError, match=rf"seq_000000\.h5: frame {t} of 4"):
+            seq.read("range", t)
+
+
+def test_close_closes_the_file_once_and_a_later_read_reopens_it(sample: Path) -> None:
+    seq = Sequence(sample / "seq_000000.h5")
+    first = seq.dataset("range")
+    assert first.id.valid
+    seq.close()
+    assert not first.id.valid, "the file is closed"
+    seq.close()  # closing a closed sequence is harmless
+    again = seq.dataset("range")
+    assert again.id.valid
+    with seq:
+        pass
+    assert not again.id.valid, "leaving a with block closes it"
