@@ -881,6 +881,30 @@ mod tests {
         assert!((past - (end + 0.8 / v_end)).abs() < 1e-6, "{past}");
     }
 
+    /// Recorded poses' velocities: the three-point derivative for uneven steps is exact on a
+    /// parabola (x = t^2: 2t) inside, one-sided at the ends; the yaw rate is exact on a steady
+    /// turn, across the +-pi wrap too; a window's times start at its first pose.
+    #[test]
+    fn pose_velocities_are_exact_on_a_parabola_and_a_steady_turn() {
+        let times = [0.0, 0.1, 0.25, 0.3, 0.5];
+        let poses: Vec<DMat4> = times
+            .iter()
+            .map(|&t| DMat4::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI - 0.1 + 0.8 * t), DVec3::new(t * t, 1.0, 0.5)))
+            .collect();
+        let all = PoseTrack::from_poses(&times, &poses, 0..5);
+        for k in 1..4 {
+            assert!((all.velocity_mps[k] - DVec3::new(2.0 * times[k], 0.0, 0.0)).length() < 1e-12, "pose {k}: {}", all.velocity_mps[k]);
+        }
+        assert!((all.velocity_mps[0].x - 0.1).abs() < 1e-12, "one-sided at the start: {}", all.velocity_mps[0]);
+        assert!((all.velocity_mps[4].x - (0.25 - 0.09) / 0.2).abs() < 1e-12, "one-sided at the end: {}", all.velocity_mps[4]);
+        for (k, w) in all.yaw_rate_rps.iter().enumerate() {
+            assert!((w - 0.8).abs() < 1e-9, "yaw rate at pose {k}: {w}");
+        }
+        let window = PoseTrack::from_poses(&times, &poses, 1..3);
+        assert_eq!(window.times_s, vec![0.0, 0.25 - 0.1]);
+        assert!((window.velocity_mps[0] - all.velocity_mps[1]).length() < 1e-15, "a window uses the poses just outside it");
+    }
+
     #[test]
     fn gait_phase_advances_by_distance_over_stride() {
         let p = plan(MotionMode::Full);
