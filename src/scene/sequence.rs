@@ -905,6 +905,33 @@ mod tests {
         assert!((window.velocity_mps[0] - all.velocity_mps[1]).length() < 1e-15, "a window uses the poses just outside it");
     }
 
+    /// Between recorded poses: the translation linear, the rotation by slerp (about one axis:
+    /// the angle linear), velocity and yaw rate linear; at a recorded time the recorded pose;
+    /// before the first and after the last, held.
+    #[test]
+    fn poses_between_records_are_interpolated_and_held_outside() {
+        let times = [0.0, 0.1, 0.25, 0.3, 0.5];
+        let angle = |t: f64| std::f64::consts::PI - 0.1 + 0.8 * t;
+        let poses: Vec<DMat4> = times.iter().map(|&t| DMat4::from_rotation_translation(DQuat::from_rotation_z(angle(t)), DVec3::new(t * t, 1.0, 0.5))).collect();
+        let track = PoseTrack::from_poses(&times, &poses, 0..5);
+        for (t, (i, f)) in [(0.05, (0, 0.5)), (0.175, (1, 0.5)), (0.26, (2, 0.2)), (0.45, (3, 0.75))] {
+            let (pose, v, w) = track.sample(t);
+            let (_, r, p) = pose.to_scale_rotation_translation();
+            let want_p = DVec3::new(times[i] * times[i], 1.0, 0.5).lerp(DVec3::new(times[i + 1] * times[i + 1], 1.0, 0.5), f);
+            assert!((p - want_p).length() < 1e-12, "t {t}: {p} against {want_p}");
+            assert!(r.dot(DQuat::from_rotation_z(angle(t))).abs() > 1.0 - 1e-12, "t {t}: rotation");
+            assert!((v - track.velocity_mps[i].lerp(track.velocity_mps[i + 1], f)).length() < 1e-12, "t {t}: velocity");
+            let want_w = track.yaw_rate_rps[i] * (1.0 - f) + track.yaw_rate_rps[i + 1] * f;
+            assert!((w - want_w).abs() < 1e-12, "t {t}: yaw rate");
+            assert_eq!(track.pose(t), pose);
+        }
+        assert_eq!(track.pose(0.25), poses[2], "a recorded time gives the recorded pose");
+        assert_eq!(track.sample(0.25).1, track.velocity_mps[2]);
+        assert_eq!(track.pose(-1.0), poses[0]);
+        assert_eq!(track.pose(9.0), poses[4]);
+        assert_eq!(track.sample(9.0).1, track.velocity_mps[4]);
+    }
+
     #[test]
     fn gait_phase_advances_by_distance_over_stride() {
         let p = plan(MotionMode::Full);
