@@ -932,6 +932,48 @@ mod tests {
         assert_eq!(track.sample(9.0).1, track.velocity_mps[4]);
     }
 
+    /// With recorded tracks a sequence takes only tracks that cover its whole window (a track
+    /// exactly as long as the sequence included, one that ends early never), starts the
+    /// sensor within the spawn radius of their mean position, and draws each person's arm
+    /// swing within its range.
+    #[test]
+    fn track_windows_take_only_tracks_that_cover_them() {
+        let mut cfg = Config::default();
+        cfg.humans.count = [3, 3];
+        cfg.humans.spawn_radius_m = 1.5;
+        cfg.humans.arm_swing = [0.5, 0.6];
+        let model = crate::human::tests_support::tiny_model();
+        let walk = |id: i64, y: f64, samples: usize| {
+            let times: Vec<f64> = (0..samples).map(|k| k as f64 * 0.1).collect();
+            let xy = times.iter().map(|&t| DVec2::new(t, y)).collect();
+            Arc::new(Track { id, times_s: times, xy_m: xy, heading_rad: None })
+        };
+        // 32 frames at 10 Hz; tracks of 32 samples span the same 3.1 s, one of 21 ends early.
+        let tracks = [walk(1, 0.0, 32), walk(2, 8.0, 32), walk(3, -8.0, 21)];
+        let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0 };
+        for seed in 0..5 {
+            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+            let mut ids: Vec<i64> = plan
+                .humans
+                .iter()
+                .map(|h| match &h.trajectory {
+                    HumanPath::Track(p) => {
+                        assert!(p.t0_s.abs() < 1e-9, "the only window starts with the tracks: {}", p.t0_s);
+                        p.track.id
+                    }
+                    other => panic!("not a track: {other:?}"),
+                })
+                .collect();
+            ids.sort();
+            assert_eq!(ids, vec![1, 2], "seed {seed}");
+            let start = plan.sensor.position(0.0).truncate();
+            assert!(start.distance(DVec2::new(0.0, 4.0)) <= 1.5 + 1e-9, "seed {seed}: the sensor starts at {start}");
+            for h in &plan.humans {
+                assert!((0.5..=0.6).contains(&h.arm_swing) && h.stride_m > 0.0, "seed {seed}: {h:?}");
+            }
+        }
+    }
+
     #[test]
     fn gait_phase_advances_by_distance_over_stride() {
         let p = plan(MotionMode::Full);

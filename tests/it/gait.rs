@@ -202,3 +202,39 @@ fn arm_swing_varies_per_person_and_moves_only_the_arms() {
     assert!(swings.iter().any(|&a| (a - swings[0]).abs() > 0.05), "{swings:?}");
     assert_eq!(swings, gen.plan(0).unwrap().humans.iter().map(|h| h.arm_swing).collect::<Vec<_>>());
 }
+
+/// A sampled person's stride is the natural one for their height and mean speed (Alexander's
+/// relation) times a personal factor drawn within `humans.stride_variation`, unless the
+/// model's legs bound the scale (then it sits at that bound).
+#[test]
+fn sampled_strides_vary_within_the_configured_factor() {
+    use pedscan::scene::sequence::{sample_plan, PlanInputs};
+    use rand::SeedableRng;
+    let models: Vec<pedscan::human::HumanModel> = crate::common::bundled_humans().iter().take(3).map(|p| pedscan::human::HumanModel::load(p, true).unwrap()).collect();
+    let mut cfg = pedscan::config::Config::default();
+    cfg.humans.count = [6, 6];
+    cfg.humans.stride_variation = [0.95, 1.05];
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: &models, tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let (mut inside, mut spread) = (0, (f64::INFINITY, 0.0f64));
+    for seed in 0..20 {
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+        let duration = *plan.times_s.last().unwrap();
+        for h in &plan.humans {
+            let m = &models[h.model];
+            let (Some(own), (k_lo, k_hi)) = (m.stride_length_m, m.stride_scale_range()) else { continue };
+            if !h.motion.animates() {
+                continue;
+            }
+            let speed = h.trajectory.distance(duration) / duration;
+            let natural = pedscan::human::stride_length_m(m.height_m as f64, speed.max(0.1));
+            assert!((h.stride_m - h.stride_scale * own as f64).abs() < 1e-9);
+            if h.stride_scale > k_lo as f64 + 1e-9 && h.stride_scale < k_hi as f64 - 1e-9 {
+                let personal = h.stride_m / natural;
+                assert!((0.95 - 1e-9..=1.05 + 1e-9).contains(&personal), "seed {seed}: personal factor {personal}");
+                spread = (spread.0.min(personal), spread.1.max(personal));
+                inside += 1;
+            }
+        }
+    }
+    assert!(inside >= 20 && spread.1 - spread.0 > 0.05, "{inside} people inside the legs' bounds, factors {spread:?}");
+}
