@@ -974,6 +974,40 @@ mod tests {
         }
     }
 
+    /// On a walkable floor people walk planned start-to-goal paths at speeds drawn within
+    /// `humans.speed_mps`, the sensor starts anywhere on the floor, and a sequence too long to
+    /// walk in the free area is refused naming `frames`.
+    #[test]
+    fn synthetic_people_walk_planned_paths_on_a_floor() {
+        use crate::scene::{EnvMesh, Environment};
+        let (w, h) = (30.0, 30.0);
+        let env = Environment {
+            positions: vec![DVec3::ZERO, DVec3::new(w, 0.0, 0.0), DVec3::new(w, h, 0.0), DVec3::new(0.0, h, 0.0)],
+            meshes: vec![EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5 }],
+            ..Default::default()
+        };
+        let grid = WalkableGrid::from_environment(&env, 0.25).unwrap();
+        let mut cfg = Config::default();
+        cfg.humans.count = [4, 4];
+        cfg.humans.speed_mps = [0.8, 1.5];
+        let model = crate::human::tests_support::tiny_model();
+        let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0 };
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for seed in 0..12 {
+            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+            for p in &plan.humans {
+                let HumanPath::Walk(walk, _) = &p.trajectory else { panic!("seed {seed}: not a planned walk: {:?}", p.trajectory) };
+                assert!((0.8..=1.5).contains(&walk.speed_mps()), "seed {seed}: {} m/s", walk.speed_mps());
+            }
+            let s = plan.sensor.start_xy();
+            (lo, hi) = (lo.min(s), hi.max(s));
+        }
+        assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
+        cfg.frames = 600;
+        let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap_err().to_string();
+        assert!(e.contains("`frames`") && e.contains("free walkable area is at most"), "{e}");
+    }
+
     #[test]
     fn gait_phase_advances_by_distance_over_stride() {
         let p = plan(MotionMode::Full);
