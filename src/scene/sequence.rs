@@ -1003,6 +1003,18 @@ mod tests {
             (lo, hi) = (lo.min(s), hi.max(s));
         }
         assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
+        // The sensor's heading is drawn over the whole circle.
+        use std::f64::consts::PI;
+        let headings: Vec<f64> = (0..40)
+            .map(|seed| match sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap().sensor {
+                SensorPath::Arc(t) => t.heading0_rad,
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        for quadrant in 0..4 {
+            let (a, b) = (-PI + quadrant as f64 * PI / 2.0, -PI / 2.0 + quadrant as f64 * PI / 2.0);
+            assert!(headings.iter().any(|&h| (a..b).contains(&h)), "no heading in [{a}, {b}): {headings:?}");
+        }
         cfg.frames = 600;
         let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap_err().to_string();
         assert!(e.contains("`frames`") && e.contains("free walkable area is at most"), "{e}");
