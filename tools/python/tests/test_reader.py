@@ -90,8 +90,10 @@ def test_missing_dataset_names_the_file(sample_minimal: Path) -> None:
     seq = Sequence(path)
     assert seq.fields == ("range", "label", "instance", "intensity")  # the sensor model adds intensity
     assert not seq.has("velocity")
-    with pytest.raises(PedscanError, match=r"seq_000000\.h5: no dataset /velocity"):
+    with pytest.raises(PedscanError, match=r"seq_000000\.h5: no dataset /velocity \(not in the --outputs it was written with\)$"):
         seq.read("velocity", 0)
+    with pytest.raises(PedscanError, match=r"seq_000000\.h5: no dataset /humans/nothing$"):
+        seq.dataset("humans/nothing")
     with pytest.raises(PedscanError, match=r"seq_000000\.h5: no dataset /xyz"):
         seq.frame(0, ("range", "xyz"))
 
@@ -136,3 +138,14 @@ def test_close_closes_the_file_once_and_a_later_read_reopens_it(sample: Path) ->
     with seq:
         pass
     assert not again.id.valid, "leaving a with block closes it"
+
+
+def test_string_attributes_missing_or_stored_as_bytes(sample: Path, tmp_path: Path) -> None:
+    path = tmp_path / "seq.h5"
+    path.write_bytes((sample / "seq_000000.h5").read_bytes())
+    with h5py.File(path, "r+") as f:
+        del f.attrs["config"]
+        f.attrs["sensor"] = np.bytes_(b"HDL-32E, as bytes")
+    seq = Sequence(path)
+    assert seq.config == ""
+    assert seq.sensor == "HDL-32E, as bytes"
