@@ -884,13 +884,21 @@ mod tests {
     /// Recorded poses' velocities: the three-point derivative for uneven steps is exact on a
     /// parabola (x = t^2: 2t) inside, one-sided at the ends; the yaw rate is exact on a steady
     /// turn, across the +-pi wrap too; a window's times start at its first pose.
+    /// The heading of [`turning_parabola`]'s poses at time t (crossing +-pi at t = 0.125).
+    fn turning_angle(t: f64) -> f64 {
+        std::f64::consts::PI - 0.1 + 0.8 * t
+    }
+
+    /// Poses at uneven times along x = t^2 (y = 1, z = 0.5), turning steadily at 0.8 rad/s.
+    fn turning_parabola() -> ([f64; 5], Vec<DMat4>) {
+        let times = [0.0, 0.1, 0.25, 0.3, 0.5];
+        let poses = times.iter().map(|&t| DMat4::from_rotation_translation(DQuat::from_rotation_z(turning_angle(t)), DVec3::new(t * t, 1.0, 0.5))).collect();
+        (times, poses)
+    }
+
     #[test]
     fn pose_velocities_are_exact_on_a_parabola_and_a_steady_turn() {
-        let times = [0.0, 0.1, 0.25, 0.3, 0.5];
-        let poses: Vec<DMat4> = times
-            .iter()
-            .map(|&t| DMat4::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI - 0.1 + 0.8 * t), DVec3::new(t * t, 1.0, 0.5)))
-            .collect();
+        let (times, poses) = turning_parabola();
         let all = PoseTrack::from_poses(&times, &poses, 0..5);
         for k in 1..4 {
             assert!((all.velocity_mps[k] - DVec3::new(2.0 * times[k], 0.0, 0.0)).length() < 1e-12, "pose {k}: {}", all.velocity_mps[k]);
@@ -910,16 +918,14 @@ mod tests {
     /// before the first and after the last, held.
     #[test]
     fn poses_between_records_are_interpolated_and_held_outside() {
-        let times = [0.0, 0.1, 0.25, 0.3, 0.5];
-        let angle = |t: f64| std::f64::consts::PI - 0.1 + 0.8 * t;
-        let poses: Vec<DMat4> = times.iter().map(|&t| DMat4::from_rotation_translation(DQuat::from_rotation_z(angle(t)), DVec3::new(t * t, 1.0, 0.5))).collect();
+        let (times, poses) = turning_parabola();
         let track = PoseTrack::from_poses(&times, &poses, 0..5);
         for (t, (i, f)) in [(0.05, (0, 0.5)), (0.175, (1, 0.5)), (0.26, (2, 0.2)), (0.45, (3, 0.75))] {
             let (pose, v, w) = track.sample(t);
             let (_, r, p) = pose.to_scale_rotation_translation();
             let want_p = DVec3::new(times[i] * times[i], 1.0, 0.5).lerp(DVec3::new(times[i + 1] * times[i + 1], 1.0, 0.5), f);
             assert!((p - want_p).length() < 1e-12, "t {t}: {p} against {want_p}");
-            assert!(r.dot(DQuat::from_rotation_z(angle(t))).abs() > 1.0 - 1e-12, "t {t}: rotation");
+            assert!(r.dot(DQuat::from_rotation_z(turning_angle(t))).abs() > 1.0 - 1e-12, "t {t}: rotation");
             assert!((v - track.velocity_mps[i].lerp(track.velocity_mps[i + 1], f)).length() < 1e-12, "t {t}: velocity");
             let want_w = track.yaw_rate_rps[i] * (1.0 - f) + track.yaw_rate_rps[i + 1] * f;
             assert!((w - want_w).abs() < 1e-12, "t {t}: yaw rate");
