@@ -339,6 +339,11 @@ mod tests {
         let r = verify_dir(out).unwrap();
         assert!(r.ok(), "{r}");
         assert_eq!(r.notes.len(), 1, "two configurations: {r}");
+        let files: usize = m.latest.values().map(|e| e.files.len()).sum();
+        let bytes: u64 = m.latest.values().flat_map(|e| &e.files).map(|f| f.bytes).sum();
+        assert!(files > 0 && bytes > 0);
+        assert_eq!((r.sequences, r.files, r.bytes), (2, files, bytes), "the latest entry of each sequence counts");
+        assert!(r.to_string().ends_with(&format!("2 sequences, {files} files, {:.1} MB: all verified", bytes as f64 / 1e6)), "{r}");
 
         std::fs::write(out.join("seq_000001.h5"), "data 9").unwrap();
         std::fs::write(out.join("seq_000002.h5"), "stray").unwrap();
