@@ -985,14 +985,8 @@ mod tests {
     /// walk in the free area is refused naming `frames`.
     #[test]
     fn synthetic_people_walk_planned_paths_on_a_floor() {
-        use crate::scene::{EnvMesh, Environment};
         let (w, h) = (30.0, 30.0);
-        let env = Environment {
-            positions: vec![DVec3::ZERO, DVec3::new(w, 0.0, 0.0), DVec3::new(w, h, 0.0), DVec3::new(0.0, h, 0.0)],
-            meshes: vec![EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5 }],
-            ..Default::default()
-        };
-        let grid = WalkableGrid::from_environment(&env, 0.25).unwrap();
+        let grid = crate::scene::planner::tests::grid(w, h, &[], 0.25);
         let mut cfg = Config::default();
         cfg.humans.count = [4, 4];
         cfg.humans.speed_mps = [0.8, 1.5];

@@ -746,4 +746,4 @@ fn fillet(grid: &WalkableGrid, c: f64, v: &[DVec2], speed: f64) -> Option<WalkPa
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

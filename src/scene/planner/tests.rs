@@ -4,7 +4,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 /// A `w` x `h` m floor from the origin with 1 m high box obstacles `[x0, y0, x1, y1]`.
-fn grid(w: f64, h: f64, boxes: &[[f64; 4]], cell_m: f64) -> WalkableGrid {
+pub(crate) fn grid(w: f64, h: f64, boxes: &[[f64; 4]], cell_m: f64) -> WalkableGrid {
     let mut env = Environment {
         positions: vec![DVec3::new(0.0, 0.0, 0.0), DVec3::new(w, 0.0, 0.0), DVec3::new(w, h, 0.0), DVec3::new(0.0, h, 0.0)],
         ..Default::default()
