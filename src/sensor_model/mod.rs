@@ -411,3 +411,90 @@ pub fn combine(hits: &mut [Surface], mixed_m: f64) -> Option<(Surface, f32)> {
     }
     best.map(|(_, s, share)| (s, share))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bundled people's MakeHuman joint names, region by region as the doc comment gives
+    /// them; the match ignores case and any side or number suffix.
+    #[test]
+    fn joint_names_fall_into_their_body_regions() {
+        for (names, want) in [
+            (&["foot.L", "toe1-1.R", "Foot_R", "LeftToeBase"][..], SHOES),
+            (&["root", "pelvis.L", "upperleg01.L", "upperleg02.R", "lowerleg01.L", "lowerleg02.R", "LeftUpLeg_thigh", "knee", "shin.R", "calf"], LOWER),
+            (
+                &[
+                    "head", "neck01", "neck03", "jaw", "eye.L", "tongue05.R", "oris06", "oculi02.L", "levator05.R", "temporalis01.L", "risorius03.R",
+                    "orbicularis04.L", "special06.R", "wrist.L", "finger3-2.R", "metacarpal4.L", "LeftHand", "thumb_01",
+                ],
+                SKIN,
+            ),
+            (&["spine05", "spine01", "breast.L", "clavicle.R", "shoulder01.L", "upperarm02.L", "lowerarm01.R", "", "chest"], UPPER),
+        ] {
+            for n in names {
+                assert_eq!(region_of_joint(n), want, "{n:?}");
+            }
+        }
+    }
+
+    /// The footprint's outer rays sit on an ellipse of semi-axes `RING` times half the
+    /// divergence: half the horizontal divergence measured in the cone's own plane (not in
+    /// azimuth), half the vertical in elevation; six rays 60 deg apart, the first in the
+    /// horizontal plane of the beam.
+    #[test]
+    fn footprint_rays_sit_on_the_divergence_ellipse() {
+        let (az, el, div) = (0.7, -0.3, [3.0, 5.0]);
+        let d = footprint_dirs(az, el, div);
+        let centre = DVec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+        assert!((d[0] - centre).length() < 1e-15);
+        // Horizontal and square to the beam: its dot with a ray is the sine of the ray's angle
+        // off the beam's vertical plane.
+        let right = DVec3::new(-az.sin(), az.cos(), 0.0);
+        for (k, v) in d.iter().enumerate().skip(1) {
+            assert!((v.length() - 1.0).abs() < 1e-12);
+            let phi = std::f64::consts::TAU * (k - 1) as f64 / 6.0;
+            // Elevation offset, closed form; the horizontal offset in the cone's plane (the
+            // angle off the beam's vertical plane) to first order: the rest is tan(el) times
+            // the two half-angles' product, under 6e-7 rad here.
+            let de = v.z.asin() - el;
+            assert!((de - RING * 2.5e-3 * phi.sin()).abs() < 1e-12, "ray {k}: {de}");
+            let across = v.dot(right).asin();
+            assert!((across - RING * 1.5e-3 * phi.cos()).abs() < 1e-6, "ray {k}: {across}");
+        }
+    }
+
+    fn surface(range_m: f64, instance: u16, reflectance: f32, cos_incidence: f32) -> Surface {
+        Surface { range_m, instance, reflectance, cos_incidence, rendered: instance > 0, normal: glam::Vec3::X }
+    }
+
+    /// `combine` in closed form: groups split where neighbours are more than `mixed_m` apart;
+    /// the group of most power (reflectance x cos / r^2, summed, over all seven rays) wins; its
+    /// range is power-weighted, its instance and reflectance the strongest ray's, its cosine the
+    /// group's mean, its share sum(reflectance x cos) / 7.
+    #[test]
+    fn combine_keeps_the_strongest_group_as_written() {
+        let mut hits = vec![surface(12.0, 0, 0.9, 0.8), surface(10.02, 3, 0.6, 1.0), surface(10.0, 3, 0.5, 0.9), surface(12.05, 0, 0.9, 0.7), surface(10.04, 2, 0.3, 0.5)];
+        let (s, share) = combine(&mut hits, 0.1).unwrap();
+        let near = [(10.0, 0.5, 0.9), (10.02, 0.6, 1.0), (10.04, 0.3, 0.5)];
+        // The surfaces hold f32 reflectances and cosines.
+        let f = |x: f64| x as f32 as f64;
+        let p = |(r, re, c): (f64, f64, f64)| f(re) * f(c) / (r * r);
+        let power: f64 = near.iter().map(|&x| p(x)).sum();
+        let range = near.iter().map(|&x| p(x) * x.0).sum::<f64>() / power;
+        assert!((s.range_m - range).abs() < 1e-12, "{}", s.range_m);
+        assert_eq!((s.instance, s.reflectance, s.rendered), (3, 0.6, true));
+        assert!((s.cos_incidence as f64 - 2.4 / 3.0).abs() < 1e-6);
+        assert!((share as f64 - (0.45 + 0.6 + 0.15) / 7.0).abs() < 1e-6, "{share}");
+        // Pushed beyond 12 m, the near group loses to the far one (0.72 + 0.63 over 12 m^2).
+        let mut hits = vec![surface(12.0, 0, 0.9, 0.8), surface(15.02, 3, 0.6, 1.0), surface(12.05, 0, 0.9, 0.7), surface(15.0, 3, 0.5, 0.9)];
+        let (s, share) = combine(&mut hits, 0.1).unwrap();
+        assert_eq!((s.instance, s.rendered), (0, false));
+        let far = [(12.0, 0.9, 0.8), (12.05, 0.9, 0.7)];
+        let range = far.iter().map(|&x| p(x) * x.0).sum::<f64>() / far.iter().map(|&x| p(x)).sum::<f64>();
+        assert!((s.range_m - range).abs() < 1e-12, "{}", s.range_m);
+        assert!((share as f64 - 1.35 / 7.0).abs() < 1e-6, "{share}");
+        // Nothing met: no return.
+        assert!(combine(&mut [], 0.1).is_none());
+    }
+}

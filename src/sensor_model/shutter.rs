@@ -442,6 +442,32 @@ mod tests {
         assert!((s.unwrap_near(3.0, 1020.0) - 1027.0).abs() < 1e-12);
     }
 
+    /// A sphere's span of columns in closed form: its centre's column plus and minus the half
+    /// angle it subtends, asin(radius / horizontal distance), and one column of margin on each
+    /// side; a sphere holding the sensor spans the whole turn around its centre.
+    #[test]
+    fn a_spheres_time_span_is_the_angle_it_subtends_plus_a_column() {
+        let s = Sweep::uniform(1.0, 0.1, 1000);
+        let col = 0.1 / 1000.0;
+        // 10 m ahead (+x: column 500), 1 m in radius, 3 m up (the height does not count).
+        let (ta, tb, u) = s.span_of_sphere(DVec3::new(10.0, 0.0, 3.0), 1.0);
+        let du = 0.1f64.asin() / std::f64::consts::TAU * 1000.0;
+        assert!((u - 500.0).abs() < 1e-9);
+        assert!((ta - (1.0 + (500.0 - du - 1.0) * col)).abs() < 1e-12, "{ta}");
+        assert!((tb - (1.0 + (500.0 + du + 1.0) * col)).abs() < 1e-12, "{tb}");
+        // Every point of the sphere's horizontal outline lies inside the span.
+        for k in 0..360 {
+            let a = (k as f64).to_radians();
+            let t = s.time_at(s.unwrap_near(s.u_of(10.0 + a.cos(), a.sin()), u));
+            assert!(t > ta + 0.5 * col && t < tb - 0.5 * col, "{k} deg: {t}");
+        }
+        // Holding the sensor: half a turn each way, plus the margin.
+        for centre in [DVec3::new(0.5, 0.2, 0.0), DVec3::new(0.0, -0.999, 0.0)] {
+            let (ta, tb, u) = s.span_of_sphere(centre, 1.0);
+            assert!((ta - s.time_at(u - 501.0)).abs() < 1e-12 && (tb - s.time_at(u + 501.0)).abs() < 1e-12, "{centre}: {ta} {tb}");
+        }
+    }
+
     /// A segment moving sideways past the sensor: each vertex lands where the segment is at
     /// the time of its own column. The motion is linear, so what is left is the one
     /// fixed-point step's: the vertex's time is read where it is at the person's centre time,

@@ -442,3 +442,49 @@ fn the_platform_hides_what_lies_behind_it() {
         assert!(err.contains("sensor_model.platform[0]") && err.contains(needle), "{err}");
     }
 }
+
+/// Each triangle's body region, checked against where it lies on the rest mesh: the soles are
+/// shoes, the crown is skin, the middle of the chest upper clothing, the thighs below the crotch
+/// lower clothing (MakeHuman's rest pose is an A pose: the hands hang wider than the band the
+/// thighs are taken from). Every level of detail has a region per triangle.
+#[test]
+fn body_regions_follow_the_rest_mesh() {
+    use pedscan::sensor_model::{surfaces::body_regions, LOWER, SHOES, SKIN, UPPER};
+    for name in ["h1700_w50", "h1200_w20"] {
+        let path = pedscan::config::data_dir().join("humans").join(format!("{name}.glb"));
+        let m = pedscan::human::HumanModel::load(&path, true).unwrap();
+        let regions = body_regions(&m).unwrap();
+        assert_eq!(regions.len(), m.lods.len());
+        for (l, r) in m.lods.iter().zip(&regions) {
+            assert_eq!(r.len(), l.triangle_count(), "{name}");
+        }
+        let l = &m.lods[0];
+        let (lo, hi) = l.positions.iter().fold((f32::MAX, f32::MIN), |(a, b), p| (a.min(p.y), b.max(p.y)));
+        let h = hi - lo;
+        // Share of the triangles wholly inside a box (heights as fractions of the body's) that
+        // have region `want`, and how many there are.
+        let share = |y0: f32, y1: f32, half_width_m: f32, want: u8| {
+            let (mut n, mut hit) = (0usize, 0usize);
+            for (t, tri) in l.indices.chunks_exact(3).enumerate() {
+                let inside = tri.iter().all(|&i| {
+                    let p = l.positions[i as usize];
+                    let f = (p.y - lo) / h;
+                    f >= y0 && f <= y1 && p.x.abs() <= half_width_m
+                });
+                if inside {
+                    n += 1;
+                    hit += (regions[0][t] == want) as usize;
+                }
+            }
+            assert!(n >= 20, "{name}: {n} triangles in the box");
+            hit as f64 / n as f64
+        };
+        let soles = share(0.0, 0.03, 1.0, SHOES);
+        let crown = share(0.94, 1.0, 1.0, SKIN);
+        let chest = share(0.68, 0.74, 0.06 * h, UPPER);
+        let thighs = share(0.30, 0.38, 0.10 * h, LOWER);
+        for (what, s) in [("soles", soles), ("crown", crown), ("chest", chest), ("thighs", thighs)] {
+            assert!(s >= 0.95, "{name}: {:.1} % of the {what} in their region", 100.0 * s);
+        }
+    }
+}
