@@ -313,6 +313,7 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
     report.from_frame = from_frame
     for seq in sequences:
         axes = beam_axes(seq.elevation_deg, seq.azimuth_deg)
+        noted = False
         for t in range(from_frame, seq.frames):
             if not preds.available(seq, t):
                 continue
@@ -324,8 +325,9 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
                 continue
             v_pred = preds.velocity(seq, t)
             v_true = seq.read("velocity", t) if v_pred is not None and seq.has("velocity") else None
-            if v_pred is not None and v_true is None and t == 0:
+            if v_pred is not None and v_true is None and not noted:
                 report.notes.append(f"{seq.path}: no /velocity to score the predicted velocities on")
+                noted = True
             report.velocity |= v_true is not None
             _score_frame(report, range_m, seq.read("label", t) == 1, human, v_true, v_pred, axes)
             report.frames += 1

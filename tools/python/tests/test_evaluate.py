@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from pedscan_data.evaluate import main
+from pedscan_data.evaluate import evaluate, main
 
 BINS = ((0.0, 4.0), (4.0, 8.0), (8.0, np.inf))
 
@@ -197,6 +197,10 @@ def test_velocities_without_ground_truth_velocity_are_noted(
     assert code == 0
     assert "seq_000000.h5: no /velocity to score the predicted velocities on" in out
     assert "end-point" not in out and "human IoU 1.0000" in out
+    # Once per sequence, also when scoring starts after its first frame.
+    for k in (0, 1, 2):
+        notes = evaluate(sample_minimal, tmp_path, from_frame=k).notes
+        assert notes == [f"{sample_minimal / 'seq_000000.h5'}: no /velocity to score the predicted velocities on"], (k, notes)
 
 
 def test_unknown_format_exits_2(sample: Path, tmp_path: Path) -> None:
