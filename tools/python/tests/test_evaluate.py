@@ -74,6 +74,8 @@ def test_ground_truth_as_prediction_scores_one(sample: Path, tmp_path: Path, cap
     assert o["human_beams"] == humans and o["fp"] == o["fn"] == 0
     assert o["beams"] == sum(np.count_nonzero(g["range"] > 0) for g in gt.values())
     assert (report["sequences"], report["frames"], report["format"]) == (2, 8, "hdf5")
+    assert (report["ground_truth"], report["predictions"], report["from_frame"], report["notes"]) == (str(sample), str(sample), 0, [])
+    assert list(report) == ["ground_truth", "predictions", "format", "sequences", "frames", "from_frame", "notes", "overall", "bins"]
     assert [(b["min_m"], b["max_m"]) for b in report["bins"]] == [(0, 4), (4, 8), (8, None)]
     assert "human IoU 1.0000  precision 1.0000  recall 1.0000" in out
     assert "velocity end-point error on human beams: 0.000 m/s" in out

@@ -1,0 +1,199 @@
+"""Prediction as a user runs it: the files and attributes it writes, the inputs it reads, the
+grids it refuses, its command line and the ONNX file it exports."""
+
+from __future__ import annotations
+
+import math
+import platform
+import warnings
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import torch
+
+from conftest import generate
+from pedscan_data import predict as pr
+from pedscan_data.model import NetConfig, SequenceNet, input_channels
+from pedscan_data.netio import MODEL_FORMAT, environment
+from pedscan_data.reader import Sequence
+
+
+def random_net(frames: int, intensity: bool = False) -> SequenceNet:
+    """Random weights with nonzero biases (so that a dropped input changes the output)."""
+    torch.manual_seed(1)
+    net = SequenceNet(NetConfig(frames=frames, width=4, intensity=intensity)).eval()
+    with torch.no_grad():
+        for p in net.parameters():
+            if p.ndim == 1:
+                p.uniform_(-0.2, 0.2)
+    return net
+
+
+def save_model(net: SequenceNet, path: Path, threshold: float | None = None) -> Path:
+    obj = {"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": {}}
+    if threshold is not None:
+        obj["human_threshold"] = threshold
+    torch.save(obj, path)
+    return path
+
+
+def test_an_intensity_network_is_fed_the_sequences_intensity(sample: Path) -> None:
+    net = random_net(2, intensity=True)
+    seq = Sequence(sample / "seq_000000.h5")
+    assert seq.has("intensity")
+    margin, velocity, _ = pr.predict_sequence(net, seq, "cpu", chunk=3)
+    x = torch.from_numpy(input_channels(seq.read("range"), seq.read("intensity")))
+    assert x.shape[1] == 3
+    with torch.no_grad():
+        for t in range(seq.frames):
+            logits, vel = net(x[[max(t - 1, 0), t]].unsqueeze(0))
+            np.testing.assert_allclose(margin[t], (logits[0, 1] - logits[0, 0]).numpy(), rtol=1e-4, atol=1e-4)
+            np.testing.assert_allclose(velocity[t], vel[0].permute(1, 2, 0).numpy(), rtol=1e-4, atol=1e-5)
+
+
+def test_predictions_are_written_as_documented_and_may_be_written_again(sample: Path, tmp_path: Path) -> None:
+    net = random_net(2)
+    model = save_model(net, tmp_path / "net.pt", threshold=0.7)
+    out = tmp_path / "pred"
+    out.mkdir()  # an existing folder is used, and a second run writes over the first
+    for _ in range(2):
+        res = pr.predict(model, sample, out, quiet=True)  # the default device: auto
+        assert res["sequences"] == 2 and res["ms_per_frame_median"] > 0
+    cut = math.log(0.7 / 0.3)
+    for src in sorted(sample.glob("seq_*.h5")):
+        seq = Sequence(src)
+        margin, velocity, _ = pr.predict_sequence(net, seq, "cpu")
+        with h5py.File(out / src.name, "r") as f:
+            assert dict(f.attrs) == {"frames_seen": 2, "full_window_from": 1, "human_threshold": 0.7, "model": "net.pt"}
+            t, h, w = seq.frames, seq.rows, seq.columns
+            for name, shape, dtype in (("label", (t, h, w), np.uint8), ("velocity", (t, h, w, 3), np.float32)):
+                d = f[name]
+                assert (d.shape, d.dtype, d.chunks) == (shape, dtype, (1,) + shape[1:]), name
+                assert (d.compression, d.compression_opts, d.shuffle) == ("gzip", 1, True), name
+            np.testing.assert_array_equal(f["label"][()], (margin > cut).astype(np.uint8))
+            np.testing.assert_allclose(f["velocity"][()], velocity, rtol=1e-5, atol=1e-6)
+    assert not list(out.glob("*.tmp"))
+    # SemanticKITTI, twice into the same folder: one label and one velocity per returned beam.
+    kitti = tmp_path / "kitti"
+    for _ in range(2):
+        pr.predict(model, sample, kitti, fmt="semantickitti", quiet=True)
+    for src in sorted(sample.glob("seq_*.h5")):
+        seq = Sequence(src)
+        margin, velocity, _ = pr.predict_sequence(net, seq, "cpu")
+        base = kitti / "sequences" / f"{seq.index:02d}"
+        for t in range(seq.frames):
+            returned = seq.read("range", t).ravel() > 0
+            labels = np.fromfile(base / "labels" / f"{t:06d}.label", dtype="<u4")
+            np.testing.assert_array_equal(labels, np.where(margin[t].ravel()[returned] > cut, 30, 0))
+            v = np.fromfile(base / "velocity" / f"{t:06d}.bin", dtype="<f4").reshape(-1, 3)
+            np.testing.assert_allclose(v, velocity[t].reshape(-1, 3)[returned], rtol=1e-5, atol=1e-6)
+
+
+def test_a_one_frame_sequence_is_timed_and_odd_grids_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    model = save_model(random_net(1), tmp_path / "net.pt")
+    one = generate(tmp_path / "one", "--sequences", "1", "--frames", "1", "--humans", "1..1", "--outputs", "range,label")
+    res = pr.predict(model, one, tmp_path / "p1", quiet=True)
+    assert res["sequences"] == 1 and res["ms_per_frame_median"] > 0
+    # Rows a multiple of 4 and columns of 8 (the network halves the rows twice and the columns
+    # three times): either alone off is refused, naming the file and the grid.
+    for rows, columns in ((6, 64), (8, 60)):
+        sensor = tmp_path / f"s{rows}x{columns}.toml"
+        el = ", ".join(str(-10.0 + 3.0 * k) for k in range(rows))
+        sensor.write_text(f'name = "odd"\nelevation_deg = [{el}]\ncolumns = {columns}\n')
+        data = generate(tmp_path / f"d{rows}x{columns}", "--sequences", "1", "--frames", "1", "--humans", "1..1",
+                        "--outputs", "range,label", "--sensor", str(sensor))
+        out = tmp_path / f"p{rows}x{columns}"
+        assert pr.main([str(model), str(data), "--out", str(out), "--device", "cpu"]) == 2
+        err = capsys.readouterr().err
+        assert f"seq_000000.h5: a {rows} x {columns} grid; the network takes a multiple of 4 rows and of 8 columns" in err
+        assert not out.exists()
+
+
+def help_text(main, capsys: pytest.CaptureFixture[str]) -> str:
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    return " ".join(capsys.readouterr().out.split())
+
+
+def test_the_command_lines_say_what_they_take(capsys: pytest.CaptureFixture[str]) -> None:
+    """The help a user reads, argument by argument (whitespace aside)."""
+    from pedscan_data.evaluate import main as evaluate_main
+
+    text = help_text(pr.main, capsys)
+    for want in (
+        "usage: python -m pedscan_data.predict",
+        "Runs a trained network over pedscan sequences and writes its predictions.",
+        "model run folder or model file (.pt)",
+        "[data]",
+        "data pedscan output folder or sequence file",
+        "--out OUT folder for the predictions",
+        "--format {h5,semantickitti}",
+        "--device DEVICE auto | cpu | cuda (default auto)",
+        "--export-onnx FILE write the network as ONNX",
+        "--onnx-grid HxW grid of the ONNX check (default 32x1024)",
+    ):
+        assert want in text, (want, text)
+    text = help_text(evaluate_main, capsys)
+    for want in (
+        "usage: python -m pedscan_data.evaluate",
+        "Human IoU, precision, recall (and velocity EPE) of predictions against pedscan ground truth.",
+        "ground_truth pedscan output folder or sequence file",
+        "predictions SemanticKITTI folder or HDF5 file(s)",
+        "--json FILE also write the scores as JSON",
+        "--from-frame K score frames K onwards of each sequence (an N-frame network's full windows: K = N-1)",
+    ):
+        assert want in text, (want, text)
+
+
+class TracedOff(SequenceNet):
+    """A network whose traced graph (what ONNX gets) adds `offset` to the logits that eager
+    PyTorch does not: the export's check must see the difference."""
+
+    offset = 0.0
+
+    def forward(self, x):  # type: ignore[override]
+        logits, velocity = super().forward(x)
+        if torch.jit.is_tracing():
+            logits = logits + self.offset
+        return logits, velocity
+
+
+def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path) -> None:
+    import onnxruntime as ort
+
+    net = random_net(2, intensity=True)
+    path = tmp_path / "net.onnx"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # ONNX Runtime only warns of an unknown execution provider
+        diff = pr.export_onnx(net, path, 8, 32, human_threshold=0.625)
+    torch.manual_seed(123)  # the check's window comes from its own generator, not the global one
+    assert pr.export_onnx(net, tmp_path / "again.onnx", 8, 32, human_threshold=0.625) == diff
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    assert [i.name for i in sess.get_inputs()] == ["input"]
+    assert [o.name for o in sess.get_outputs()] == ["logits", "velocity"]
+    assert sess.get_inputs()[0].shape == ["batch", 2, 3, 8, 32]
+    assert [o.shape[0] for o in sess.get_outputs()] == ["batch", "batch"]
+    assert sess.get_modelmeta().custom_metadata_map == {
+        "human_threshold": "0.625", "frames": "2", "inputs": "range/10m, valid, intensity", "range_change": "false",
+    }
+    # A traced graph 1e-3 off is refused at the default 1e-4 and leaves no file. The check is
+    # seeded, so a probe gives the exact difference: a tolerance of exactly that keeps the file.
+    off = TracedOff(NetConfig(frames=2, width=4))
+    off.load_state_dict(random_net(2).state_dict())
+    off.eval().offset = 1e-3
+    bad = tmp_path / "off.onnx"
+    with pytest.raises(pr.PedscanError, match="ONNX Runtime differs from PyTorch by 0.001 "):
+        pr.export_onnx(off, bad, 8, 32)
+    assert not bad.exists() and not list(tmp_path.glob("*.tmp"))
+    got = pr.export_onnx(off, bad, 8, 32, atol=pr.export_onnx(off, tmp_path / "probe.onnx", 8, 32, atol=1.0))
+    assert got == pytest.approx(1e-3, rel=1e-3) and bad.exists()
+
+
+def test_a_run_records_the_python_it_ran_on() -> None:
+    env = environment("cpu")
+    assert env["python"] == platform.python_version()
+    assert env["device"] == "cpu" and env["torch"] == torch.__version__
+
