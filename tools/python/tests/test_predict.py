@@ -192,6 +192,54 @@ def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path)
     assert got == pytest.approx(1e-3, rel=1e-3) and bad.exists()
 
 
+def test_prediction_feeds_the_network_on_its_own_device_and_times_in_milliseconds(sample: Path) -> None:
+    import time
+
+    # On the meta device (no data, no GPU needed) every convolution's input must be there too;
+    # the first copy back to the CPU then fails, as it must for a tensor without data.
+    net = random_net(2).to("meta")
+    seen = []
+
+    def same_device(m: torch.nn.Module, inp: tuple[torch.Tensor, ...]) -> None:
+        assert inp[0].device == m.weight.device, (inp[0].device, m.weight.device)
+        seen.append(m)
+
+    for m in net.modules():
+        if isinstance(m, torch.nn.Conv2d):
+            m.register_forward_pre_hook(same_device)
+    seq = Sequence(sample / "seq_000000.h5")
+    with pytest.raises(NotImplementedError, match="meta"):
+        pr.predict_sequence(net, seq, torch.device("meta"))
+    assert len(seen) > 5
+    # The per-frame times are milliseconds of the same clock: together no more than the call
+    # took, and most of it (the rest is reading the inputs).
+    start = time.perf_counter()
+    _, _, ms = pr.predict_sequence(random_net(2), seq, "cpu")
+    wall_ms = (time.perf_counter() - start) * 1e3
+    assert len(ms) == seq.frames and 0.05 * wall_ms < sum(ms) <= wall_ms, (ms, wall_ms)
+
+
+class Reduced:
+    """Pickles as a call of `touch` on `path`: loading it with pickled code allowed runs it."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __reduce__(self):
+        return (Path.touch, (self.path,))
+
+
+def test_model_files_are_read_without_running_pickled_code(tmp_path: Path) -> None:
+    from pedscan_data.netio import RunError, load_file
+
+    marker = tmp_path / "ran"
+    model = tmp_path / "evil.pt"
+    torch.save({"format": MODEL_FORMAT, "net": {}, "payload": Reduced(marker)}, model)
+    with pytest.raises(RunError, match=f"{model}: not a readable pedscan model or checkpoint"):
+        load_file(model)
+    assert not marker.exists()
+
+
 def test_a_run_records_the_python_it_ran_on() -> None:
     env = environment("cpu")
     assert env["python"] == platform.python_version()

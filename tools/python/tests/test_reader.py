@@ -149,3 +149,16 @@ def test_string_attributes_missing_or_stored_as_bytes(sample: Path, tmp_path: Pa
     seq = Sequence(path)
     assert seq.config == ""
     assert seq.sensor == "HDL-32E, as bytes"
+
+
+def test_provenance_is_read_as_its_key_value_lines(sample: Path, tmp_path: Path) -> None:
+    # pedscan's own: the conftest runs the ray caster in the bundled hall.
+    prov = Sequence(sample / "seq_000000.h5").provenance
+    assert prov["backend"] == "raycast" and prov["background"].startswith("environment ")
+    assert -1.0 < float(prov["floor_z_m"]) < 1.0
+    # A value may hold '=' (split at the first); a line without one is not a key.
+    path = tmp_path / "seq.h5"
+    path.write_bytes((sample / "seq_000000.h5").read_bytes())
+    with h5py.File(path, "r+") as f:
+        f.attrs["provenance"] = "backend=raster\nrecording=ouster.pcap window=3 rate=10\nno key here\nfloor_z_m=-1.5000\n"
+    assert Sequence(path).provenance == {"backend": "raster", "recording": "ouster.pcap window=3 rate=10", "floor_z_m": "-1.5000"}
