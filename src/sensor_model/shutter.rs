@@ -593,8 +593,19 @@ mod tests {
         assert!(boundary_times(&part, 1024).unwrap_err().contains("cover"));
         let mut nan = firings(two_speeds);
         nan[7][1] = f64::NAN;
-        assert!(boundary_times(&nan, 1024).is_err());
+        let err = boundary_times(&nan, 1024).unwrap_err();
+        assert!(err.starts_with("a firing at azimuth") && err.ends_with("and time NaN s"), "{err}");
+        nan[7] = [f64::INFINITY, 0.01];
+        assert!(boundary_times(&nan, 1024).unwrap_err().contains("azimuth inf (turns)"));
         assert!(boundary_times(&[], 1024).is_err());
+        // Half the turn exactly (a quarter to three quarters, exact in binary) is enough;
+        // any less is refused.
+        let half: Vec<[f64; 2]> = (0..=512).map(|k| [0.25 + k as f64 / 1024.0, 0.025 + 0.1 * k as f64 / 1024.0]).collect();
+        assert_eq!((half[0][0], half[512][0]), (0.25, 0.75));
+        let out = boundary_times(&half, 1024).unwrap();
+        assert!((out[512] - 0.05).abs() < 1e-12 && (out[0] - 0.0).abs() < 1e-12, "{} {}", out[0], out[512]);
+        assert!(boundary_times(&half[..512], 1024).unwrap_err().contains("cover"));
+        assert!(boundary_times(&half[1..], 1024).unwrap_err().contains("cover"));
         let still: Vec<[f64; 2]> = firings(|_| 1.0);
         assert!(boundary_times(&still, 1024).is_err());
     }

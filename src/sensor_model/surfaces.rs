@@ -377,3 +377,67 @@ pub fn body_regions(model: &HumanModel) -> Result<Vec<Vec<u8>>> {
         })
         .collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sensor_model::{LOWER, SHOES, SKIN, UPPER};
+
+    /// Two triangles facing the sensor (normal -x) at `x`, side by side.
+    fn quad(x: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
+        (vec![[x, -1.0, -1.0], [x, 1.0, -1.0], [x, 1.0, 1.0], [x, -1.0, 1.0]], vec![0, 2, 1, 0, 3, 2])
+    }
+
+    /// Each beam's surface takes the reflectance its person drew for the region of the very
+    /// triangle it hit, counted within that person's own mesh (the second person's triangles
+    /// come after the first's in the frame); the background's comes from its mesh, and a
+    /// triangle index the frame does not hold gets the typical 0.5, not a panic.
+    #[test]
+    fn a_beams_surface_has_the_reflectance_of_its_triangles_region_and_mesh() {
+        let mut humans = FrameGeometry::default();
+        let (p, i) = quad(3.0);
+        humans.push_mesh(&p, &i, 1, false);
+        let (p, i) = quad(4.0);
+        humans.push_mesh(&p, &i, 2, false);
+        let mut background = FrameGeometry::default();
+        let (p, i) = quad(9.0);
+        background.push_mesh(&p, &i, 0, false);
+        let env_meshes = vec![EnvDraw {
+            first_vertex: 0,
+            vertex_count: 4,
+            local_indices: i.clone(),
+            double_sided: false,
+            adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&i)),
+            reflectance: 0.25,
+        }];
+        // Person 1 (model 0) and person 2 (model 1), each model's one level of detail.
+        let layout = [(1u32, 0usize, 0usize), (2, 1, 0)];
+        let regions = [vec![vec![SKIN, SHOES]], vec![vec![LOWER, UPPER]]];
+        let reflectance = [[0.1f32, 0.2, 0.3, 0.4], [0.5, 0.6, 0.7, 0.8]];
+        let dirs = vec![DVec3::X; 7];
+        let human_hits = BeamHits { range_m: vec![3.0, 3.0, 4.0, 4.0, 0.0, 0.0, 0.0], triangle: vec![0, 1, 2, 3, u32::MAX, u32::MAX, u32::MAX] };
+        let bg_hits = BeamHits { range_m: vec![9.0; 7], triangle: vec![0, 0, 0, 0, 1, crate::backend::NO_TRIANGLE, 2] };
+        let s = SceneSurfaces {
+            humans: &humans,
+            human_hits: &human_hits,
+            background: &background,
+            bg_hits: &bg_hits,
+            recorded: None,
+            recorded_intensity: &[],
+            intensity_scale: 1.0,
+            columns: 7,
+            layout: &layout,
+            regions: &regions,
+            env_meshes: &env_meshes,
+            reflectance: &reflectance,
+            dirs: &dirs,
+            env_world: None,
+        };
+        for (b, instance, want) in [(0, 1, 0.1), (1, 1, 0.4), (2, 2, 0.7), (3, 2, 0.6), (4, 0, 0.25), (5, 0, 0.5), (6, 0, 0.5)] {
+            let surface = s.clean(b, 5.0, instance).expect("a return");
+            assert_eq!((surface.reflectance, surface.instance, surface.rendered), (want, instance, true), "beam {b}");
+            assert_eq!(surface.cos_incidence, 1.0, "beam {b}: head on");
+        }
+        assert!(s.clean(0, 0.0, 1).is_none(), "no return, no surface");
+    }
+}
