@@ -358,3 +358,36 @@ def test_the_paper_experiment_trains_in_sittings_and_generates_in_shards(tmp_pat
     assert load_file(two / "runs" / "frames1" / "checkpoint.pt")["step"] == 3
     assert json.loads((two / "scores" / "frames1--test.json").read_text())["model_step"] == 3
     assert exp.main(["paper", "--work", str(two), *common, "--jobs", "0"]) == 2
+
+
+def test_calibration_is_counted_from_the_validation_frames_and_written_into_the_model(sample: Path, tmp_path: Path) -> None:
+    """`calibrate_model` on a random two-frame network: every figure recomputed here from the
+    streamed margins and the files, and the model file carries the threshold and the record."""
+    from pedscan_data.model import NetConfig, SequenceNet
+    from pedscan_data.netio import MODEL_FORMAT
+    from pedscan_data.reader import Sequence
+
+    torch.manual_seed(2)
+    net = SequenceNet(NetConfig(frames=2, width=4)).eval()
+    model = tmp_path / "m.pt"
+    torch.save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": {"steps": 0}}, model)
+    c = tr.calibrate_model(model, sample, "cpu", 1)
+    margins, truth = [], []
+    for p in sorted(sample.glob("seq_*.h5")):
+        m, _, _ = pr.predict_sequence(net, Sequence(p), "cpu")
+        with h5py.File(p, "r") as f:
+            ok = f["range"][1:] > 0
+            margins.append(m[1:][ok])
+            truth.append(f["label"][1:][ok] == 1)
+    m, y = np.concatenate(margins).astype(np.float64), np.concatenate(truth)
+
+    def iou(called: np.ndarray) -> float:
+        return int(np.sum(y & called)) / int(np.sum(y | called))
+
+    assert (c["beams"], c["human_beams"]) == (len(m), int(y.sum())) and y.any()
+    assert c["iou_argmax"] == pytest.approx(iou(m > 0))
+    assert c["iou_calibrated"] == pytest.approx(iou(m > c["margin"])) and c["iou_calibrated"] >= c["iou_argmax"]
+    assert c["human_threshold"] == pytest.approx(1 / (1 + np.exp(-c["margin"])))
+    obj = load_file(model)
+    assert obj["human_threshold"] == c["human_threshold"]
+    assert obj["training"] == {"steps": 0, "calibration": {**c, "score_from": 1, "val": ["seq_000000.h5", "seq_000001.h5"]}}
