@@ -262,6 +262,30 @@ impl SceneSurfaces<'_> {
     }
 }
 
+/// The pyramid through the origin that holds every footprint ray of `dirs` (widened by 1 %),
+/// as a test of whether a triangle (sensor frame) lies wholly outside one of its faces or
+/// behind the origin, and so meets none of the rays.
+fn outside_footprint(dirs: &[DVec3; FOOTPRINT_RAYS]) -> impl Fn(&[DVec3; 3]) -> bool {
+    let d = dirs[0];
+    let e_az = DVec3::new(-d.y, d.x, 0.0).normalize_or_zero();
+    let e_el = d.cross(e_az);
+    let (mut hx, mut hy) = (0.0f64, 0.0f64);
+    for r in &dirs[1..] {
+        let along = r.dot(d);
+        hx = hx.max(r.dot(e_az).abs() / along);
+        hy = hy.max(r.dot(e_el).abs() / along);
+    }
+    let (hx, hy) = (1.01 * hx + 1e-9, 1.01 * hy + 1e-9);
+    move |tri: &[DVec3; 3]| {
+        // Per corner: which faces it lies beyond (bits), ANDed over the corners.
+        let beyond = |p: DVec3| -> u8 {
+            let (a, x, y) = (p.dot(d), p.dot(e_az), p.dot(e_el));
+            (a <= 0.0) as u8 | ((x > hx * a) as u8) << 1 | ((x < -hx * a) as u8) << 2 | ((y > hy * a) as u8) << 3 | ((y < -hy * a) as u8) << 4
+        };
+        beyond(tri[0]) & beyond(tri[1]) & beyond(tri[2]) != 0
+    }
+}
+
 /// The footprint's surfaces are searched among the triangles the beam and its grid neighbours
 /// across the silhouette hit, and those triangles' one-rings (watertight test, as the
 /// casters): the footprint (a few millimetres to centimetres across) lies between those beams,
@@ -280,26 +304,7 @@ impl FootprintScene for SceneSurfaces<'_> {
         // The beam and its neighbours across the silhouette.
         let mut beams = [b; 5];
         beams[1..1 + across.len().min(4)].copy_from_slice(&across[..across.len().min(4)]);
-        // The pyramid through the origin that holds every footprint ray (widened by 1 %): a
-        // triangle with all three corners outside one of its faces meets none of the rays.
-        let d = dirs[0];
-        let e_az = DVec3::new(-d.y, d.x, 0.0).normalize_or_zero();
-        let e_el = d.cross(e_az);
-        let (mut hx, mut hy) = (0.0f64, 0.0f64);
-        for r in &dirs[1..] {
-            let along = r.dot(d);
-            hx = hx.max(r.dot(e_az).abs() / along);
-            hy = hy.max(r.dot(e_el).abs() / along);
-        }
-        let (hx, hy) = (1.01 * hx + 1e-9, 1.01 * hy + 1e-9);
-        let outside = |tri: &[DVec3; 3]| {
-            // Per corner: which faces it lies beyond (bits), ANDed over the corners.
-            let beyond = |p: DVec3| -> u8 {
-                let (a, x, y) = (p.dot(d), p.dot(e_az), p.dot(e_el));
-                (a <= 0.0) as u8 | ((x > hx * a) as u8) << 1 | ((x < -hx * a) as u8) << 2 | ((y > hy * a) as u8) << 3 | ((y < -hy * a) as u8) << 4
-            };
-            beyond(tri[0]) & beyond(tri[1]) & beyond(tri[2]) != 0
-        };
+        let outside = outside_footprint(dirs);
         // The candidates of one layer: the triangles the beams hit and their one-rings, those
         // the pyramid may hold, each as `corners` gives it in the sensor frame.
         let candidates = |geom: &FrameGeometry, hits: &BeamHits, corners: &dyn Fn(u32) -> [DVec3; 3]| -> Vec<(u32, [DVec3; 3], bool)> {
@@ -439,5 +444,166 @@ mod tests {
             assert_eq!(surface.cos_incidence, 1.0, "beam {b}: head on");
         }
         assert!(s.clean(0, 0.0, 1).is_none(), "no return, no surface");
+    }
+
+    /// A person's edge at 3 m in front of a tilted wall (the plane x + y / 2 = 9): the person
+    /// a quad facing the sensor over y in [-0.001, 1]; the wall two triangles over y in
+    /// [-10, 12], z in [-10, 10]. Beam 0 looks along +x (the person's edge), beam 1 slightly
+    /// to the right (-y: the wall only).
+    struct EdgeScene {
+        humans: FrameGeometry,
+        background: FrameGeometry,
+        env_meshes: Vec<EnvDraw>,
+        wall: Vec<DVec3>,
+        human_hits: BeamHits,
+        bg_hits: BeamHits,
+        dirs: Vec<DVec3>,
+        poses: Vec<DMat4>,
+        regions: Vec<Vec<Vec<u8>>>,
+    }
+
+    const WALL: DVec3 = DVec3::new(1.0, 0.5, 0.0);
+
+    /// Where the plane `n . p = n . (dir0 * r0)` meets the ray along `dir`.
+    fn on_plane(n: DVec3, dir0: DVec3, r0: f64, dir: DVec3) -> f64 {
+        n.dot(dir0 * r0) / n.dot(dir)
+    }
+
+    impl EdgeScene {
+        fn new() -> EdgeScene {
+            let mut humans = FrameGeometry::default();
+            let person = [[3.0, -0.001, -1.0], [3.0, 1.0, -1.0], [3.0, 1.0, 1.0], [3.0, -0.001, 1.0]];
+            humans.push_mesh(&person, &[0, 2, 1, 0, 3, 2], 1, false);
+            let wall: Vec<DVec3> = [(-10.0, -10.0), (12.0, -10.0), (12.0, 10.0), (-10.0, 10.0)].iter().map(|&(y, z)| DVec3::new(9.0 - 0.5 * y, y, z)).collect();
+            let mut background = FrameGeometry::default();
+            let idx = [0u32, 2, 1, 0, 3, 2];
+            background.push_mesh(&wall.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &idx, 0, false);
+            let env_meshes = vec![EnvDraw {
+                first_vertex: 0,
+                vertex_count: 4,
+                local_indices: idx.to_vec(),
+                double_sided: false,
+                adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&idx)),
+                reflectance: 0.25,
+            }];
+            let dirs = vec![DVec3::X, DVec3::new(0.01f64.cos(), -(0.01f64.sin()), 0.0)];
+            let wall_range = |d: DVec3| on_plane(WALL, DVec3::X, 9.0, d);
+            // Both beams meet the wall's upper-left triangle (1) behind; beam 0 the person's 1.
+            let human_hits = BeamHits { range_m: vec![3.0, 0.0], triangle: vec![1, crate::backend::NO_TRIANGLE] };
+            let bg_hits = BeamHits { range_m: vec![9.0, wall_range(dirs[1]) as f32], triangle: vec![1, 1] };
+            EdgeScene { humans, background, env_meshes, wall, human_hits, bg_hits, dirs, poses: Vec::new(), regions: vec![vec![vec![UPPER; 2]]] }
+        }
+
+        fn scene(&self) -> SceneSurfaces<'_> {
+            SceneSurfaces {
+                humans: &self.humans,
+                human_hits: &self.human_hits,
+                background: &self.background,
+                bg_hits: &self.bg_hits,
+                recorded: None,
+                recorded_intensity: &[],
+                intensity_scale: 1.0,
+                columns: 2,
+                layout: &[(1, 0, 0)],
+                regions: &self.regions,
+                env_meshes: &self.env_meshes,
+                reflectance: &[[0.6; 4]],
+                dirs: &self.dirs,
+                env_world: (!self.poses.is_empty()).then(|| EnvWorld { positions: &self.wall, meshes: &self.env_meshes, column_pose: &self.poses }),
+            }
+        }
+    }
+
+    /// A footprint across the person's edge: the rays left of it meet the person, the others
+    /// the wall's plane through the beam's own hit (the wall is continuous around the beam and
+    /// its neighbour across the silhouette), each at its own range along its own direction.
+    #[test]
+    fn a_footprint_across_an_edge_meets_the_person_and_the_wall_plane_behind() {
+        let e = EdgeScene::new();
+        let s = e.scene();
+        let dirs = crate::sensor_model::footprint_dirs(0.0, 0.0, [20.0, 20.0]);
+        let mut out = [None; FOOTPRINT_RAYS];
+        out[0] = s.clean(0, 3.0, 1);
+        s.cast_footprint(0, &[1], &dirs, &mut out);
+        let (mut person, mut wall) = (0, 0);
+        for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+            let o = o.expect("every ray meets something");
+            if d.y > 0.0 {
+                assert_eq!(o.instance, 1, "ray {k}");
+                assert!((o.range_m - 3.0 / d.x).abs() < 1e-9, "ray {k}: {}", o.range_m);
+                person += 1;
+            } else {
+                assert_eq!((o.instance, o.reflectance), (0, 0.25), "ray {k}");
+                assert!((o.range_m - on_plane(WALL, DVec3::X, 9.0, d)).abs() < 1e-9, "ray {k}: {}", o.range_m);
+                wall += 1;
+            }
+        }
+        assert_eq!((person, wall), (3, 3));
+    }
+
+    /// Under a sensor that turns during the sweep, the wall's plane behind beam 1 has the
+    /// normal of beam 1's own column (turned 0.2 rad), not column 0's.
+    #[test]
+    fn under_a_turning_sensor_the_wall_plane_is_taken_at_the_beams_own_column() {
+        let mut e = EdgeScene::new();
+        let turn = DMat3::from_rotation_z(0.2);
+        e.poses = vec![DMat4::IDENTITY, DMat4::from_mat3(turn)];
+        let s = e.scene();
+        let dirs = crate::sensor_model::footprint_dirs(-0.01, 0.0, [20.0, 20.0]);
+        let n = turn.transpose() * WALL;
+        for (k, &d) in dirs.iter().enumerate().skip(1) {
+            let (r, t) = s.background_near(1, d).expect("the plane lies ahead");
+            assert_eq!(t, 1);
+            let want = on_plane(n, e.dirs[1], e.bg_hits.range_m[1] as f64, d);
+            assert!((r - want).abs() < 1e-6, "ray {k}: {r} vs {want}");
+            let unturned = on_plane(WALL, e.dirs[1], e.bg_hits.range_m[1] as f64, d);
+            assert!((want - unturned).abs() > 1e-4, "ray {k}: the turn shows");
+        }
+    }
+
+    /// In the middle of the wall, every footprint ray meets the beam's own triangle or its
+    /// one-ring: the footprint is settled there, without a search, at the wall's plane.
+    #[test]
+    fn a_footprint_inside_one_surface_is_settled_on_it() {
+        let e = EdgeScene::new();
+        let s = e.scene();
+        let dirs = crate::sensor_model::footprint_dirs(-0.01, 0.0, [3.0, 3.0]);
+        let mut out = [None; FOOTPRINT_RAYS];
+        out[0] = s.clean(1, e.bg_hits.range_m[1], 0);
+        assert!(s.footprint_on_own_surface(1, &[], &dirs, &mut out));
+        for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+            let o = o.expect("the wall");
+            assert!((o.range_m - on_plane(WALL, DVec3::X, 9.0, d)).abs() < 1e-9, "ray {k}");
+        }
+        // A neighbour seeing something nearer (the person) may cover part of it: not settled.
+        out[1..].fill(None);
+        assert!(!s.footprint_on_own_surface(1, &[0], &dirs, &mut out));
+    }
+
+    /// The footprint's pyramid excludes a triangle only when it lies wholly beyond one face or
+    /// behind the sensor; a triangle around any ray, or across the pyramid, stays.
+    #[test]
+    fn the_footprint_pyramid_excludes_only_what_lies_beyond_a_face() {
+        let dirs = crate::sensor_model::footprint_dirs(0.4, -0.2, [3.0, 3.0]);
+        let outside = outside_footprint(&dirs);
+        let d = dirs[0];
+        let e_az = DVec3::new(-d.y, d.x, 0.0).normalize();
+        let e_el = d.cross(e_az);
+        // A small triangle around the point at `r` along `dir`, shifted by (x, y) in metres.
+        let tri = |dir: DVec3, r: f64, x: f64, y: f64| {
+            let c = dir * r + e_az * x + e_el * y;
+            [c + e_az * 0.001, c - e_az * 0.001 + e_el * 0.001, c - e_el * 0.001]
+        };
+        for (k, &ray) in dirs.iter().enumerate() {
+            assert!(!outside(&tri(ray, 10.0, 0.0, 0.0)), "ray {k}");
+        }
+        // 10 m away the footprint is ~2 cm across: 5 cm to any side is beyond that face.
+        for (x, y) in [(0.05, 0.0), (-0.05, 0.0), (0.0, 0.05), (0.0, -0.05)] {
+            assert!(outside(&tri(d, 10.0, x, y)), "({x}, {y})");
+        }
+        assert!(outside(&tri(-d, 10.0, 0.0, 0.0)), "behind the sensor");
+        // A long sliver from one side to the other crosses every ray's plane: it stays.
+        let across = [d * 10.0 + e_az * 0.05 + e_el * 0.0005, d * 10.0 - e_az * 0.05 + e_el * 0.0005, d * 10.0 - e_az * 0.05 - e_el * 0.0005];
+        assert!(!outside(&across));
     }
 }
