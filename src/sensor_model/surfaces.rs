@@ -606,4 +606,29 @@ mod tests {
         let across = [d * 10.0 + e_az * 0.05 + e_el * 0.0005, d * 10.0 - e_az * 0.05 + e_el * 0.0005, d * 10.0 - e_az * 0.05 - e_el * 0.0005];
         assert!(!outside(&across));
     }
+
+    /// A beam at the wall's edge with no neighbour across a silhouette: the wall is continuous
+    /// around the beam, so every footprint ray meets its plane, also the rays that pass just
+    /// beyond the edge (the footprint is millimetres across; the cast only found the edge's
+    /// triangles).
+    #[test]
+    fn at_a_continuous_surfaces_edge_the_footprint_stays_on_its_plane() {
+        let mut e = EdgeScene::new();
+        // The wall ends 2 mm right of beam 0 (at y = 0.002 m, 9 m away).
+        let wall: Vec<DVec3> = [(-10.0, -10.0), (0.002, -10.0), (0.002, 10.0), (-10.0, 10.0)].iter().map(|&(y, z)| DVec3::new(9.0 - 0.5 * y, y, z)).collect();
+        e.background = FrameGeometry::default();
+        e.background.push_mesh(&wall.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &[0, 2, 1, 0, 3, 2], 0, false);
+        e.human_hits = BeamHits { range_m: vec![0.0; 2], triangle: vec![crate::backend::NO_TRIANGLE; 2] };
+        let s = e.scene();
+        let dirs = crate::sensor_model::footprint_dirs(0.0, 0.0, [3.0, 3.0]);
+        let mut out = [None; FOOTPRINT_RAYS];
+        out[0] = s.clean(0, 9.0, 0);
+        s.cast_footprint(0, &[], &dirs, &mut out);
+        let beyond = dirs.iter().filter(|d| 9.0 * d.y / d.x > 0.002).count();
+        assert!(beyond >= 2, "{beyond} rays pass beyond the edge");
+        for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+            let o = o.unwrap_or_else(|| panic!("ray {k} meets the plane"));
+            assert!((o.range_m - on_plane(WALL, DVec3::X, 9.0, d)).abs() < 1e-9, "ray {k}");
+        }
+    }
 }
