@@ -391,3 +391,73 @@ def test_calibration_is_counted_from_the_validation_frames_and_written_into_the_
     obj = load_file(model)
     assert obj["human_threshold"] == c["human_threshold"]
     assert obj["training"] == {"steps": 0, "calibration": {**c, "score_from": 1, "val": ["seq_000000.h5", "seq_000001.h5"]}}
+
+
+def test_a_training_step_gets_the_window_it_drew_with_intensity_when_the_network_takes_it(sample: Path) -> None:
+    from pedscan_data.model import input_channels
+    from pedscan_data.reader import Sequence
+
+    seqs = [Sequence(p) for p in sorted(sample.glob("seq_*.h5"))]
+    for intensity in (False, True):
+        windows = tr.StepWindows(seqs, 2, seed=5, intensity=intensity)
+        for i in range(6):
+            s, t = windows.pick(i)
+            item = windows[i]
+            assert (item["sequence"], item["frame"]) == (s, t)
+            with h5py.File(seqs[s].path, "r") as f:
+                r = f["range"][t - 1 : t + 1]
+                want = input_channels(r, f["intensity"][t - 1 : t + 1] if intensity else None)
+                np.testing.assert_array_equal(item["x"].numpy(), want)
+                assert item["x"].shape[1] == (3 if intensity else 2)
+                np.testing.assert_array_equal(item["label"].numpy(), f["label"][t])
+                np.testing.assert_array_equal(item["velocity"].numpy(), f["velocity"][t].transpose(2, 0, 1))
+                np.testing.assert_array_equal(item["valid"].numpy(), r[-1] > 0)
+
+
+def test_the_calibrated_cut_stays_within_15_either_way() -> None:
+    # Humans far below -15 and the background lower still: the best cut (-30) is held at -15.
+    human = np.r_[np.ones(3, bool), np.zeros(5, bool)]
+    assert tr.best_cut(np.r_[np.full(3, -20.0), np.full(5, -40.0)], human) == (-15.0, 0.0)
+    # Everything above 15, the humans lowest: calling every beam is best (IoU 3/8), held at 15.
+    assert tr.best_cut(np.r_[np.full(3, 20.0), np.full(5, 40.0)], human) == (15.0, 3 / 8)
+
+
+def test_training_refuses_data_without_the_intensity_its_network_takes(sample: Path, tmp_path: Path) -> None:
+    path = tmp_path / "seq_000000.h5"
+    shutil.copy(sample / "seq_000000.h5", path)
+    with h5py.File(path, "a") as f:
+        del f["intensity"]
+    with pytest.raises(tr.PedscanError, match=f"^data: {path}: no dataset /intensity \\(train needs it\\)$"):
+        tr.check_sequences([path], 2, "data", intensity=True)
+    assert len(tr.check_sequences([path], 2, "data", intensity=False)) == 1
+
+
+def test_the_curves_show_the_loss_and_the_validation_scores(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import pedscan_data.netio as netio
+
+    figures = []
+    monkeypatch.setattr(netio, "save_figure", lambda fig, path: figures.append((fig, path)))
+
+    def bins(*iou: float | None) -> list[dict[str, float | None]]:
+        return [{"iou": x} for x in iou]
+
+    metrics = [
+        {"kind": "train", "step": 1, "loss": 2.0}, {"kind": "train", "step": 2, "loss": 1.0},
+        {"kind": "val", "step": 2, "overall": {"iou": 0.5, "epe_mps": 0.3}, "bins": bins(0.6, None, 0.2)},
+        {"kind": "calibration", "step": 2},
+        {"kind": "val", "step": 4, "overall": {"iou": 0.7, "epe_mps": None}, "bins": bins(0.8, 0.5, 0.4)},
+    ]
+    tr.plot_curves(metrics, tmp_path / "curves.png", "a run")
+    (fig, path), = figures
+    assert path == tmp_path / "curves.png" and fig._suptitle.get_text() == "a run"
+    assert tuple(fig.get_size_inches()) == (14, 3.8)
+    loss, iou, epe = fig.axes
+    assert [(a.get_title(), a.get_xlabel()) for a in fig.axes] == [
+        ("training loss", "step"), ("validation IoU (human)", "step"), ("validation EPE on human beams (m/s)", "step")
+    ]
+    assert loss.get_yscale() == "log" and list(loss.lines[0].get_ydata()) == [2.0, 1.0]
+    assert iou.get_ylim() == (0, 1)
+    lines = {line.get_label(): list(line.get_ydata()) for line in iou.lines}
+    assert lines == {"all": [0.5, 0.7], "0-4 m": [0.6, 0.8], "4-8 m": [0, 0.5], "8+ m": [0.2, 0.4]}
+    assert [t.get_text() for t in iou.get_legend().get_texts()] == ["all", "0-4 m", "4-8 m", "8+ m"]
+    assert list(epe.lines[0].get_xdata()) == [2, 4] and list(epe.lines[0].get_ydata()) == [0.3, 0]
