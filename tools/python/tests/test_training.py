@@ -461,3 +461,16 @@ def test_the_curves_show_the_loss_and_the_validation_scores(tmp_path: Path, monk
     assert lines == {"all": [0.5, 0.7], "0-4 m": [0.6, 0.8], "4-8 m": [0, 0.5], "8+ m": [0.2, 0.4]}
     assert [t.get_text() for t in iou.get_legend().get_texts()] == ["all", "0-4 m", "4-8 m", "8+ m"]
     assert list(epe.lines[0].get_xdata()) == [2, 4] and list(epe.lines[0].get_ydata()) == [0.3, 0]
+
+
+def test_an_intensity_network_trains_on_intensity_and_its_run_is_recorded(sample: Path, tmp_path: Path) -> None:
+    from pedscan_data.model import count_parameters, describe
+
+    run = tmp_path / "run"
+    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "2", "--width", "4", "--intensity") == 0
+    net, obj = load_net(run)
+    assert net.cfg.intensity and obj["net"]["intensity"] is True
+    rj = json.loads((run / "run.json").read_text())
+    assert rj["config"]["intensity"] is True
+    assert rj["parameters"] == count_parameters(net) and rj["network"] == describe(net, 16, 512)
+    assert rj["environment"]["torch"] == torch.__version__
