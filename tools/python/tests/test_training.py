@@ -94,12 +94,17 @@ def test_several_training_folders_pool_their_sequences(sample: Path, tmp_path: P
     assert not (tmp_path / "twice").exists()
 
 
-def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path, tmp_path: Path) -> None:
+def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path, tmp_path: Path, capsys) -> None:
     common = ["--frames", "2", "--steps", "7", "--width", "4", "--checkpoint-every", "2", "--log-every", "1"]
     assert run_train(sample, "--out", tmp_path / "a", *common) == 0
     # Stopped as Ctrl-C would at step 5: the checkpoint of step 4 stays, step 5 is done again.
+    capsys.readouterr()
     assert run_train(sample, "--out", tmp_path / "b", *common, "--stop-at-step", "5") == 130
-    assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 4
+    assert "stopped at step 5; the checkpoint of step 4 stays (--resume continues)" in capsys.readouterr().err
+    ckpt = load_file(tmp_path / "b" / "checkpoint.pt")
+    assert ckpt["step"] == 4 and ckpt["training"]["step"] == 4
+    assert load_file(tmp_path / "b" / "model.pt")["training"] == ckpt["training"]
+    assert ckpt["training"]["environment"]["torch"] == torch.__version__ and ckpt["training"]["config"]["frames"] == 2
     assert tr.main([str(sample), "--out", str(tmp_path / "b"), *common, "--resume", "--quiet", "--workers", "1"]) == 0
     a, b = weights(tmp_path / "a"), weights(tmp_path / "b")
     assert a.keys() == b.keys()
@@ -112,6 +117,10 @@ def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path,
     # A longer --steps extends a finished run.
     assert run_train(sample, "--out", tmp_path / "b", *common[:2], "--steps", "9", *common[4:], "--resume") == 0
     assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 9
+    # A finished run whose model file was lost gets it back from its checkpoint on --resume.
+    (tmp_path / "b" / "model.pt").unlink()
+    assert run_train(sample, "--out", tmp_path / "b", *common[:2], "--steps", "9", *common[4:], "--resume") == 0
+    assert load_file(tmp_path / "b" / "model.pt")["training"]["step"] == 9
 
 
 def test_a_time_budget_ends_the_sitting_like_an_end_and_resume_finishes_it(sample: Path, tmp_path: Path,
@@ -124,7 +133,8 @@ def test_a_time_budget_ends_the_sitting_like_an_end_and_resume_finishes_it(sampl
     assert run_train(sample, "--out", tmp_path / "a", *common) == 0
     # A budget of a microsecond: the sitting ends after its first step.
     assert run_train(sample, "--out", tmp_path / "b", *common, "--max-minutes", "1e-8") == 0
-    assert "1 of 6 steps in the --max-minutes" in capsys.readouterr().out
+    run_b = tmp_path / "b"
+    assert f"{run_b}: 1 of 6 steps in the --max-minutes 1e-08 budget; model {run_b / 'model.pt'} (step 1); --resume continues" in capsys.readouterr().out
     assert load_file(tmp_path / "b" / "checkpoint.pt")["step"] == 1
     model = load_file(tmp_path / "b" / "model.pt")
     assert model["training"]["step"] == 1 and 0 < model["human_threshold"] < 1
@@ -135,6 +145,11 @@ def test_a_time_budget_ends_the_sitting_like_an_end_and_resume_finishes_it(sampl
     for k in a:
         assert torch.equal(a[k], b[k]), k
     assert load_file(tmp_path / "b" / "model.pt")["training"]["step"] == 6
+    # Resumed again when finished, it leaves the calibrated model file as it is.
+    calibrated = (run_b / "model.pt").read_bytes()
+    assert "human_threshold" in load_file(run_b / "model.pt")
+    assert run_train(sample, "--out", run_b, *common, "--resume") == 0
+    assert (run_b / "model.pt").read_bytes() == calibrated
     assert run_train(sample, "--out", tmp_path / "c", *common, "--max-minutes", "0") == 2
     assert "--max-minutes 0.0: not a positive number" in capsys.readouterr().err
     assert not (tmp_path / "c").exists()
@@ -474,3 +489,26 @@ def test_an_intensity_network_trains_on_intensity_and_its_run_is_recorded(sample
     assert rj["config"]["intensity"] is True
     assert rj["parameters"] == count_parameters(net) and rj["network"] == describe(net, 16, 512)
     assert rj["environment"]["torch"] == torch.__version__
+
+
+def test_progress_is_shown_unless_quiet_and_validation_comes_every_n_steps(
+    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Training's clock moves 1,000 s a reading: the data wait's share of the wall time must
+    stay a share (the waits are readings apart, the wall time from the first to the last)."""
+    import types
+
+    clock = iter(range(0, 10**9, 1000))
+    monkeypatch.setattr(tr, "time", types.SimpleNamespace(perf_counter=lambda: float(next(clock))))
+    common = ["--frames", "2", "--steps", "4", "--width", "4", "--log-every", "1", "--val", str(sample),
+              "--val-every", "2", "--no-calibrate", "--workers", "0"]
+    capsys.readouterr()
+    assert tr.main([str(sample), "--out", str(tmp_path / "a"), *common]) == 0
+    err = capsys.readouterr().err
+    assert "] 4/4 " in err and "step 2: validation IoU" in err and "step 4: validation IoU" in err, err
+    metrics = [json.loads(x) for x in (tmp_path / "a" / "metrics.jsonl").read_text().splitlines()]
+    assert [m["step"] for m in metrics if m["kind"] == "val"] == [2, 4]
+    shares = [m["data_wait_share"] for m in metrics if m["kind"] == "train"]
+    assert len(shares) == 4 and all(0 < x < 1 for x in shares), shares
+    assert tr.main([str(sample), "--out", str(tmp_path / "b"), *common, "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
