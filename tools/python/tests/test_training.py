@@ -512,3 +512,48 @@ def test_progress_is_shown_unless_quiet_and_validation_comes_every_n_steps(
     assert len(shares) == 4 and all(0 < x < 1 for x in shares), shares
     assert tr.main([str(sample), "--out", str(tmp_path / "b"), *common, "--quiet"]) == 0
     assert capsys.readouterr().err == ""
+
+
+#: The training command line as documented: flags, type, default, required, nargs, metavar, help.
+TRAIN_OPTIONS = [
+    (["data"], Path, None, True, "+", None, "pedscan output folder(s) with the training sequences; each step draws one of "
+     "all their sequences alike (several backgrounds: one folder each)"),
+    (["--frames"], int, None, True, None, None, "N, frames per window (1, 2, 4, 8, 16)"),
+    (["--out"], Path, None, False, None, None, "run folder"),
+    (["--steps"], int, 4000, False, None, None, "training steps (default 4000)"),
+    (["--val"], Path, None, False, None, None, "pedscan output folder with validation sequences"),
+    (["--device"], None, "auto", False, None, None, "auto | cpu | cuda (default auto)"),
+    (["--resume"], None, False, False, 0, None, "continue the run in --out"),
+    (["--seed"], int, 0, False, None, None, None),
+    (["--width"], int, 16, False, None, None, "channels of the encoder's first layer (default 16)"),
+    (["--intensity"], None, False, False, 0, None, "also take the return intensity as input"),
+    (["--range-change"], None, False, False, 0, None, "the decoder also sees each beam's range change against the "
+     "earlier frames, and the velocity branch the whole scan's (not in the paper; N >= 2)"),
+    (["--batch"], int, 1, False, None, None, "windows per step (paper: 1)"),
+    (["--lr"], float, 1e-3, False, None, None, "Adam learning rate (paper: 1e-3)"),
+    (["--decay"], float, 1e-3, False, None, None, "time decay: lr / (1 + decay * step) (paper: 1e-3)"),
+    (["--loss-weights"], float, [10000.0, 1.0, 1001.0], False, 3, ("CE", "BG", "HUMAN"), "paper: 10000 1 1001"),
+    (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
+    (["--val-every"], int, 500, False, None, None, None),
+    (["--checkpoint-every"], int, 250, False, None, None, None),
+    (["--log-every"], int, 50, False, None, None, None),
+    (["--score-from"], int, None, False, None, None, "validation scores frames from this one (default N-1)"),
+    (["--no-calibrate"], None, False, False, 0, None, "keep the softmax's argmax (by default, with --val, the human "
+     "threshold that maximizes validation IoU is written into model.pt at the end)"),
+    (["--quiet"], None, False, False, 0, None, "no progress bar"),
+    (["--stop-at-step"], int, None, False, None, "K", "stop after step K as Ctrl-C would (exit 130; --resume "
+     "continues): for tests of resuming"),
+    (["--max-minutes"], float, None, False, None, "M", "end this sitting after M minutes of training: checkpoint, "
+     "validate, calibrate, exit 0 (--resume continues to --steps)"),
+    (["--bench-loader"], int, None, False, None, "WINDOWS", "only time the loader over this many windows"),
+]
+
+
+def test_the_training_command_line_takes_what_it_documents() -> None:
+    p = tr.parser()
+    assert p.prog == "python -m pedscan_data.train" and p.description == tr.__doc__.split("\n\n")[0]
+    got = [
+        (a.option_strings or [a.dest], a.type, a.default, a.required, a.nargs, a.metavar, a.help)
+        for a in p._actions if a.dest != "help"
+    ]
+    assert got == TRAIN_OPTIONS
