@@ -301,3 +301,34 @@ def test_the_shipped_networks_load_predict_and_match_their_onnx(name: str, sampl
     # Out of the box on a pedscan output of another sensor (16 x 512).
     assert predict_main([str(models / f"{name}.pt"), str(sample), "--out", str(tmp_path / "p")]) == 0
     assert sorted(p.name for p in (tmp_path / "p").iterdir()) == sorted(p.name for p in sample.glob("seq_*.h5"))
+
+
+@pytest.mark.parametrize("change", [False, True])
+def test_multiply_adds_and_the_description_match_torchs_own_count(change: bool) -> None:
+    """PyTorch's FLOP counter (2 per multiply-add) over one frame's encoding and over a whole
+    window's forward pass (N encodings and the decoder) against the layers' own count."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    from pedscan_data.model import multiply_adds
+
+    net = net_for(2, range_change=change)
+    m = multiply_adds(net, 8, 64)
+
+    def flops(run) -> int:
+        with torch.no_grad(), FlopCounterMode(display=False) as fc:
+            run()
+        return sum(fc.get_flop_counts()["Global"].values())
+
+    x = torch.rand(1, 2, net.cfg.in_channels, 8, 64)
+    assert 2 * m["encoder_per_frame"] == flops(lambda: net.encode(x[:, 0]))
+    assert 2 * (2 * m["encoder_per_frame"] + m["decoder_per_window"]) == flops(lambda: net(x))
+    # The description, at the grid given and at the HDL-32E's by default.
+    enc, dec = m["encoder_per_frame"], m["decoder_per_window"]
+    assert describe(net, 8, 64) == (
+        f"N=2 width=8 inputs=2{' range-change' if change else ''}: {count_parameters(net):,} parameters; at 8x64: "
+        f"encoder {enc / 1e6:.1f} M multiply-adds per frame, decoder {dec / 1e6:.1f} M per window; streaming "
+        f"{(enc + dec) / 1e6:.1f} M per frame, training {(2 * enc + dec) / 1e6:.1f} M per window (forward)"
+    )
+    full = multiply_adds(net, 32, 1024)
+    assert describe(net).split(": ", 1)[1].startswith(f"{count_parameters(net):,} parameters; at 32x1024: encoder "
+                                                       f"{full['encoder_per_frame'] / 1e6:.1f} M")
