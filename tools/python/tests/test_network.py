@@ -332,3 +332,35 @@ def test_multiply_adds_and_the_description_match_torchs_own_count(change: bool) 
     full = multiply_adds(net, 32, 1024)
     assert describe(net).split(": ", 1)[1].startswith(f"{count_parameters(net):,} parameters; at 32x1024: encoder "
                                                        f"{full['encoder_per_frame'] / 1e6:.1f} M")
+
+
+@pytest.mark.parametrize("frames,change", [(1, False), (3, False), (3, True)])
+def test_each_window_of_a_batch_is_its_own(frames: int, change: bool) -> None:
+    """A batch of three windows gives each the outputs it gets alone (nothing is pooled
+    across windows: the ego-motion's whole-scan summary included)."""
+    net = net_for(frames, range_change=change)
+    torch.manual_seed(4)
+    x = torch.from_numpy(input_channels(np.where(torch.rand(3, frames, 8, 64).numpy() < 0.1, 0.0, 40 * torch.rand(3, frames, 8, 64).numpy())))
+    with torch.no_grad():
+        together = net(x)
+        for k in range(3):
+            for a, b in zip(net(x[k : k + 1]), together):
+                np.testing.assert_allclose(a[0].numpy(), b[k].numpy(), rtol=1e-5, atol=1e-5)
+
+
+def test_the_ego_motion_pools_over_beams_that_returned_in_the_last_frame_and_an_earlier_one() -> None:
+    net = net_for(3, range_change=True)
+    seen = []
+    net.decoder.ego.register_forward_pre_hook(lambda m, inp: seen.append(inp[1]))
+    torch.manual_seed(5)
+    r = 40 * torch.rand(2, 3, 8, 64)
+    r[torch.rand(r.shape) < 0.3] = 0  # holes, different in every frame
+    x = torch.from_numpy(input_channels(r.numpy()))
+    with torch.no_grad():
+        net(x)
+    (mask,) = seen
+    returned = r > 0
+    want = returned[:, 2] & (returned[:, 0] | returned[:, 1])
+    assert mask.shape == (2, 1, 8, 64)
+    np.testing.assert_array_equal(mask[:, 0].numpy(), want.numpy().astype(np.float32))
+    assert 0.3 < want.float().mean() < 0.9
