@@ -388,6 +388,18 @@ mod tests {
     use super::*;
     use crate::sensor_model::{LOWER, SHOES, SKIN, UPPER};
 
+    /// The environment's one mesh as drawn: four vertices, `indices`, reflectance 0.25.
+    fn quad_draw(indices: &[u32]) -> EnvDraw {
+        EnvDraw {
+            first_vertex: 0,
+            vertex_count: 4,
+            local_indices: indices.to_vec(),
+            double_sided: false,
+            adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(indices)),
+            reflectance: 0.25,
+        }
+    }
+
     /// Two triangles facing the sensor (normal -x) at `x`, side by side.
     fn quad(x: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
         (vec![[x, -1.0, -1.0], [x, 1.0, -1.0], [x, 1.0, 1.0], [x, -1.0, 1.0]], vec![0, 2, 1, 0, 3, 2])
@@ -407,14 +419,7 @@ mod tests {
         let mut background = FrameGeometry::default();
         let (p, i) = quad(9.0);
         background.push_mesh(&p, &i, 0, false);
-        let env_meshes = vec![EnvDraw {
-            first_vertex: 0,
-            vertex_count: 4,
-            local_indices: i.clone(),
-            double_sided: false,
-            adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&i)),
-            reflectance: 0.25,
-        }];
+        let env_meshes = vec![quad_draw(&i)];
         // Person 1 (model 0) and person 2 (model 1), each model's one level of detail.
         let layout = [(1u32, 0usize, 0usize), (2, 1, 0)];
         let regions = [vec![vec![SKIN, SHOES]], vec![vec![LOWER, UPPER]]];
@@ -478,14 +483,7 @@ mod tests {
             let mut background = FrameGeometry::default();
             let idx = [0u32, 2, 1, 0, 3, 2];
             background.push_mesh(&wall.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &idx, 0, false);
-            let env_meshes = vec![EnvDraw {
-                first_vertex: 0,
-                vertex_count: 4,
-                local_indices: idx.to_vec(),
-                double_sided: false,
-                adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&idx)),
-                reflectance: 0.25,
-            }];
+            let env_meshes = vec![quad_draw(&idx)];
             let dirs = vec![DVec3::X, DVec3::new(0.01f64.cos(), -(0.01f64.sin()), 0.0)];
             let wall_range = |d: DVec3| on_plane(WALL, DVec3::X, 9.0, d);
             // Both beams meet the wall's upper-left triangle (1) behind; beam 0 the person's 1.

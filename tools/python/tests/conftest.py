@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -90,3 +91,21 @@ def sample_minimal(tmp_path_factory: pytest.TempPathFactory) -> Path:
         tmp_path_factory.mktemp("minimal") / "out",
         "--sequences", "1", "--frames", "3", "--humans", "2..2", "--outputs", "range,label,instance",
     )
+
+
+def watch_devices(net: Any) -> list[Any]:
+    """Makes every convolution of ``net`` check that its input lies where its weights do (as
+    CUDA's would; on the meta device, which stands in for a GPU); returns the list of the
+    convolutions that ran, in order."""
+    import torch
+
+    seen: list[Any] = []
+
+    def same_device(m: Any, inp: tuple[Any, ...]) -> None:
+        assert inp[0].device == m.weight.device, (inp[0].device, m.weight.device)
+        seen.append(m)
+
+    for m in net.modules():
+        if isinstance(m, torch.nn.Conv2d):
+            m.register_forward_pre_hook(same_device)
+    return seen

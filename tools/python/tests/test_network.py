@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import ROOT
+from conftest import ROOT, watch_devices
 from pedscan_data.model import NetConfig, SequenceNet, WrapConv, count_parameters, describe, input_channels
 from pedscan_data.reader import Sequence
 from pedscan_data.train import paper_loss
@@ -228,15 +228,7 @@ def test_the_cost_is_counted_on_the_networks_own_device() -> None:
     input must follow it (the meta device stands in for CUDA; every convolution checks that its
     input lies where its weights do, as CUDA's would)."""
     net = SequenceNet(NetConfig(frames=2, width=4)).to("meta")
-    seen = []
-
-    def same_device(m: torch.nn.Module, inp: tuple[torch.Tensor, ...]) -> None:
-        assert inp[0].device == m.weight.device, (inp[0].device, m.weight.device)
-        seen.append(m)
-
-    for m in net.modules():
-        if isinstance(m, torch.nn.Conv2d):
-            m.register_forward_pre_hook(same_device)
+    seen = watch_devices(net)
     assert "multiply-adds per frame" in describe(net, 8, 64)
     assert len(seen) > 5
 

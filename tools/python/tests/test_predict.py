@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import generate
+from conftest import generate, watch_devices
 from pedscan_data import predict as pr
 from pedscan_data.model import NetConfig, SequenceNet, input_channels
 from pedscan_data.netio import MODEL_FORMAT, environment
@@ -198,15 +198,7 @@ def test_prediction_feeds_the_network_on_its_own_device_and_times_in_millisecond
     # On the meta device (no data, no GPU needed) every convolution's input must be there too;
     # the first copy back to the CPU then fails, as it must for a tensor without data.
     net = random_net(2).to("meta")
-    seen = []
-
-    def same_device(m: torch.nn.Module, inp: tuple[torch.Tensor, ...]) -> None:
-        assert inp[0].device == m.weight.device, (inp[0].device, m.weight.device)
-        seen.append(m)
-
-    for m in net.modules():
-        if isinstance(m, torch.nn.Conv2d):
-            m.register_forward_pre_hook(same_device)
+    seen = watch_devices(net)
     seq = Sequence(sample / "seq_000000.h5")
     with pytest.raises(NotImplementedError, match="meta"):
         pr.predict_sequence(net, seq, torch.device("meta"))
