@@ -518,6 +518,24 @@ mod tests {
         }
     }
 
+    /// A double-sided mesh seen from behind is as watertight as one seen from the front: the
+    /// sphere and the cube wound outward, double-sided, cast from inside (every triangle
+    /// faces away); rays through every vertex, edge midpoint and centroid all hit at t = 1.
+    #[test]
+    fn watertight_from_behind_when_double_sided() {
+        let mut rng = Rng(6);
+        let rot = rotation(&mut rng);
+        for (name, (p, i)) in [("sphere", octasphere(32, DVec3::ONE, DVec3::ZERO)), ("cube", tess_cube(32, rot, DVec3::new(0.1, 0.2, -0.3)))] {
+            let g = geom_of(&[(&p, &i, 1, true)]);
+            let aimed = aimed_dirs(&g, |_| true);
+            assert!(aimed.len() > 3 * g.triangle_count() as usize);
+            let hits = cast(&g, &Bvh::build(&g), &aimed, 1e9);
+            for (d, h) in aimed.iter().zip(&hits) {
+                assert!(h.is_hit() && (h.range_m - 1.0).abs() < 1e-9, "{name} aimed {d:?} {h:?}");
+            }
+        }
+    }
+
     /// Ties: an exact duplicate always loses to the smaller triangle index.
     #[test]
     fn ties_pick_the_smaller_triangle() {
