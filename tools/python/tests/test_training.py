@@ -557,3 +557,23 @@ def test_the_training_command_line_takes_what_it_documents() -> None:
         for a in p._actions if a.dest != "help"
     ]
     assert got == TRAIN_OPTIONS
+
+
+def test_shards_end_well_or_say_which_failed_and_an_interrupted_one_interrupts(capsys: pytest.CaptureFixture[str]) -> None:
+    import sys
+    import types
+
+    from pedscan_data import experiments as exp
+
+    two = types.SimpleNamespace(jobs=2)
+
+    def cmd(code: int) -> list[str]:
+        """A command whose shard 0/2 ends well and whose shard 1/2 exits with `code`."""
+        return [sys.executable, "-c", f"import sys; sys.exit(0 if sys.argv[-1] == '0/2' else {code})"]
+
+    exp.Experiment.run_shards(two, cmd(0), "ok")
+    assert f"[ok] 2 x {' '.join(cmd(0))} --shard I/2" in capsys.readouterr().err
+    with pytest.raises(tr.PedscanError, match=r"bad: `.* --shard 1/2` exited 3"):
+        exp.Experiment.run_shards(two, cmd(3), "bad")
+    with pytest.raises(KeyboardInterrupt):  # Ctrl-C reached a shard (exit 130): the run stops as interrupted
+        exp.Experiment.run_shards(two, cmd(130), "stopped")
