@@ -536,6 +536,17 @@ mod tests {
         }
     }
 
+    /// The ray starts at the origin and hits only at t > 0: a triangle through the origin
+    /// (t = 0 exactly) is not hit, from either side, while the same triangle moved 1 m out is.
+    #[test]
+    fn a_triangle_through_the_origin_is_not_hit() {
+        let at = |z: f64| [DVec3::new(-1.0, -1.0, z), DVec3::new(1.0, -1.0, z), DVec3::new(0.0, 1.0, z)];
+        for (dir, cull) in [(DVec3::Z, false), (-DVec3::Z, false), (-DVec3::Z, true), (DVec3::new(0.3, 0.2, 1.0), false)] {
+            assert_eq!(intersect_triangle(dir, &at(0.0), cull), None, "{dir} {cull}");
+        }
+        assert_eq!(intersect_triangle(DVec3::Z, &at(1.0), false), Some(1.0));
+    }
+
     /// Ties: an exact duplicate always loses to the smaller triangle index.
     #[test]
     fn ties_pick_the_smaller_triangle() {
