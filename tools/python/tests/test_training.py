@@ -261,7 +261,7 @@ def test_predict_refuses_data_the_network_cannot_take(sample_minimal: Path, tmp_
     assert not (tmp_path / "p").exists()
 
 
-def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> None:
+def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The whole pipeline at the smoke scale, a recorded background included (a KITTI folder
     that pedscan itself wrote); a second run finds everything done and changes nothing."""
     from conftest import find_pedscan
@@ -278,6 +278,7 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
             "--recorded", str(velodyne), "--device", "cpu", "--workers", "0",
             f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}", "--pedscan-flag=--humans=2..3"]
     assert exp.main(args) == 0
+    assert "[test frames16 on test-recorded]" in capsys.readouterr().err
     res = json.loads((work / "results.json").read_text())
     runs = [f"frames{n}" for n in (1, 2, 4, 8, 16)] + [f"motion-{m}" for m in ("static", "sliding", "in-place")]
     runs.append("frames16-change")
@@ -312,9 +313,10 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path) -> Non
     assert "## Beyond the paper: range-change channels" in md and "| frames16-change |" in md
     assert (work / "results.png").stat().st_size > 1000
     assert (work / "results-example.png").stat().st_size > 1000
-    stamp = {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")}
+    stamp = {p: p.stat().st_mtime_ns for p in [*(work / "runs").rglob("*.pt"), *(work / "scores").glob("*.json")]}
     assert exp.main(args) == 0
-    assert {p: p.stat().st_mtime_ns for p in (work / "runs").rglob("*.pt")} == stamp
+    assert {p: p.stat().st_mtime_ns for p in [*(work / "runs").rglob("*.pt"), *(work / "scores").glob("*.json")]} == stamp
+    assert "[test " not in capsys.readouterr().err, "nothing is scored again"
     # Another scale in the same folder is refused, and so is data made by another command.
     assert exp.main([*args[:4], "small", *args[5:]]) == 2
     assert exp.main([*args, "--pedscan-flag=--sensor-model=off"]) == 2
@@ -577,3 +579,27 @@ def test_shards_end_well_or_say_which_failed_and_an_interrupted_one_interrupts(c
         exp.Experiment.run_shards(two, cmd(3), "bad")
     with pytest.raises(KeyboardInterrupt):  # Ctrl-C reached a shard (exit 130): the run stops as interrupted
         exp.Experiment.run_shards(two, cmd(130), "stopped")
+
+
+def test_the_zero_velocity_baseline_is_the_evaluators_error_of_zero_predictions(
+    sample: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import types
+
+    from pedscan_data import experiments as exp
+
+    monkeypatch.setattr(exp, "SCORE_FROM", 1)
+    work = tmp_path / "work"
+    (work / "data").mkdir(parents=True)
+    (work / "data" / "test").symlink_to(sample)
+    epe = exp.Experiment.zero_epe(types.SimpleNamespace(work=work), "test")
+    # The evaluator on predictions that get every label right and every velocity zero.
+    preds = tmp_path / "pred"
+    preds.mkdir()
+    for p in sorted(sample.glob("seq_*.h5")):
+        with h5py.File(p, "r") as f:
+            pr.write_h5(preds / p.name, (f["label"][()] == 1).astype(np.uint8), np.zeros(f["velocity"].shape, np.float32), {})
+    o = ev.evaluate(sample, preds, from_frame=1).as_dict()["overall"]
+    assert epe == pytest.approx(o["epe_mps"], rel=1e-6) and epe > 0.1
+    saved = json.loads((work / "scores" / "zero--test.json").read_text())
+    assert saved == {"epe_mps": epe, "human_beams": o["human_beams"]}
