@@ -277,9 +277,16 @@ def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path, capsys
     args = ["paper", "--work", str(work), "--scale", "smoke", "--pedscan", str(find_pedscan()),
             "--recorded", str(velodyne), "--device", "cpu", "--workers", "0",
             f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}", "--pedscan-flag=--humans=2..3"]
+    import time
+
+    start = time.perf_counter()
     assert exp.main(args) == 0
+    wall_s = time.perf_counter() - start
     assert "[test frames16 on test-recorded]" in capsys.readouterr().err
     res = json.loads((work / "results.json").read_text())
+    # The seconds each stage took, of the same clock as the whole call: each within it.
+    assert {"data", "test", "train frames16"} <= set(res["seconds"]), res["seconds"]
+    assert all(0 < v <= wall_s for v in res["seconds"].values()), (res["seconds"], wall_s)
     runs = [f"frames{n}" for n in (1, 2, 4, 8, 16)] + [f"motion-{m}" for m in ("static", "sliding", "in-place")]
     runs.append("frames16-change")
     on_rec = ["recorded-frames16", "recorded-frames1"]
