@@ -881,9 +881,6 @@ mod tests {
         assert!((past - (end + 0.8 / v_end)).abs() < 1e-6, "{past}");
     }
 
-    /// Recorded poses' velocities: the three-point derivative for uneven steps is exact on a
-    /// parabola (x = t^2: 2t) inside, one-sided at the ends; the yaw rate is exact on a steady
-    /// turn, across the +-pi wrap too; a window's times start at its first pose.
     /// The heading of [`turning_parabola`]'s poses at time t (crossing +-pi at t = 0.125).
     fn turning_angle(t: f64) -> f64 {
         std::f64::consts::PI - 0.1 + 0.8 * t
@@ -896,6 +893,9 @@ mod tests {
         (times, poses)
     }
 
+    /// Recorded poses' velocities: the three-point derivative for uneven steps is exact on a
+    /// parabola (x = t^2: 2t) inside, one-sided at the ends; the yaw rate is exact on a steady
+    /// turn, across the +-pi wrap too; a window's times start at its first pose.
     #[test]
     fn pose_velocities_are_exact_on_a_parabola_and_a_steady_turn() {
         let (times, poses) = turning_parabola();

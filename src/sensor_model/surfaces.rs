@@ -469,6 +469,15 @@ mod tests {
 
     const WALL: DVec3 = DVec3::new(1.0, 0.5, 0.0);
 
+    /// The tilted wall's four corners over y in [-10, `y_max`], z in [-10, 10], and the wall as
+    /// a frame's background: two triangles, wound (as [`quad`]'s) to face the sensor.
+    fn tilted_wall(y_max: f64) -> (Vec<DVec3>, FrameGeometry) {
+        let wall: Vec<DVec3> = [(-10.0, -10.0), (y_max, -10.0), (y_max, 10.0), (-10.0, 10.0)].iter().map(|&(y, z)| DVec3::new(9.0 - 0.5 * y, y, z)).collect();
+        let mut background = FrameGeometry::default();
+        background.push_mesh(&wall.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &quad(0.0).1, 0, false);
+        (wall, background)
+    }
+
     /// Where the plane `n . p = n . (dir0 * r0)` meets the ray along `dir`.
     fn on_plane(n: DVec3, dir0: DVec3, r0: f64, dir: DVec3) -> f64 {
         n.dot(dir0 * r0) / n.dot(dir)
@@ -478,12 +487,9 @@ mod tests {
         fn new() -> EdgeScene {
             let mut humans = FrameGeometry::default();
             let person = [[3.0, -0.001, -1.0], [3.0, 1.0, -1.0], [3.0, 1.0, 1.0], [3.0, -0.001, 1.0]];
-            humans.push_mesh(&person, &[0, 2, 1, 0, 3, 2], 1, false);
-            let wall: Vec<DVec3> = [(-10.0, -10.0), (12.0, -10.0), (12.0, 10.0), (-10.0, 10.0)].iter().map(|&(y, z)| DVec3::new(9.0 - 0.5 * y, y, z)).collect();
-            let mut background = FrameGeometry::default();
-            let idx = [0u32, 2, 1, 0, 3, 2];
-            background.push_mesh(&wall.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &idx, 0, false);
-            let env_meshes = vec![quad_draw(&idx)];
+            humans.push_mesh(&person, &quad(0.0).1, 1, false);
+            let (wall, background) = tilted_wall(12.0);
+            let env_meshes = vec![quad_draw(&quad(0.0).1)];
             let dirs = vec![DVec3::X, DVec3::new(0.01f64.cos(), -(0.01f64.sin()), 0.0)];
             let wall_range = |d: DVec3| on_plane(WALL, DVec3::X, 9.0, d);
             // Both beams meet the wall's upper-left triangle (1) behind; beam 0 the person's 1.
@@ -613,9 +619,7 @@ mod tests {
     fn at_a_continuous_surfaces_edge_the_footprint_stays_on_its_plane() {
         let mut e = EdgeScene::new();
         // The wall ends 2 mm right of beam 0 (at y = 0.002 m, 9 m away).
-        let wall: Vec<DVec3> = [(-10.0, -10.0), (0.002, -10.0), (0.002, 10.0), (-10.0, 10.0)].iter().map(|&(y, z)| DVec3::new(9.0 - 0.5 * y, y, z)).collect();
-        e.background = FrameGeometry::default();
-        e.background.push_mesh(&wall.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &[0, 2, 1, 0, 3, 2], 0, false);
+        e.background = tilted_wall(0.002).1;
         e.human_hits = BeamHits { range_m: vec![0.0; 2], triangle: vec![crate::backend::NO_TRIANGLE; 2] };
         let s = e.scene();
         let dirs = crate::sensor_model::footprint_dirs(0.0, 0.0, [3.0, 3.0]);
