@@ -109,3 +109,32 @@ def watch_devices(net: Any) -> list[Any]:
         if isinstance(m, torch.nn.Conv2d):
             m.register_forward_pre_hook(same_device)
     return seen
+
+
+def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False, range_change: bool = False) -> Any:
+    """A network of random, not trained weights, in eval mode; its biases are made nonzero so
+    that zero padding or a dropped input shows in the outputs."""
+    import torch
+
+    from pedscan_data.model import NetConfig, SequenceNet
+
+    torch.manual_seed(seed)
+    net = SequenceNet(NetConfig(frames=frames, width=width, intensity=intensity, range_change=range_change)).eval()
+    with torch.no_grad():
+        for p in net.parameters():
+            if p.ndim == 1:
+                p.uniform_(-0.2, 0.2)
+    return net
+
+
+def save_model(net: Any, path: Path, threshold: float | None = None, training: dict[str, Any] | None = None) -> Path:
+    """``net`` written as a pedscan model file (with a calibrated ``threshold`` if given)."""
+    import torch
+
+    from pedscan_data.netio import MODEL_FORMAT
+
+    obj = {"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": training or {}}
+    if threshold is not None:
+        obj["human_threshold"] = threshold
+    torch.save(obj, path)
+    return path

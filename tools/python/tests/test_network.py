@@ -8,21 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import ROOT, watch_devices
+from conftest import ROOT, net_for, watch_devices
 from pedscan_data.model import NetConfig, SequenceNet, WrapConv, count_parameters, describe, input_channels
 from pedscan_data.reader import Sequence
 from pedscan_data.train import paper_loss
-
-
-def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False, range_change: bool = False) -> SequenceNet:
-    torch.manual_seed(seed)
-    net = SequenceNet(NetConfig(frames=frames, width=width, intensity=intensity, range_change=range_change)).eval()
-    # Random, not trained weights: make the biases nonzero so that zero padding would show.
-    with torch.no_grad():
-        for p in net.parameters():
-            if p.ndim == 1:
-                p.uniform_(-0.2, 0.2)
-    return net
 
 
 @pytest.mark.parametrize("frames,change", [(1, False), (2, False), (16, False), (2, True), (16, True)])

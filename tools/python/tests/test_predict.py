@@ -13,34 +13,15 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import generate, watch_devices
+from conftest import generate, net_for, save_model, watch_devices
 from pedscan_data import predict as pr
 from pedscan_data.model import NetConfig, SequenceNet, input_channels
 from pedscan_data.netio import MODEL_FORMAT, environment
 from pedscan_data.reader import Sequence
 
 
-def random_net(frames: int, intensity: bool = False) -> SequenceNet:
-    """Random weights with nonzero biases (so that a dropped input changes the output)."""
-    torch.manual_seed(1)
-    net = SequenceNet(NetConfig(frames=frames, width=4, intensity=intensity)).eval()
-    with torch.no_grad():
-        for p in net.parameters():
-            if p.ndim == 1:
-                p.uniform_(-0.2, 0.2)
-    return net
-
-
-def save_model(net: SequenceNet, path: Path, threshold: float | None = None) -> Path:
-    obj = {"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": {}}
-    if threshold is not None:
-        obj["human_threshold"] = threshold
-    torch.save(obj, path)
-    return path
-
-
 def test_an_intensity_network_is_fed_the_sequences_intensity(sample: Path) -> None:
-    net = random_net(2, intensity=True)
+    net = net_for(2, width=4, seed=1, intensity=True)
     seq = Sequence(sample / "seq_000000.h5")
     assert seq.has("intensity")
     margin, velocity, _ = pr.predict_sequence(net, seq, "cpu", chunk=3)
@@ -54,7 +35,7 @@ def test_an_intensity_network_is_fed_the_sequences_intensity(sample: Path) -> No
 
 
 def test_predictions_are_written_as_documented_and_may_be_written_again(sample: Path, tmp_path: Path) -> None:
-    net = random_net(2)
+    net = net_for(2, width=4, seed=1)
     model = save_model(net, tmp_path / "net.pt", threshold=0.7)
     out = tmp_path / "pred"
     out.mkdir()  # an existing folder is used, and a second run writes over the first
@@ -92,7 +73,7 @@ def test_predictions_are_written_as_documented_and_may_be_written_again(sample: 
 
 
 def test_a_one_frame_sequence_is_timed_and_odd_grids_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    model = save_model(random_net(1), tmp_path / "net.pt")
+    model = save_model(net_for(1, width=4, seed=1), tmp_path / "net.pt")
     one = generate(tmp_path / "one", "--sequences", "1", "--frames", "1", "--humans", "1..1", "--outputs", "range,label")
     res = pr.predict(model, one, tmp_path / "p1", quiet=True)
     assert res["sequences"] == 1 and res["ms_per_frame_median"] > 0
@@ -164,7 +145,7 @@ class TracedOff(SequenceNet):
 def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path) -> None:
     import onnxruntime as ort
 
-    net = random_net(2, intensity=True)
+    net = net_for(2, width=4, seed=1, intensity=True)
     path = tmp_path / "net.onnx"
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # ONNX Runtime only warns of an unknown execution provider
@@ -182,7 +163,7 @@ def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path)
     # A traced graph 1e-3 off is refused at the default 1e-4 and leaves no file. The check is
     # seeded, so a probe gives the exact difference: a tolerance of exactly that keeps the file.
     off = TracedOff(NetConfig(frames=2, width=4))
-    off.load_state_dict(random_net(2).state_dict())
+    off.load_state_dict(net_for(2, width=4, seed=1).state_dict())
     off.eval().offset = 1e-3
     bad = tmp_path / "off.onnx"
     with pytest.raises(pr.PedscanError, match="ONNX Runtime differs from PyTorch by 0.001 "):
@@ -197,7 +178,7 @@ def test_prediction_feeds_the_network_on_its_own_device_and_times_in_millisecond
 
     # On the meta device (no data, no GPU needed) every convolution's input must be there too;
     # the first copy back to the CPU then fails, as it must for a tensor without data.
-    net = random_net(2).to("meta")
+    net = net_for(2, width=4, seed=1).to("meta")
     seen = watch_devices(net)
     seq = Sequence(sample / "seq_000000.h5")
     with pytest.raises(NotImplementedError, match="meta"):
@@ -206,7 +187,7 @@ def test_prediction_feeds_the_network_on_its_own_device_and_times_in_millisecond
     # The per-frame times are milliseconds of the same clock: together no more than the call
     # took, and most of it (the rest is reading the inputs).
     start = time.perf_counter()
-    _, _, ms = pr.predict_sequence(random_net(2), seq, "cpu")
+    _, _, ms = pr.predict_sequence(net_for(2, width=4, seed=1), seq, "cpu")
     wall_ms = (time.perf_counter() - start) * 1e3
     assert len(ms) == seq.frames and 0.05 * wall_ms < sum(ms) <= wall_ms, (ms, wall_ms)
 

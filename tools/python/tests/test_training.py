@@ -16,7 +16,7 @@ from pedscan_data import predict as pr
 from pedscan_data import train as tr
 from pedscan_data.netio import load_file, load_net
 
-from conftest import SENSOR_TOML, generate
+from conftest import SENSOR_TOML, generate, save_model
 
 
 @pytest.fixture(scope="module")
@@ -243,12 +243,8 @@ def test_a_run_begun_before_an_option_existed_resumes_with_its_default(sample: P
 
 def test_predict_refuses_data_the_network_cannot_take(sample_minimal: Path, tmp_path: Path, capsys) -> None:
     from pedscan_data.model import NetConfig, SequenceNet
-    from pedscan_data.netio import MODEL_FORMAT
 
-    net_file = tmp_path / "n.pt"
-    net = SequenceNet(NetConfig(frames=2, width=4, intensity=True))
-    torch.save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": {}},
-               net_file)
+    net_file = save_model(SequenceNet(NetConfig(frames=2, width=4, intensity=True)), tmp_path / "n.pt")
     assert load_net(net_file)[0].cfg.intensity
     data = tmp_path / "data"
     data.mkdir()
@@ -388,13 +384,11 @@ def test_calibration_is_counted_from_the_validation_frames_and_written_into_the_
     """`calibrate_model` on a random two-frame network: every figure recomputed here from the
     streamed margins and the files, and the model file carries the threshold and the record."""
     from pedscan_data.model import NetConfig, SequenceNet
-    from pedscan_data.netio import MODEL_FORMAT
     from pedscan_data.reader import Sequence
 
     torch.manual_seed(2)
     net = SequenceNet(NetConfig(frames=2, width=4)).eval()
-    model = tmp_path / "m.pt"
-    torch.save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": net.state_dict(), "training": {"steps": 0}}, model)
+    model = save_model(net, tmp_path / "m.pt", training={"steps": 0})
     c = tr.calibrate_model(model, sample, "cpu", 1)
     margins, truth = [], []
     for p in sorted(sample.glob("seq_*.h5")):
