@@ -829,6 +829,28 @@ mod tests {
         }
     }
 
+    /// Over the swing the shift blends by smoothstep from the one the foot left the ground
+    /// with to the one its next stance lands it with: halfway (smoothstep 1/2) it is their mean.
+    /// On a track whose curvature changes (on a steady arc every stance's shift is the same,
+    /// wherever it lands); the left foot (strike at phase 0) leaves the ground at phase 0.62
+    /// and lands at phase 1, so halfway through its swing the phase is 0.81.
+    #[test]
+    fn a_swinging_foot_goes_halfway_between_toe_off_and_the_next_strike() {
+        let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+        let xy: Vec<DVec2> = times.iter().map(|t| DVec2::new(1.3 * t, (0.5 * t).sin() * 2.0)).collect();
+        let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+        let mut p = plan(MotionMode::Full);
+        (p.trajectory, p.phase0) = (HumanPath::Track(TrackPath::new(track, 1.7, 0.0, 6.0)), 0.0);
+        let at_phase = |phase: f64| p.trajectory.time_at_distance(phase * p.stride_m).unwrap();
+        let (off, mid, on) = (at_phase(0.62) - 1e-9, at_phase(0.81), at_phase(1.0) + 1e-9);
+        assert!((p.at(mid).gait_phase - 0.81).abs() < 1e-5, "{}", p.at(mid).gait_phase);
+        let (a, m, b) = (p.at(off).feet[0], p.at(mid).feet[0], p.at(on).feet[0]);
+        assert!((a.forward_m - b.forward_m).abs() + (a.left_m - b.left_m).abs() + (a.yaw_rad - b.yaw_rad).abs() > 0.05, "{a:?} {b:?}");
+        for (x, y, z) in [(a.forward_m, m.forward_m, b.forward_m), (a.left_m, m.left_m, b.left_m), (a.yaw_rad, m.yaw_rad, b.yaw_rad)] {
+            assert!((y - 0.5 * (x + z)).abs() < 1e-4, "mid-swing {m:?} is not the mean of {a:?} and {b:?}");
+        }
+    }
+
     #[test]
     fn track_distance_is_the_arc_length_inside_and_past_its_table() {
         // A curved walk sampled at 0.4 s; the interpolant's arc length by a fine chord sum.
@@ -978,6 +1000,31 @@ mod tests {
                 assert!((0.5..=0.6).contains(&h.arm_swing) && h.stride_m > 0.0, "seed {seed}: {h:?}");
             }
         }
+        // No person is asked for: a window without people is a plan.
+        let mut none = cfg.clone();
+        none.humans.count = [0, 0];
+        assert!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &none, &inp).unwrap().humans.is_empty());
+        // People are asked for but no track keeps clear of the sensor in any window: refused.
+        let mut crowded = cfg.clone();
+        crowded.humans.min_separation_m = 50.0;
+        let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &crowded, &inp).unwrap_err().to_string();
+        assert!(e.contains("humans.tracks") && e.contains("walks clear of obstacles and the sensor"), "{e}");
+    }
+
+    /// A track that walks 7.8 m and then stands: its last distance is first reached when it
+    /// stops (about 6 s in), not at the end of the table; a distance it never walks has no time.
+    #[test]
+    fn a_track_that_stops_reaches_its_last_distance_when_it_stops() {
+        let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+        let xy: Vec<DVec2> = times.iter().map(|&t| DVec2::new(1.3 * t.min(6.0), 0.0)).collect();
+        let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+        let path = HumanPath::Track(TrackPath::new(track, 0.0, 0.0, 10.0));
+        let d_end = path.distance(10.0);
+        assert!((d_end - 7.8).abs() < 0.05, "{d_end}");
+        let t = path.time_at_distance(d_end).expect("reached when it stops");
+        assert!((5.5..6.5).contains(&t), "reached at {t} s");
+        assert!((path.distance(t) - d_end).abs() < 1e-9, "{} vs {d_end}", path.distance(t));
+        assert_eq!(path.time_at_distance(d_end + 0.1), None, "it never walks further");
     }
 
     /// On a walkable floor people walk planned start-to-goal paths at speeds drawn within
@@ -1015,9 +1062,28 @@ mod tests {
             let (a, b) = (-PI + quadrant as f64 * PI / 2.0, -PI / 2.0 + quadrant as f64 * PI / 2.0);
             assert!(headings.iter().any(|&h| (a..b).contains(&h)), "no heading in [{a}, {b}): {headings:?}");
         }
+        // Its speed and turn rate are drawn over their whole ranges, and only within them.
+        cfg.scene.sensor_speed_mps = [0.5, 1.0];
+        cfg.scene.sensor_yaw_rate_rps = [-0.2, 0.3];
+        let arcs: Vec<Trajectory> = (0..40)
+            .map(|seed| match sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap().sensor {
+                SensorPath::Arc(t) => t,
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        for (what, v, [lo, hi]) in [
+            ("speed", arcs.iter().map(|t| t.speed_mps).collect::<Vec<_>>(), [0.5, 1.0]),
+            ("yaw rate", arcs.iter().map(|t| t.yaw_rate_rps).collect(), [-0.2, 0.3]),
+        ] {
+            let (a, b) = (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+            assert!(lo <= a && b <= hi && b - a > 0.7 * (hi - lo), "sensor {what} drawn within {a}..{b}");
+        }
         cfg.frames = 600;
         let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap_err().to_string();
-        assert!(e.contains("`frames`") && e.contains("free walkable area is at most"), "{e}");
+        assert!(e.contains("`frames`") && e.contains("free walkable area is at most") && e.contains("nobody can walk"), "{e}");
+        // Nobody asked for: nobody has to walk that far.
+        cfg.humans.count = [0, 0];
+        assert!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap().humans.is_empty());
     }
 
     #[test]
