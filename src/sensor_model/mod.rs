@@ -416,6 +416,22 @@ pub fn combine(hits: &mut [Surface], mixed_m: f64) -> Option<(Surface, f32)> {
 mod tests {
     use super::*;
 
+    /// Every (sequence, frame) has its own stream for every seed: the key is a bijection of the
+    /// frame for a fixed seed and sequence (xor with a constant, a rotation, a multiplication by
+    /// an odd number), so no seed makes two frames share one. Checked at the seed that cancels
+    /// sequence 0's term to all ones, where a key that merely set the frame's bits would not
+    /// change with the frame at all.
+    #[test]
+    fn no_seed_makes_two_frames_share_a_random_stream() {
+        let all_ones = !0x5e75_0a3d_e1ed_0001u64;
+        for seed in [0, 7, all_ones] {
+            let mut firsts: Vec<u64> = (0..64u64).chain([u64::MAX]).map(|frame| stream(seed, 0, frame).next_u64()).collect();
+            firsts.sort_unstable();
+            firsts.dedup();
+            assert_eq!(firsts.len(), 65, "seed {seed:#x}: frames share a stream");
+        }
+    }
+
     /// The bundled people's MakeHuman joint names, region by region as the doc comment gives
     /// them; the match ignores case and any side or number suffix.
     #[test]
