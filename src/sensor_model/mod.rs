@@ -512,5 +512,38 @@ mod tests {
         assert!((share as f64 - 1.35 / 7.0).abs() < 1e-6, "{share}");
         // Nothing met: no return.
         assert!(combine(&mut [], 0.1).is_none());
+        // A group of no power (black surfaces) is at its rays' mean range.
+        let (s, share) = combine(&mut [surface(10.0, 1, 0.0, 0.5), surface(10.06, 1, 0.0, 0.5)], 0.1).unwrap();
+        assert!((s.range_m - 10.03).abs() < 1e-12 && share == 0.0, "{}", s.range_m);
+        // Rays of equal power: the first in range order gives the instance (the input's order
+        // at equal ranges), so the choice does not depend on anything but the rays.
+        let (s, _) = combine(&mut [surface(10.0, 1, 0.5, 0.5), surface(10.0, 2, 0.5, 0.5)], 0.1).unwrap();
+        assert_eq!(s.instance, 1);
+    }
+
+    /// A beam's neighbours across a silhouette, from the pair bits (bit 0: a silhouette between
+    /// a beam and its right neighbour, columns wrapping; bit 1: between it and the one below),
+    /// on a 3 x 4 grid: each neighbour is listed once, left, right, above, below.
+    #[test]
+    fn edge_neighbours_read_each_pair_from_the_beam_that_holds_it() {
+        let w = 4;
+        let mut pairs = vec![0u8; 12];
+        let none = |pairs: &[u8], b: usize| edge_neighbours(pairs, b, w).1 == 0;
+        assert!((0..12).all(|b| none(&pairs, b)));
+        // Beam 5 (row 1, column 1): a silhouette to its right and below.
+        pairs[5] = 0b11;
+        assert_eq!(edge_neighbours(&pairs, 5, w), ([6, 9, 0, 0], 2));
+        assert_eq!(edge_neighbours(&pairs, 6, w), ([5, 0, 0, 0], 1), "its right neighbour sees it on its left");
+        assert_eq!(edge_neighbours(&pairs, 9, w), ([5, 0, 0, 0], 1), "the one below sees it above");
+        assert!([0, 1, 2, 3, 4, 7, 8, 10, 11].iter().all(|&b| none(&pairs, b)));
+        // The last column's right neighbour is the first column of its row, and back.
+        pairs.fill(0);
+        pairs[7] = 0b01;
+        assert_eq!(edge_neighbours(&pairs, 7, w), ([4, 0, 0, 0], 1));
+        assert_eq!(edge_neighbours(&pairs, 4, w), ([7, 0, 0, 0], 1));
+        // All four at once, for a beam inside the grid.
+        pairs.fill(0);
+        (pairs[4], pairs[5], pairs[1]) = (0b01, 0b11, 0b10);
+        assert_eq!(edge_neighbours(&pairs, 5, w), ([4, 6, 1, 9], 4));
     }
 }
