@@ -174,6 +174,15 @@ def test_missing_or_short_label_files_exit_2_naming_them(sample: Path, tmp_path:
     code, _, err = run(capsys, sample, kitti)
     assert code == 2 and "sequences/01/labels: missing (sequence 1, 4 frames)" in err
 
+    # A missing first sequence does not stop the check of the next one.
+    shutil.rmtree(kitti)
+    kitti_from_truth(kitti, ground_truth(sample))
+    shutil.rmtree(kitti / "sequences/00")
+    write_kitti(kitti, 1, 4, np.zeros(3, np.uint32))
+    code, _, err = run(capsys, sample, kitti)
+    assert code == 2 and "sequences/00/labels: missing (sequence 0, 4 frames)" in err
+    assert "sequences/01/labels/000004.label: no such frame" in err
+
 
 def test_mismatched_hdf5_predictions_exit_2_naming_them(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     gt = ground_truth(sample)
@@ -187,6 +196,32 @@ def test_mismatched_hdf5_predictions_exit_2_naming_them(sample: Path, tmp_path: 
     assert code == 2 and "one prediction file for 2 sequences" in err
     code, _, err = run(capsys, sample / "seq_000000.h5", sample / "seq_000000.h5")
     assert code == 0
+
+
+def test_label_only_hdf5_predictions_are_scored_without_velocity(
+    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Predictions of labels alone (a segmentation network's) score IoU; no velocity error is
+    made up for them. The JSON report is indented for reading."""
+    for name, g in ground_truth(sample).items():
+        write_h5(tmp_path / "preds", name, g["label"])
+    code, out, err = run(capsys, sample, tmp_path / "preds", "--json", tmp_path / "s.json")
+    assert (code, err) == (0, ""), err
+    text = (tmp_path / "s.json").read_text()
+    assert text.startswith('{\n  "') and text.endswith("}\n"), text[:40]
+    o = json.loads(text)["overall"]
+    assert o["iou"] == 1.0 and "epe_mps" not in o and "velocity_error_mps" not in o, o
+
+
+def test_beam_axes_are_double_precision_whatever_the_files_dtype() -> None:
+    from pedscan_data.evaluate import beam_axes
+
+    el32, az32 = np.array([-30.67, 10.67], np.float32), np.array([0.0, 33.3, 181.7], np.float32)
+    axes = beam_axes(el32, az32)
+    assert axes.dtype == np.float64
+    el, az = np.deg2rad(el32.astype(np.float64)), np.deg2rad(az32.astype(np.float64))
+    want = np.array([np.cos(el[1]) * np.cos(az[2]), np.cos(el[1]) * np.sin(az[2]), np.sin(el[1])])
+    np.testing.assert_allclose(axes[0, 1, 2], want, rtol=0, atol=1e-15)
 
 
 def test_velocities_without_ground_truth_velocity_are_noted(

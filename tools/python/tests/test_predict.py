@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import platform
+import shutil
 import warnings
 from pathlib import Path
 
@@ -75,8 +76,19 @@ def test_predictions_are_written_as_documented_and_may_be_written_again(sample: 
 def test_a_one_frame_sequence_is_timed_and_odd_grids_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     model = save_model(net_for(1, width=4, seed=1), tmp_path / "net.pt")
     one = generate(tmp_path / "one", "--sequences", "1", "--frames", "1", "--humans", "1..1", "--outputs", "range,label")
-    res = pr.predict(model, one, tmp_path / "p1", quiet=True)
+    res = pr.predict(model, one, tmp_path / "deep" / "p1", quiet=True)  # parent folders are made
     assert res["sequences"] == 1 and res["ms_per_frame_median"] > 0
+    assert (tmp_path / "deep" / "p1" / "seq_000000.h5").is_file()
+    # A network that takes intensity is refused data without it, naming the file.
+    wants = save_model(net_for(1, width=4, seed=1, intensity=True), tmp_path / "intensity.pt")
+    bare = tmp_path / "bare"
+    shutil.copytree(one, bare)
+    with h5py.File(bare / "seq_000000.h5", "a") as f:
+        del f["intensity"]
+    assert pr.main([str(wants), str(bare), "--out", str(tmp_path / "pi"), "--device", "cpu"]) == 2
+    err = capsys.readouterr().err
+    assert "seq_000000.h5: no dataset /intensity, which this network takes as input" in err, err
+    assert not (tmp_path / "pi").exists()
     # Rows a multiple of 4 and columns of 8 (the network halves the rows twice and the columns
     # three times): either alone off is refused, naming the file and the grid.
     for rows, columns in ((6, 64), (8, 60)):
@@ -171,6 +183,62 @@ def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path)
     assert not bad.exists() and not list(tmp_path.glob("*.tmp"))
     got = pr.export_onnx(off, bad, 8, 32, atol=pr.export_onnx(off, tmp_path / "probe.onnx", 8, 32, atol=1.0))
     assert got == pytest.approx(1e-3, rel=1e-3) and bad.exists()
+    # Without a calibrated threshold the file says 0.5 (the softmax's even odds).
+    probe = ort.InferenceSession(str(tmp_path / "probe.onnx"), providers=["CPUExecutionProvider"])
+    assert probe.get_modelmeta().custom_metadata_map["human_threshold"] == "0.5"
+
+
+def test_the_command_line_exports_onnx_alone_or_before_predicting(
+    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import onnxruntime as ort
+
+    model = save_model(net_for(2, width=4, seed=1), tmp_path / "net.pt", threshold=0.7)
+    onnx_file = tmp_path / "alone.onnx"
+    assert pr.main([str(model), "--export-onnx", str(onnx_file), "--onnx-grid", "8X32"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"wrote {onnx_file} (ONNX Runtime against PyTorch: max difference "), out
+    sess = ort.InferenceSession(str(onnx_file), providers=["CPUExecutionProvider"])
+    assert sess.get_inputs()[0].shape == ["batch", 2, 2, 8, 32]
+    assert sess.get_modelmeta().custom_metadata_map["human_threshold"] == "0.7"
+    # Then predicting, on the device asked for.
+    asked: list[str] = []
+    real = pr.pick_device
+    pr_pick = lambda name: (asked.append(name), real(name))[1]  # noqa: E731
+    import pedscan_data.predict as module
+
+    module.pick_device = pr_pick
+    try:
+        both = tmp_path / "both.onnx"
+        code = pr.main([str(model), str(sample), "--out", str(tmp_path / "p"), "--export-onnx", str(both),
+                        "--onnx-grid", "8x32", "--device", "cpu"])
+    finally:
+        module.pick_device = real
+    out = capsys.readouterr().out
+    assert code == 0 and both.is_file() and asked == ["cpu"], (code, asked)
+    assert f"wrote {both} (" in out and f"wrote 2 sequences to {tmp_path / 'p'}; " in out, out
+    # Neither data nor an export: the usage error.
+    with pytest.raises(SystemExit) as e:
+        pr.main([str(model)])
+    assert e.value.code == 2 and "DATA and --out are needed to predict" in capsys.readouterr().err
+
+
+def test_the_timing_leaves_out_each_sequences_warm_up_and_progress_goes_to_stderr(
+    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    real = pr.predict_sequence
+
+    def timed(net, seq, dev, first=0):
+        margin, velocity, ms = real(net, seq, dev, first=first)
+        return margin, velocity, [100.0, 1.0, 2.0, 3.0][: len(ms)]
+
+    monkeypatch.setattr(pr, "predict_sequence", timed)
+    model = save_model(net_for(2, width=4, seed=1), tmp_path / "net.pt")
+    capsys.readouterr()
+    res = pr.predict(model, sample, tmp_path / "p", device="cpu")
+    assert res == {"sequences": 2, "ms_per_frame_median": 2.0}
+    out, err = capsys.readouterr()
+    assert out == "" and err == "\r1/2 sequences, 2.0 ms per frame\r2/2 sequences, 2.0 ms per frame\n", repr(err)
 
 
 def test_prediction_feeds_the_network_on_its_own_device_and_times_in_milliseconds(sample: Path) -> None:
