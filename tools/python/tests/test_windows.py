@@ -111,4 +111,11 @@ def test_torch_dataset_batches(sample: Path) -> None:
     # An instance target is an index too: int64.
     item = TorchWindowDataset(sample, length=2, targets=("label", "instance"))[0]
     assert item["instance"].dtype == torch.int64
+    # The class weight stays float32 under a float64 default, like every other input.
+    default = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float64)
+    try:
+        assert ds[0]["class_weight"].dtype == torch.float32
+    finally:
+        torch.set_default_dtype(default)
     np.testing.assert_array_equal(item["instance"].numpy(), WindowDataset(sample, length=2, targets=("instance",))[0]["instance"])
