@@ -512,6 +512,10 @@ mod tests {
         // The uniform sweep is as it was.
         let u = Sweep::uniform(2.0, 0.1, 1024);
         assert_eq!(u.time_at(300.0), 2.0 + 0.1 * 300.0 / 1024.0);
+        assert!(u.rolls());
+        // A sweep of no duration (every column fired at once) does not roll.
+        let still = Sweep::uniform(2.0, 0.0, 1024);
+        assert!(!still.rolls() && still.time_at(700.0) == 2.0);
     }
 
     /// A 2 m segment 4 m straight ahead moving right (toward later columns) at `speed`, warped

@@ -213,6 +213,19 @@ def test_label_only_hdf5_predictions_are_scored_without_velocity(
     assert o["iou"] == 1.0 and "epe_mps" not in o and "velocity_error_mps" not in o, o
 
 
+def test_a_beam_at_a_bins_edge_belongs_to_the_farther_bin() -> None:
+    """The bins are [0, 4), [4, 8) and [8, inf) m: a human beam at exactly 4 m is counted in
+    the second, one at exactly 8 m in the third; a beam without a return in none."""
+    from pedscan_data.evaluate import Report, _score_frame
+
+    report = Report("gt", "pred", "h5")
+    range_m = np.array([[0.0, 3.999, 4.0, 7.999, 8.0, 30.0]], np.float32)
+    truth = np.ones_like(range_m, bool)
+    _score_frame(report, range_m, truth, truth, None, None)
+    assert [c.human_beams for c in report.bins] == [1, 2, 2]
+    assert [c.tp for c in report.bins] == [1, 2, 2]
+
+
 def test_beam_axes_are_double_precision_whatever_the_files_dtype() -> None:
     from pedscan_data.evaluate import beam_axes
 

@@ -286,3 +286,19 @@ def test_a_run_records_the_python_it_ran_on() -> None:
     assert env["python"] == platform.python_version()
     assert env["device"] == "cpu" and env["torch"] == torch.__version__
 
+
+
+def test_a_model_loads_onto_the_device_asked_for_and_figures_are_saved_at_80_dpi(tmp_path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.image
+    import matplotlib.pyplot as plt
+
+    from pedscan_data.netio import load_net, save_figure
+
+    net, _ = load_net(save_model(net_for(2, width=4, seed=1), tmp_path / "net.pt"), "meta")
+    assert {p.device.type for p in net.parameters()} == {"meta"} and not net.training
+    save_figure(plt.figure(figsize=(2.0, 1.5)), tmp_path / "f.png")
+    assert matplotlib.image.imread(tmp_path / "f.png").shape[:2] == (120, 160)
+    assert [p.name for p in tmp_path.iterdir() if p.suffix == ".png"] == ["f.png"]
