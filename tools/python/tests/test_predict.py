@@ -189,7 +189,7 @@ def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path)
 
 
 def test_the_command_line_exports_onnx_alone_or_before_predicting(
-    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import onnxruntime as ort
 
@@ -204,16 +204,10 @@ def test_the_command_line_exports_onnx_alone_or_before_predicting(
     # Then predicting, on the device asked for.
     asked: list[str] = []
     real = pr.pick_device
-    pr_pick = lambda name: (asked.append(name), real(name))[1]  # noqa: E731
-    import pedscan_data.predict as module
-
-    module.pick_device = pr_pick
-    try:
-        both = tmp_path / "both.onnx"
-        code = pr.main([str(model), str(sample), "--out", str(tmp_path / "p"), "--export-onnx", str(both),
-                        "--onnx-grid", "8x32", "--device", "cpu"])
-    finally:
-        module.pick_device = real
+    monkeypatch.setattr(pr, "pick_device", lambda name: (asked.append(name), real(name))[1])
+    both = tmp_path / "both.onnx"
+    code = pr.main([str(model), str(sample), "--out", str(tmp_path / "p"), "--export-onnx", str(both),
+                    "--onnx-grid", "8x32", "--device", "cpu"])
     out = capsys.readouterr().out
     assert code == 0 and both.is_file() and asked == ["cpu"], (code, asked)
     assert f"wrote {both} (" in out and f"wrote 2 sequences to {tmp_path / 'p'}; " in out, out
