@@ -182,7 +182,7 @@ def validate(
     ms: list[float] = []
     for seq in sequences:
         margin, vel, frame_ms = predict_sequence(net, seq, device, first=score_from)
-        ms += frame_ms[1:]  # the first frame pays for warm-up
+        ms += frame_ms[1:] if len(frame_ms) > 1 else frame_ms  # the first frame pays for warm-up
         for t in range(score_from, seq.frames):
             r, truth, v = seq.read("range", t), seq.read("label", t) == 1, seq.read("velocity", t)
             for cut, report in zip(cuts, reports):

@@ -165,7 +165,10 @@ def test_paper_loss_counts_returned_beams_only_and_matches_a_hand_count() -> Non
                 se_bg += se
     expected = 10_000 * ce / n_valid + se_bg / n_valid + 1001 * se_h / n_valid
     assert float(loss) == pytest.approx(expected, rel=1e-5)
+    assert set(terms) == {"ce", "mse_bg", "mse_human"}
     assert terms["ce"] == pytest.approx(ce / n_valid, rel=1e-5)
+    assert terms["mse_bg"] == pytest.approx(se_bg / n_valid, rel=1e-5)
+    assert terms["mse_human"] == pytest.approx(se_h / n_valid, rel=1e-5)
 
     # Anything on the no-return beams changes nothing.
     logits2, velocity2, label2 = logits.clone(), velocity.clone(), label.clone()

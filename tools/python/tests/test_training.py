@@ -199,6 +199,15 @@ def test_training_refuses_bad_input_with_exit_2_and_writes_nothing(
 
     refused(empty, "--frames", "2", "--out", run, match=f"{empty}: no seq_*.h5")
     refused(sample, "--frames", "5", "--out", run, match="seq_000000.h5: 4 frames, shorter than")
+    # Every file's problem is named, one per line.
+    short = "4 frames, shorter than the network's window of 5"
+    refused(sample, "--frames", "5", "--out", run,
+            match=f"{sample}: \n  {sample / 'seq_000000.h5'}: {short}\n  {sample / 'seq_000001.h5'}: {short}\n")
+    # A grid the network cannot halve: rows alone off a multiple of 4 is refused too.
+    sensor = tmp_path / "six.toml"
+    sensor.write_text('name = "six"\nelevation_deg = [-10.0, -7.0, -4.0, -1.0, 2.0, 5.0]\ncolumns = 64\n')
+    six = generate(tmp_path / "six", "--sequences", "1", "--frames", "2", "--humans", "1..1", "--sensor", str(sensor))
+    refused(six, "--frames", "1", "--out", run, match="seq_000000.h5: a 6 x 64 grid; the network takes a multiple of 4 rows")
     refused(sample_minimal, "--frames", "1", "--out", run, match="no dataset /velocity")
     refused(sample, "--frames", "2", "--out", run, "--val", empty, match="no seq_*.h5")
     refused(sample, "--frames", "1", "--range-change", "--out", run, match="--range-change needs --frames 2 or more")
@@ -411,6 +420,26 @@ def test_calibration_is_counted_from_the_validation_frames_and_written_into_the_
     assert obj["training"] == {"steps": 0, "calibration": {**c, "score_from": 1, "val": ["seq_000000.h5", "seq_000001.h5"]}}
 
 
+def test_one_frame_sequences_validate_and_calibrate_a_model_with_or_without_a_training_record(
+    sample: Path, tmp_path: Path
+) -> None:
+    """A validation sequence needs only the frames it is scored on (one, for a one-frame
+    network); calibrating a model file that has no training record starts one."""
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    one = generate(tmp_path / "one", "--sequences", "1", "--frames", "1", "--humans", "3..3", "--seed", "4",
+                   "--sensor", str(tmp_path / "sensor.toml"))
+    run = tmp_path / "run"
+    assert run_train(sample, "--frames", "1", "--out", run, "--steps", "1", "--width", "4", "--val", one) == 0
+    obj = load_file(run / "model.pt")
+    assert obj["training"]["calibration"]["val"] == ["seq_000000.h5"] and 0 < obj["human_threshold"] < 1
+    assert last_validation(run)["ms_per_frame"] > 0  # timed, though no frame follows a warm-up
+    del obj["training"]
+    bare = tmp_path / "bare.pt"
+    torch.save(obj, bare)
+    c = tr.calibrate_model(bare, one, "cpu", 0)
+    assert load_file(bare)["training"] == {"calibration": {**c, "score_from": 0, "val": ["seq_000000.h5"]}}
+
+
 def test_a_training_step_gets_the_window_it_drew_with_intensity_when_the_network_takes_it(sample: Path) -> None:
     from pedscan_data.model import input_channels
     from pedscan_data.reader import Sequence
@@ -485,9 +514,17 @@ def test_an_intensity_network_trains_on_intensity_and_its_run_is_recorded(sample
     from pedscan_data.model import count_parameters, describe
 
     run = tmp_path / "run"
-    assert run_train(sample, "--frames", "2", "--out", run, "--steps", "2", "--width", "4", "--intensity") == 0
+    # Training on the CPU turns on PyTorch's deterministic algorithms (whatever was set before).
+    before = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(False)
+    try:
+        assert run_train(sample, "--frames", "2", "--out", run, "--steps", "2", "--width", "4", "--intensity") == 0
+        assert torch.are_deterministic_algorithms_enabled()
+    finally:
+        torch.use_deterministic_algorithms(before)
     net, obj = load_net(run)
     assert net.cfg.intensity and obj["net"]["intensity"] is True
+    assert net.cfg.width == 4 and obj["net"]["width"] == 4
     rj = json.loads((run / "run.json").read_text())
     assert rj["config"]["intensity"] is True
     assert rj["parameters"] == count_parameters(net) and rj["network"] == describe(net, 16, 512)
@@ -505,10 +542,28 @@ def test_progress_is_shown_unless_quiet_and_validation_comes_every_n_steps(
     monkeypatch.setattr(tr, "time", types.SimpleNamespace(perf_counter=lambda: float(next(clock))))
     common = ["--frames", "2", "--steps", "4", "--width", "4", "--log-every", "1", "--val", str(sample),
               "--val-every", "2", "--no-calibrate", "--workers", "0"]
+    titles: list[str] = []
+    plot = tr.plot_curves
+    monkeypatch.setattr(tr, "plot_curves", lambda m, path, title: (titles.append(title), plot(m, path, title)))
     capsys.readouterr()
     assert tr.main([str(sample), "--out", str(tmp_path / "a"), *common]) == 0
-    err = capsys.readouterr().err
-    assert "] 4/4 " in err and "step 2: validation IoU" in err and "step 4: validation IoU" in err, err
+    out, err = capsys.readouterr()
+    assert f"{tmp_path / 'a'}: 4 steps; model {tmp_path / 'a' / 'model.pt'}" in out, out
+    # A progress line at every step (the clock says a second has passed at each), drawn over
+    # the last one: a bar 30 wide, the step, the rate, the loss, the data wait and the time left.
+    import re
+
+    lines = err.split("\r")[1:]
+    assert len(lines) == 4, lines
+    for step, line in enumerate(lines, 1):
+        bar = int(30 * step / 4)
+        head = re.escape("[" + "#" * bar + "." * (30 - bar) + f"] {step}/4 ")
+        tail = r"\d+\.\d\d steps/s loss \S+ data wait \d+% eta \d+ min "
+        val = r"\n  step %d: validation IoU \d\.\d{4} \((\d\.\d{3} / ){2}\d\.\d{3} at 0-4/4-8/8\+ m\), EPE \d+\.\d{3} m/s\n" % step
+        end = "\n" if step == 4 else ""  # the bar's line closed when training ends
+        assert re.fullmatch(head + tail + (val if step % 2 == 0 else "") + end, line), (step, line)
+    # The curves are drawn at every checkpoint under the run's title.
+    assert titles and set(titles) == {"a: N=2, 2 training sequences"}, titles
     metrics = [json.loads(x) for x in (tmp_path / "a" / "metrics.jsonl").read_text().splitlines()]
     assert [m["step"] for m in metrics if m["kind"] == "val"] == [2, 4]
     shares = [m["data_wait_share"] for m in metrics if m["kind"] == "train"]
