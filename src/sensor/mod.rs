@@ -288,6 +288,31 @@ pub fn turn_of(x: f64, y: f64) -> f64 {
     0.5 * (1.0 - y.atan2(x) / std::f64::consts::PI)
 }
 
+/// `atan2(y, x)` in f32 from the Abramowitz-Stegun 4.4.49-style minimax polynomial on
+/// [0, 1] (max error 1e-5 rad before rounding; 1e-5 rad of azimuth is 0.2 microseconds of a
+/// 10 Hz sweep); result in [-pi, pi], on the same side of the cut as `atan2` but for y = -0,
+/// taken as +0 (straight behind is +pi).
+#[inline(always)]
+pub fn atan2_fast(y: f32, x: f32) -> f32 {
+    let ax = x.abs();
+    let ay = y.abs();
+    let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
+    let a = if den > 0.0 { num / den } else { 0.0 };
+    let s = a * a;
+    let mut r = ((((0.020_835_1 * s - 0.085_133) * s + 0.180_141) * s - 0.330_299_5) * s + 0.999_866) * a;
+    if ay > ax {
+        r = 0.5 * std::f32::consts::PI - r;
+    }
+    if x < 0.0 {
+        r = std::f32::consts::PI - r;
+    }
+    if y < 0.0 {
+        -r
+    } else {
+        r
+    }
+}
+
 /// Most rows a sensor may have.
 pub const MAX_ROWS: usize = 4096;
 
@@ -325,6 +350,18 @@ pub const CUBE_MAX_ELEVATION_DEG: f64 = 35.26;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On the axes and the diagonals `atan2_fast` is `atan2` to within its error, without
+    /// wrapping: straight behind (y = 0, x < 0) is +pi, as `atan2` has it for y = +0; unlike
+    /// `atan2` it takes y = -0 as +0.
+    #[test]
+    fn atan2_fast_takes_atan2s_side_of_the_cut() {
+        for (y, x) in [(0.0f32, 1.0f32), (1.0, 0.0), (0.0, -1.0), (-1.0, 0.0), (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (0.0, 0.0)] {
+            let (fast, exact) = (atan2_fast(y, x), y.atan2(x));
+            assert!((fast - exact).abs() < 1.2e-5, "atan2({y}, {x}) = {exact}, fast {fast}");
+        }
+        assert_eq!(atan2_fast(-0.0, -1.0), atan2_fast(0.0, -1.0));
+    }
 
     #[test]
     fn every_preset_is_a_valid_sensor_with_its_sources_rows() {

@@ -17,6 +17,7 @@
 //! the frame's edge (behind the sensor) is unwrapped around its centre, so it is seen whole at
 //! times just before the sweep instead of torn between its start and its end.
 
+use crate::sensor::atan2_fast;
 use glam::{DMat4, DVec3};
 
 /// The timing of one sweep.
@@ -358,52 +359,9 @@ pub fn boundary_times(firings: &[[f64; 2]], columns: usize) -> std::result::Resu
     Ok(out)
 }
 
-/// atan2 to within 1e-5 rad (a minimax polynomial on [0, 1] and the octant symmetries):
-/// 1e-5 rad of azimuth is 0.2 microseconds of a 10 Hz sweep.
-#[inline]
-pub fn atan2_fast(y: f32, x: f32) -> f32 {
-    let (ax, ay) = (x.abs(), y.abs());
-    let (lo, hi) = (ax.min(ay), ax.max(ay));
-    if hi == 0.0 {
-        return 0.0;
-    }
-    let t = lo / hi;
-    let t2 = t * t;
-    // atan(t) on [0, 1], max error ~1e-5 rad.
-    let mut r = t * (0.999_866 + t2 * (-0.330_299_5 + t2 * (0.180_141 + t2 * (-0.085_133 + t2 * 0.020_835_1))));
-    if ay > ax {
-        r = std::f32::consts::FRAC_PI_2 - r;
-    }
-    if x < 0.0 {
-        r = std::f32::consts::PI - r;
-    }
-    if y < 0.0 {
-        -r
-    } else {
-        r
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn atan2_fast_is_within_its_bound() {
-        let mut worst = 0.0f64;
-        for k in 0..100_000 {
-            let a = k as f64 * 0.000_062_831_9 - std::f64::consts::PI;
-            for r in [0.3f64, 7.0, 80.0] {
-                let (y, x) = ((r * a.sin()) as f32, (r * a.cos()) as f32);
-                let want = (y as f64).atan2(x as f64);
-                let mut d = (super::atan2_fast(y, x) as f64 - want).abs();
-                d = d.min((d - std::f64::consts::TAU).abs());
-                worst = worst.max(d);
-            }
-        }
-        assert!(worst < 2e-5, "{worst}");
-    }
-
 
     /// A sensor turning at w (counter-clockwise) sees a static point at world azimuth a0
     /// where its clockwise sweep meets the point's apparent azimuth a0 - w t: at column

@@ -38,6 +38,7 @@ use crate::backend::triangle::{better, intersect_pre, Hit, RayPre};
 use crate::geometry::FrameGeometry;
 use glam::DVec3;
 use rayon::prelude::*;
+use crate::sensor::atan2_fast;
 use std::f32::consts::PI as PI32;
 
 /// Triangles per parallel job.
@@ -50,29 +51,6 @@ const MIN_JOBS: usize = 16;
 const AZIMUTH_MARGIN_RAD: f32 = 4e-5;
 /// Margin on `sin(elevation)` for the f32 normalisation of the vertices.
 const SIN_MARGIN: f32 = 4e-6;
-
-/// `atan2(y, x)` in f32 from the Abramowitz-Stegun 4.4.49-style minimax polynomial on
-/// [0, 1] (max error 1e-5 rad before rounding); result in [-pi, pi].
-#[inline(always)]
-pub(crate) fn atan2_fast(y: f32, x: f32) -> f32 {
-    let ax = x.abs();
-    let ay = y.abs();
-    let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
-    let a = if den > 0.0 { num / den } else { 0.0 };
-    let s = a * a;
-    let mut r = ((((0.020_835_1 * s - 0.085_133) * s + 0.180_141) * s - 0.330_299_5) * s + 0.999_866) * a;
-    if ay > ax {
-        r = 0.5 * PI32 - r;
-    }
-    if x < 0.0 {
-        r = PI32 - r;
-    }
-    if y < 0.0 {
-        -r
-    } else {
-        r
-    }
-}
 
 /// A triangle's conservative bound in the beam grid ([`BeamCaster::bounds`]): columns
 /// `c0..=c1` (they may run past the last column or below 0: wrap them with
