@@ -534,6 +534,11 @@ mod tests {
         f[0][0] = 0.9999;
         let b = boundary_times(&f, 1024).unwrap();
         assert!(b.windows(2).all(|w| w[1] > w[0]));
+        // A firing repeated at the same azimuth a little later (a second return's packet) is
+        // the same firing: the table does not change.
+        let mut twice = f.clone();
+        twice.insert(1801, [twice[1800][0], twice[1800][1] + 0.5e-3]);
+        assert_eq!(boundary_times(&twice, 1024).unwrap(), b);
         for (c, t) in b.iter().enumerate() {
             assert!((t - two_speeds(c as f64 / 1024.0)).abs() < 1e-3, "boundary {c}: {t}");
         }
@@ -551,6 +556,19 @@ mod tests {
             x[1] += 0.5;
         }
         assert!(boundary_times(&jump, 1024).unwrap_err().contains("jump"));
+        // Lost packets over a twentieth of the turn take the time of the turn they miss (or
+        // twice that, at half the speed): kept. The clock jumping over them by ten times the
+        // median rate's time for that turn is refused.
+        let steady = |gap_factor: f64| {
+            let mut f: Vec<[f64; 2]> = (0..=3600).map(|n| n as f64 / 3600.0).map(|a| [a.rem_euclid(1.0), 0.1 * a]).collect();
+            f.retain(|x| !(0.4 < x[0] && x[0] < 0.45));
+            for x in f.iter_mut().filter(|x| x[1] > 0.0425) {
+                x[1] += (gap_factor - 1.0) * 0.1 * 0.05;
+            }
+            boundary_times(&f, 1024)
+        };
+        assert!(steady(1.0).is_ok() && steady(2.0).is_ok());
+        assert!(steady(10.0).unwrap_err().contains("jump"));
         let part: Vec<[f64; 2]> = firings(two_speeds)[..1000].to_vec();
         assert!(boundary_times(&part, 1024).unwrap_err().contains("cover"));
         let mut nan = firings(two_speeds);
