@@ -576,6 +576,19 @@ mod tests {
         assert!(apart <= (64 << 20).max(df / 100), "free_bytes {ours} against df's {df}");
     }
 
+    /// A raw chunk lands where it is written, and a write libhdf5 refuses (a frame past the
+    /// dataset's extent) is an error, not a silent success.
+    #[test]
+    fn a_raw_chunk_is_written_in_place_or_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = hdf5::File::create(dir.path().join("c.h5")).unwrap();
+        let ds = file.new_dataset::<u8>().shape([2, 3]).chunk([1, 3]).create("d").unwrap();
+        write_chunk(&ds, 1, &[7, 8, 9]).unwrap();
+        assert_eq!(ds.read_raw::<u8>().unwrap(), vec![0, 0, 0, 7, 8, 9]);
+        let e = write_chunk(&ds, 5, &[1, 2, 3]).unwrap_err();
+        assert_eq!(e, "H5Dwrite_chunk failed (3 bytes)");
+    }
+
     #[test]
     fn shuffle_matches_hdf5_layout() {
         let src: Vec<u8> = (0..12).collect();

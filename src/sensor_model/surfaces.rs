@@ -405,6 +405,18 @@ mod tests {
         (vec![[x, -1.0, -1.0], [x, 1.0, -1.0], [x, 1.0, 1.0], [x, -1.0, 1.0]], vec![0, 2, 1, 0, 3, 2])
     }
 
+    /// The incidence on a triangle: |cos| against its normal whichever way it faces, and for a
+    /// triangle of no area (no normal) head-on with a zero normal, not NaN.
+    #[test]
+    fn incidence_is_the_cosine_to_the_normal_and_head_on_without_one() {
+        let mut g = FrameGeometry::default();
+        g.push_mesh(&[[2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [2.0, 0.0, 1.0], [3.0, 0.0, 0.0], [3.0, 1.0, 1.0], [3.0, 2.0, 2.0]], &[0, 1, 2, 3, 4, 5], 1, false);
+        let dir = DVec3::new(3.0, 4.0, 0.0) / 5.0;
+        let (cos, n) = cos_incidence(&g, 0, dir);
+        assert!((cos - 0.6).abs() < 1e-6 && (n.x.abs() - 1.0).abs() < 1e-6 && n.y == 0.0 && n.z == 0.0, "{cos} {n}");
+        assert_eq!(cos_incidence(&g, 1, dir), (1.0, glam::Vec3::ZERO));
+    }
+
     /// Each beam's surface takes the reflectance its person drew for the region of the very
     /// triangle it hit, counted within that person's own mesh (the second person's triangles
     /// come after the first's in the frame); the background's comes from its mesh, and a
