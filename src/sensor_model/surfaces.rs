@@ -621,6 +621,17 @@ mod tests {
         // A long sliver from one side to the other crosses every ray's plane: it stays.
         let across = [d * 10.0 + e_az * 0.05 + e_el * 0.0005, d * 10.0 - e_az * 0.05 + e_el * 0.0005, d * 10.0 - e_az * 0.05 - e_el * 0.0005];
         assert!(!outside(&across));
+        // Without divergence along one axis every ray lies in one plane (level, or upright
+        // straight ahead, so exactly): a triangle that reaches a few nanometres past that plane
+        // still crosses the rays.
+        for (az, el, divergence, across) in [(0.4, 0.0, [3.0, 0.0], DVec3::Z), (0.0, 0.3, [0.0, 3.0], DVec3::Y)] {
+            let fan = crate::sensor_model::footprint_dirs(az, el, divergence);
+            let d = fan[0];
+            let along = d.cross(across).normalize();
+            let near = d * 10.0 - across * 5e-9;
+            let grazing = [near + along * 0.001, near - along * 0.001, d * 10.0 + across * 0.001];
+            assert!(!outside_footprint(&fan)(&grazing), "divergence {divergence:?}");
+        }
     }
 
     /// A beam at the wall's edge with no neighbour across a silhouette: the wall is continuous
