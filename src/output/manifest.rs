@@ -332,13 +332,15 @@ mod tests {
         let out = dir.path();
         Manifest::append(out, &entry(out, 0, "a")).unwrap();
         Manifest::append(out, &entry(out, 1, "a")).unwrap();
+        let r = verify_dir(out).unwrap();
+        assert!(r.ok() && r.notes.is_empty(), "one configuration, nothing to note: {r}");
         Manifest::append(out, &entry(out, 0, "b")).unwrap();
         let m = Manifest::load(out).unwrap();
         assert_eq!((m.lines, m.latest.len()), (3, 2));
         assert_eq!(m.latest[&0].config_hash, "b");
         let r = verify_dir(out).unwrap();
         assert!(r.ok(), "{r}");
-        assert_eq!(r.notes.len(), 1, "two configurations: {r}");
+        assert_eq!(r.notes, ["sequences of 2 configurations (a, b)"], "two configurations: {r}");
         let files: usize = m.latest.values().map(|e| e.files.len()).sum();
         let bytes: u64 = m.latest.values().flat_map(|e| &e.files).map(|f| f.bytes).sum();
         assert!(files > 0 && bytes > 0);
