@@ -403,6 +403,10 @@ mod tests {
         // The rigid model also subtracted w x p: added back.
         let e = ego_velocity(&pose, [0.0; 3], 0.5, true, [2.0, 0.0, 0.0]);
         assert!((e[1] - 1.0).abs() < 1e-6 && e[0].abs() < 1e-6, "{e:?}");
+        // Every component of the ego term is added back: a static return seen while the sensor
+        // moves sideways and down is grey too.
+        let img = velocity_png(&[5.0], &[[0.0, -2.0, 0.5]], |_| [0.0, 2.0, -0.5], 1, 1, 3.0, 1);
+        assert_eq!(img.get_pixel(0, 0).0, hsv(0.0, 0.0, 0.25));
     }
 
     #[test]
@@ -413,6 +417,12 @@ mod tests {
         // +x forward is up, +y left is left.
         assert_eq!(img.get_pixel(c as u32, (c - 10.0 * s) as u32).0, instance_colour(1));
         assert_eq!(img.get_pixel((c - 10.0 * s) as u32, c as u32).0, [150, 150, 150]);
+        // A person's return away from any person's mark is drawn in its colour, two pixels wide.
+        let img = bev_png(&[[0.0, -10.0, 0.0]], &[10.0], &[2], &[], [0.0; 3]);
+        let (u, v) = ((c + 10.0 * s) as u32, c as u32);
+        for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            assert_eq!(img.get_pixel(u + du, v + dv).0, instance_colour(2), "+({du}, {dv})");
+        }
     }
 
     #[test]
@@ -604,6 +614,12 @@ mod tests {
         let g = (40.0 + 215.0 * (49.0f32 / 99.0)) as u8;
         assert_eq!(img.get_pixel(49, 0).0, [g, g, g]);
         assert_eq!(img.get_pixel(150, 0).0, [0, 0, 0], "no return: black");
+        // Of 200 returns the 99th percentile is the 199th smallest (index 198), not the largest.
+        let many: Vec<f32> = (0..200).map(|c| 3.0 * c as f32 / 198.0).collect();
+        let img = intensity_png(&many, &[10.0; 200], 1, 200, 1);
+        assert_eq!(img.get_pixel(198, 0).0, [255, 255, 255]);
+        let g = (40.0 + 215.0 * (3.0 * 99.0 / 198.0) / 3.0f32) as u8;
+        assert_eq!(img.get_pixel(99, 0).0, [g, g, g]);
         let mut instance = vec![0u16; cols];
         instance[3] = 2;
         let lab = label_png(&range, &instance, rows, cols, 50.0, 1);
