@@ -384,6 +384,7 @@ fn xml_is_well_formed_and_matches_the_frames() {
     let mut beams_in_frame: Vec<u32> = Vec::new();
     let mut models = Vec::new();
     let mut depth = 0;
+    let mut provenance = 0;
     loop {
         let ev = r.read_event().unwrap();
         let (e, empty) = match &ev {
@@ -442,6 +443,7 @@ fn xml_is_well_formed_and_matches_the_frames() {
                 }
             }
             "provenance" => {
+                provenance += 1;
                 // Escaped on write, unescaped on read: the values round-trip.
                 assert_eq!(attr(&e, "background"), "recording <a&b>.pcap");
                 assert_eq!(attr(&e, "first_frame"), "7");
@@ -451,6 +453,7 @@ fn xml_is_well_formed_and_matches_the_frames() {
     }
     assert_eq!(depth, 0);
     assert_eq!(frames_seen, 3);
+    assert_eq!(provenance, 1, "one <provenance> element");
     assert_eq!(models, m.humans.iter().map(|h| h.model.clone()).collect::<Vec<_>>());
 }
 
