@@ -1050,6 +1050,12 @@ mod tests {
             (lo, hi) = (lo.min(s), hi.max(s));
         }
         assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
+        // People walk on the floor's height.
+        let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75 };
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &raised).unwrap();
+        for p in &plan.humans {
+            assert!(matches!(p.trajectory, HumanPath::Walk(..)) && p.trajectory.position(1.0).z == 0.75, "{:?}", p.trajectory);
+        }
         // The sensor's heading is drawn over the whole circle.
         use std::f64::consts::PI;
         let headings: Vec<f64> = (0..40)
