@@ -933,6 +933,14 @@ mod tests {
         let window = PoseTrack::from_poses(&times, &poses, 1..3);
         assert_eq!(window.times_s, vec![0.0, 0.25 - 0.1]);
         assert!((window.velocity_mps[0] - all.velocity_mps[1]).length() < 1e-15, "a window uses the poses just outside it");
+        // A sensor path gives the same velocity as its poses, and an arc's is its position's
+        // derivative.
+        let path = SensorPath::Poses(all.clone());
+        assert!((path.velocity(times[2]) - all.velocity_mps[2]).length() < 1e-12);
+        let arc = SensorPath::Arc(Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 1.7, heading0_rad: 0.3, speed_mps: 1.2, yaw_rate_rps: 0.4 });
+        let h = 1e-6;
+        let numeric = (arc.position(0.8 + h) - arc.position(0.8 - h)) / (2.0 * h);
+        assert!((arc.velocity(0.8) - numeric).length() < 1e-6 && arc.velocity(0.8).length() > 1.0, "{}", arc.velocity(0.8));
     }
 
     /// Between recorded poses: the translation linear, the rotation by slerp (about one axis:
@@ -1000,6 +1008,22 @@ mod tests {
                 assert!((0.5..=0.6).contains(&h.arm_swing) && h.stride_m > 0.0, "seed {seed}: {h:?}");
             }
         }
+        // Tracks longer than the sequence: its window starts anywhere they all cover it, and
+        // a person's stride is the model's for the track's mean speed (1 m/s).
+        let long = [walk(1, 0.0, 100), walk(2, 8.0, 100)];
+        let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0 };
+        let starts: Vec<f64> = (0..30)
+            .map(|seed| {
+                let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp_long).unwrap();
+                let HumanPath::Track(p) = &plan.humans[0].trajectory else { panic!("not a track") };
+                for h in &plan.humans {
+                    assert!((h.stride_m - model.gait_stride_m(1.0)).abs() < 1e-6, "seed {seed}: stride {}", h.stride_m);
+                }
+                p.t0_s
+            })
+            .collect();
+        let (a, b) = (starts.iter().copied().fold(f64::INFINITY, f64::min), starts.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        assert!(a >= 0.0 && b <= 9.9 - 3.1 + 1e-9 && b - a > 4.0, "windows start within {a}..{b}");
         // No person is asked for: a window without people is a plan.
         let mut none = cfg.clone();
         none.humans.count = [0, 0];
@@ -1129,6 +1153,10 @@ mod tests {
         let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
         assert_eq!(a, b);
         assert!((3..=5).contains(&a.humans.len()));
+        let mut seen: Vec<usize> = (0..30).map(|seed| sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap().humans.len()).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen, vec![3, 4, 5], "every count in humans.count and only those");
         assert_eq!(a.times_s.len(), 32);
         for t in &a.times_s {
             for (i, h) in a.humans.iter().enumerate() {
