@@ -189,6 +189,12 @@ def export_onnx(
     return diff
 
 
+def after_warm_up(ms: list[float]) -> list[float]:
+    """A sequence's per-frame times without its first, which pays for warm-up, unless it is
+    the only one."""
+    return ms[1:] if len(ms) > 1 else ms
+
+
 def predict(
     model: str | os.PathLike[str], data: str | os.PathLike[str], out: Path, fmt: str = "h5",
     device: str = "auto", first: int = 0, quiet: bool = False,
@@ -212,7 +218,7 @@ def predict(
     for k, seq in enumerate(sequences):
         margin, velocity, ms = predict_sequence(net, seq, dev, first=first)
         labels = (margin > cut).astype(np.uint8)
-        all_ms += ms[1:] if len(ms) > 1 else ms  # the first frame pays for warm-up
+        all_ms += after_warm_up(ms)
         if fmt == "h5":
             write_h5(
                 out / seq.path.name, labels, velocity,

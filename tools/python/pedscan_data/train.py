@@ -175,14 +175,14 @@ def validate(
     """Per margin cut (0: the softmax's argmax), IoU per distance bin and the human velocity
     EPE on frames ``score_from`` onwards; one pass of the network serves every cut."""
     from .evaluate import Report, _score_frame
-    from .predict import predict_sequence
+    from .predict import after_warm_up, predict_sequence
 
     reports = [Report("validation", "network", "network", sequences=len(sequences), velocity=True) for _ in cuts]
     net.eval()
     ms: list[float] = []
     for seq in sequences:
         margin, vel, frame_ms = predict_sequence(net, seq, device, first=score_from)
-        ms += frame_ms[1:] if len(frame_ms) > 1 else frame_ms  # the first frame pays for warm-up
+        ms += after_warm_up(frame_ms)
         for t in range(score_from, seq.frames):
             r, truth, v = seq.read("range", t), seq.read("label", t) == 1, seq.read("velocity", t)
             for cut, report in zip(cuts, reports):
