@@ -432,6 +432,19 @@ mod tests {
         }
     }
 
+    /// Nor do two sequences: every (sequence, frame) pair of a run, the sequences' own streams
+    /// (`frame = u64::MAX`) included, starts its own stream (frame 0 of every sequence too).
+    #[test]
+    fn no_two_sequences_share_a_random_stream() {
+        for seed in [0, 7, !0x5e75_0a3d_e1ed_0001u64] {
+            let mut firsts: Vec<u64> =
+                (0..8u64).flat_map(|sequence| (0..16u64).chain([u64::MAX]).map(move |frame| stream(seed, sequence, frame).next_u64())).collect();
+            firsts.sort_unstable();
+            firsts.dedup();
+            assert_eq!(firsts.len(), 8 * 17, "seed {seed:#x}: two (sequence, frame) pairs share a stream");
+        }
+    }
+
     /// The bundled people's MakeHuman joint names, region by region as the doc comment gives
     /// them; the match ignores case and any side or number suffix.
     #[test]
@@ -510,6 +523,11 @@ mod tests {
         let range = far.iter().map(|&x| p(x) * x.0).sum::<f64>() / far.iter().map(|&x| p(x)).sum::<f64>();
         assert!((s.range_m - range).abs() < 1e-12, "{}", s.range_m);
         assert!((share as f64 - 1.35 / 7.0).abs() < 1e-6, "{share}");
+        // A farther group wins where it holds more power: one dark ray at 10 m (0.05 / 100)
+        // against two bright ones at 12 m (2 x 0.81 / 144).
+        let (s, _) = combine(&mut [surface(12.02, 0, 0.9, 0.9), surface(10.0, 3, 0.1, 0.5), surface(12.0, 0, 0.9, 0.9)], 0.1).unwrap();
+        assert_eq!(s.instance, 0);
+        assert!((s.range_m - 12.01).abs() < 1e-3, "{}", s.range_m);
         // Nothing met: no return.
         assert!(combine(&mut [], 0.1).is_none());
         // A group of no power (black surfaces) is at its rays' mean range.
@@ -519,6 +537,25 @@ mod tests {
         // at equal ranges), so the choice does not depend on anything but the rays.
         let (s, _) = combine(&mut [surface(10.0, 1, 0.5, 0.5), surface(10.0, 2, 0.5, 0.5)], 0.1).unwrap();
         assert_eq!(s.instance, 1);
+    }
+
+    /// `is_step` on a concave corner seen across rows: the upper beam (2 degrees up) meets a
+    /// wall 10 m ahead, the lower (2 degrees down) the floor 0.2 m below, 5.7 m out. The
+    /// floor's plane lies behind the upper beam (infinitely far along it), the wall's 10 m
+    /// along the lower one: the two differences have opposite signs, so a fold, not a step.
+    /// Lifted 0.3 m off the floor the lower surface is a table before the wall: a step.
+    #[test]
+    fn a_plane_behind_a_beam_is_infinitely_far_along_it() {
+        let dir = |deg: f64| DVec3::new(deg.to_radians().cos(), 0.0, deg.to_radians().sin());
+        let (up, down) = (dir(2.0), dir(-2.0));
+        let wall = Surface { range_m: 10.0 / up.x, instance: 0, reflectance: 0.5, cos_incidence: 1.0, rendered: true, normal: glam::Vec3::X };
+        let floor = Surface { range_m: 0.2 / -down.z, normal: glam::Vec3::Z, ..wall };
+        assert!(floor.range_m * down.x < 6.0);
+        assert!(!is_step(&wall, up, &floor, down, 0.5));
+        assert!(!is_step(&floor, down, &wall, up, 0.5), "symmetric");
+        // A table top facing the lower beam (normal along x): both planes stay apart.
+        let table = Surface { range_m: floor.range_m, normal: glam::Vec3::X, ..wall };
+        assert!(is_step(&wall, up, &table, down, 0.5));
     }
 
     /// A beam's neighbours across a silhouette, from the pair bits (bit 0: a silhouette between

@@ -301,6 +301,10 @@ fn footprint_edges_between_rows_and_inside_the_environment() {
     // A recorded background carries its own edges.
     let recorded: Vec<Option<Surface>> = step.iter().map(|s| s.map(|s| Surface { rendered: false, ..s })).collect();
     assert!(!flagged(&recorded), "recorded beams are never re-modelled");
+    // Nor is a recorded beam beside one with no return (the recording's own dropout).
+    let mut recorded_open = recorded.clone();
+    recorded_open[b - w] = None;
+    assert!(!flagged(&recorded_open), "a recorded beam beside no return");
 }
 
 /// Depth steps in the hall (tables, a pillar before a wall): every beam whose footprint holds
@@ -430,6 +434,19 @@ fn the_platform_hides_what_lies_behind_it() {
     // A recorded background carries its own platform: untouched.
     let rec = run(&f, &cfg, &vec![Some(at(false)); f.dirs.len()], &draws, &scene, 0);
     assert!(rec.iter().all(|o| o.range_m == 10.0));
+    // A surface on a box's face (the mount itself) is not behind it: kept, at its range.
+    let entry = |d: glam::DVec3| boxes.iter().filter_map(|x| x.entry(d)).fold(f64::INFINITY, f64::min);
+    let on_face: Vec<_> = f.dirs.iter().map(|&d| Some(Surface { range_m: entry(d).min(10.0), ..at(true) })).collect();
+    let kept = run(&f, &cfg, &on_face, &draws, &scene, 0);
+    let mut on_a_face = 0;
+    for (b, (o, s)) in kept.iter().zip(&on_face).enumerate() {
+        let r = s.unwrap().range_m;
+        if r >= f.sensor.min_range_m && r < 10.0 {
+            assert_eq!(o.range_m, r as f32, "beam {b}: a surface on the platform's face");
+            on_a_face += 1;
+        }
+    }
+    assert!(on_a_face > 500, "{on_a_face} beams end on a face");
     // A box around the sensor, or an empty one, is refused by name.
     for (b, needle) in [
         (PlatformBox { min_m: [-1.0, -1.0, -1.0], max_m: [1.0, 1.0, 1.0] }, "holds the sensor"),
