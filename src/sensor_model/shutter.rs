@@ -419,6 +419,10 @@ mod tests {
             let t = s.time_at(s.unwrap_near(s.u_of(10.0 + a.cos(), a.sin()), u));
             assert!(t > ta + 0.5 * col && t < tb - 0.5 * col, "{k} deg: {t}");
         }
+        // 1.5 m away, 1 m in radius: near, but not holding the sensor (asin(2/3) each way).
+        let (ta, tb, u) = s.span_of_sphere(DVec3::new(-1.5, 0.0, 0.0), 1.0);
+        let du = (2.0f64 / 3.0).asin() / std::f64::consts::TAU * 1000.0;
+        assert!((ta - s.time_at(u - du - 1.0)).abs() < 1e-12 && (tb - s.time_at(u + du + 1.0)).abs() < 1e-12, "{ta} {tb}");
         // Holding the sensor: half a turn each way, plus the margin.
         for centre in [DVec3::new(0.5, 0.2, 0.0), DVec3::new(0.0, -0.999, 0.0)] {
             let (ta, tb, u) = s.span_of_sphere(centre, 1.0);
@@ -479,9 +483,13 @@ mod tests {
     /// A 2 m segment 4 m straight ahead moving right (toward later columns) at `speed`, warped
     /// over `s`: its points at time 0, its velocity and its warped vertices.
     fn warped_segment(s: &Sweep, speed: f64) -> (Vec<DVec3>, DVec3, Vec<DVec3>) {
+        warped_segment_at(s, speed, DVec3::new(4.0, 0.0, 0.2))
+    }
+
+    /// [`warped_segment`] centred on `centre`, along y.
+    fn warped_segment_at(s: &Sweep, speed: f64, centre: DVec3) -> (Vec<DVec3>, DVec3, Vec<DVec3>) {
         let v = DVec3::new(0.0, -speed, 0.0);
-        let rest: Vec<DVec3> = (0..21).map(|k| DVec3::new(4.0, -1.0 + 0.1 * k as f64, 0.2)).collect();
-        let centre = DVec3::new(4.0, 0.0, 0.2);
+        let rest: Vec<DVec3> = (0..21).map(|k| centre + DVec3::new(0.0, -1.0 + 0.1 * k as f64, 0.0)).collect();
         let (ta, tb, u_c) = s.span_of_sphere(centre, 1.0);
         let at = |t: f64| rest.iter().map(|p| (*p + v * t).as_vec3().to_array()).collect::<Vec<_>>();
         let mut a = at(ta);
@@ -506,6 +514,32 @@ mod tests {
             worst_uniform = worst_uniform.max((q - (rest[k] + v * uniform.time_at(u))).length());
         }
         assert!(worst_uniform > 0.02, "the table's times differ from the uniform sweep's: {worst_uniform}");
+        // Straight behind, across the cut: the table runs from before column 0 (the mean
+        // rate beyond the ends) to past it, and each vertex's column is unwrapped near the
+        // centre's.
+        let centre = DVec3::new(-4.0, 0.1, 0.2);
+        let (rest, v, warped) = warped_segment_at(&s, 3.0, centre);
+        let u_c = s.u_of(centre.x, centre.y);
+        assert!(u_c < 10.0 && warped.iter().any(|q| s.u_of(q.x, q.y) > 1000.0), "the segment crosses the cut");
+        for (k, &q) in warped.iter().enumerate() {
+            let want = rest[k] + v * s.time_at(s.unwrap_near(s.u_of(q.x, q.y), u_c));
+            assert!((q - want).length() < 1.5e-3, "vertex {k} behind: {q:?} vs {want:?}");
+        }
+    }
+
+    /// Nothing to warp between (no keys, or a span of no time): the vertices stay as given.
+    #[test]
+    fn warp_without_keys_or_time_leaves_the_vertices() {
+        let s = Sweep::uniform(0.0, 0.1, 1024);
+        let a0 = vec![[4.0f32, -0.5, 0.2], [4.0, 0.5, 0.2]];
+        let mut a = a0.clone();
+        s.warp_keys(&mut a, &[] as &[Vec<[f32; 3]>], 0.04, 0.06, 512.0);
+        assert_eq!(a, a0);
+        let b = vec![[4.0f32, -0.4, 0.2], [4.0, 0.6, 0.2]];
+        for (ta, tb) in [(0.05, 0.05), (0.06, 0.04)] {
+            s.warp_between(&mut a, &b, ta, tb, 512.0);
+            assert_eq!(a, a0, "span {ta}..{tb}");
+        }
     }
 
     /// Firings of a turn whose first half takes 60 ms and second 30 ms, every 0.1 degree.
