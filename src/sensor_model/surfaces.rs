@@ -594,6 +594,64 @@ mod tests {
         // A neighbour seeing something nearer (the person) may cover part of it: not settled.
         out[1..].fill(None);
         assert!(!s.footprint_on_own_surface(1, &[0], &dirs, &mut out));
+        // Inside the person (0.1 rad left of its edge), its neighbour across the silhouette
+        // sees the wall, farther: settled on the person's plane.
+        let dirs = crate::sensor_model::footprint_dirs(0.1, 0.0, [3.0, 3.0]);
+        let mut out = [None; FOOTPRINT_RAYS];
+        out[0] = s.clean(0, 3.0, 1);
+        assert!(s.footprint_on_own_surface(0, &[1], &dirs, &mut out));
+        for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+            let o = o.expect("the person");
+            assert!(o.instance == 1 && (o.range_m - 3.0 / d.x).abs() < 1e-9, "ray {k}: {o:?}");
+        }
+    }
+
+    /// A person's surface folded over itself: a triangle facing the sensor at x = 3 and, over
+    /// its left edge, a neighbour folded back in front of it (x = 2.75 on the beam) that faces
+    /// away. A person's triangles are one-sided, as the casters see them: the footprint is
+    /// settled on the front triangle's plane; the back face in front of it is not met.
+    #[test]
+    fn a_persons_back_face_in_a_footprint_is_not_met() {
+        let mut e = EdgeScene::new();
+        let verts = [[3.0, -2.0, -2.0], [3.0, 0.0, 2.0], [3.0, 2.0, -2.0], [2.5, 0.5, -1.0]];
+        e.humans = FrameGeometry::default();
+        let indices = [0, 1, 2, 0, 3, 1];
+        e.humans.push_mesh_with_adjacency(&verts, &indices, 1, false, Some(std::sync::Arc::new(crate::geometry::Adjacency::build(&indices))));
+        assert_eq!(e.humans.neighbours(0).collect::<Vec<_>>(), [1], "the fold is in the front triangle's one-ring");
+        e.human_hits = BeamHits { range_m: vec![3.0, 0.0], triangle: vec![0, crate::backend::NO_TRIANGLE] };
+        let s = e.scene();
+        let dirs = crate::sensor_model::footprint_dirs(0.0, 0.0, [3.0, 3.0]);
+        // The fold's plane crosses every ray in front of the front triangle.
+        let fold = DVec3::new(8.0, 2.0, -1.0);
+        assert!(dirs.iter().all(|&d| on_plane(fold, DVec3::new(3.0, -2.0, -2.0).normalize(), DVec3::new(3.0, -2.0, -2.0).length(), d) < 3.0 / d.x));
+        let mut out = [None; FOOTPRINT_RAYS];
+        out[0] = s.clean(0, 3.0, 1);
+        assert!(s.footprint_on_own_surface(0, &[], &dirs, &mut out));
+        for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+            let o = o.expect("the front triangle");
+            assert!((o.range_m - 3.0 / d.x).abs() < 1e-9, "ray {k}: {}", o.range_m);
+        }
+    }
+
+    /// Over a recorded background, a footprint ray off the person meets the beam's recorded
+    /// return, and nothing where the recording has none there (range 0).
+    #[test]
+    fn a_recorded_beam_without_a_return_gives_the_footprint_no_background() {
+        let e = EdgeScene::new();
+        let dirs = crate::sensor_model::footprint_dirs(0.0, 0.0, [20.0, 20.0]);
+        for (recorded, want) in [([7.0f32, 7.0], Some(7.0)), ([0.0, 7.0], None)] {
+            let s = SceneSurfaces { recorded: Some(&recorded), ..e.scene() };
+            let mut out = [None; FOOTPRINT_RAYS];
+            out[0] = s.clean(0, 3.0, 1);
+            s.cast_footprint(0, &[1], &dirs, &mut out);
+            for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+                if d.y > 0.0 {
+                    assert_eq!(o.map(|o| o.instance), Some(1), "ray {k}");
+                } else {
+                    assert_eq!(o.map(|o| (o.range_m, o.instance, o.rendered)), want.map(|r| (r, 0, false)), "ray {k}");
+                }
+            }
+        }
     }
 
     /// The footprint's pyramid excludes a triangle only when it lies wholly beyond one face or
