@@ -555,6 +555,14 @@ mod tests {
             }
         }
         assert_eq!((person, wall), (3, 3));
+        // A hit naming no triangle of the frame (past its last) counts as no hit: the same
+        // footprint as with the neighbour's miss.
+        let mut stale = EdgeScene::new();
+        stale.human_hits.triangle[1] = 7;
+        let mut again = [None; FOOTPRINT_RAYS];
+        again[0] = out[0];
+        stale.scene().cast_footprint(0, &[1], &dirs, &mut again);
+        assert_eq!(again, out);
     }
 
     /// Under a sensor that turns during the sweep, the wall's plane behind beam 1 has the
