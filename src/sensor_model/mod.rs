@@ -445,6 +445,80 @@ mod tests {
         }
     }
 
+    /// Nor do two seeds: for a given (sequence, frame), every seed starts its own stream (a
+    /// run's seed is what makes its data differ from another run's).
+    #[test]
+    fn no_two_seeds_share_a_random_stream() {
+        for (sequence, frame) in [(0, 0), (3, 17), (1, u64::MAX)] {
+            let mut firsts: Vec<u64> = (0..64u64).chain([u64::MAX, u64::MAX - 1, 1 << 63]).map(|seed| stream(seed, sequence, frame).next_u64()).collect();
+            firsts.sort_unstable();
+            firsts.dedup();
+            assert_eq!(firsts.len(), 67, "sequence {sequence}, frame {frame}: two seeds share a stream");
+        }
+    }
+
+    /// The draws behind a frame, as documented: a sequence's laser biases are its own stream's
+    /// first normal draws, one per row, times `laser_bias_m`; row r of frame k draws from
+    /// frame k's stream set to stream r, three numbers per beam in column order (the dropout's
+    /// uniform, then the noise's normal from two uniforms), and the range is the surface's
+    /// plus the row's bias plus `range_noise_m` times that normal. The same seed gives the
+    /// same bytes from one version to the next only while this order holds.
+    #[test]
+    fn a_beams_noise_is_its_rows_stream_drawn_in_column_order() {
+        struct NoFootprint;
+        impl FootprintScene for NoFootprint {
+            fn cast_footprint(&self, _: usize, _: &[usize], _: &[DVec3; FOOTPRINT_RAYS], _: &mut [Option<Surface>; FOOTPRINT_RAYS]) {}
+        }
+        let (rows, columns) = (3, 8);
+        let cfg = SensorModelConfig {
+            range_noise_m: 0.05,
+            laser_bias_m: 0.02,
+            dropout_rate: 0.0,
+            detection_softness: 0.0,
+            detection_range_m: 1e4,
+            divergence_mrad: [0.0, 0.0],
+            ..SensorModelConfig::on()
+        };
+        let (seed, sequence, frame) = (11u64, 2usize, 5usize);
+        let draws = SequenceDraws::draw(&cfg, seed, sequence, rows, 0);
+        let mut rng = stream(seed, sequence as u64, u64::MAX);
+        for r in 0..rows {
+            assert_eq!(draws.bias_m[r], 0.02 * gaussian(&mut rng), "row {r}'s bias");
+        }
+        let dirs = vec![DVec3::X; rows * columns];
+        let el = vec![0.0; rows];
+        let az: Vec<f64> = (0..columns).map(|c| c as f64 * 0.01).collect();
+        let clean = vec![Some(Surface { range_m: 10.0, instance: 0, reflectance: 0.5, cos_incidence: 1.0, rendered: true, normal: glam::Vec3::X }); rows * columns];
+        let input = FrameIn {
+            cfg: &cfg,
+            dirs: &dirs,
+            columns,
+            elevation_rad: &el,
+            azimuth_rad: &az,
+            min_range_m: 0.5,
+            max_range_m: 100.0,
+            clean: &clean,
+            draws: &draws,
+            intensity_scale: 1.0,
+            recorded_intensity: None,
+            seed,
+            sequence,
+            frame,
+        };
+        let mut out = Vec::new();
+        apply(&input, &NoFootprint, &mut out);
+        for r in 0..rows {
+            let mut rng = stream(seed, sequence as u64, frame as u64);
+            rng.set_stream(r as u64);
+            for c in 0..columns {
+                let _dropout: f64 = rng.random();
+                let z = gaussian(&mut rng);
+                let want = (10.0 + draws.bias_m[r] + 0.05 * z) as f32;
+                assert_eq!(out[r * columns + c].range_m, want, "row {r}, column {c}");
+            }
+        }
+    }
+
     /// The bundled people's MakeHuman joint names, region by region as the doc comment gives
     /// them; the match ignores case and any side or number suffix.
     #[test]
