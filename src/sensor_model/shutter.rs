@@ -424,7 +424,8 @@ mod tests {
         let du = (2.0f64 / 3.0).asin() / std::f64::consts::TAU * 1000.0;
         assert!((ta - s.time_at(u - du - 1.0)).abs() < 1e-12 && (tb - s.time_at(u + du + 1.0)).abs() < 1e-12, "{ta} {tb}");
         // Holding the sensor: half a turn each way, plus the margin.
-        for centre in [DVec3::new(0.5, 0.2, 0.0), DVec3::new(0.0, -0.999, 0.0)] {
+        // (On its surface or just inside it, too: no arcsine of more than 1.)
+        for centre in [DVec3::new(0.5, 0.2, 0.0), DVec3::new(0.0, -0.999, 0.0), DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 0.99995, 0.0)] {
             let (ta, tb, u) = s.span_of_sphere(centre, 1.0);
             assert!((ta - s.time_at(u - 501.0)).abs() < 1e-12 && (tb - s.time_at(u + 501.0)).abs() < 1e-12, "{centre}: {ta} {tb}");
         }
@@ -525,6 +526,52 @@ mod tests {
             let want = rest[k] + v * s.time_at(s.unwrap_near(s.u_of(q.x, q.y), u_c));
             assert!((q - want).length() < 1.5e-3, "vertex {k} behind: {q:?} vs {want:?}");
         }
+    }
+
+    /// A recorded sweep whose boundaries are the uniform sweep's warps as the uniform sweep
+    /// does (the table's interpolation between whole columns against the constant rate), to
+    /// f32 rounding: a column's time is 0.1 ms, in which a vertex at 3 m/s moves 0.3 mm.
+    #[test]
+    fn a_recorded_sweep_at_a_constant_rate_warps_as_the_uniform_sweep() {
+        let uniform = Sweep::uniform(0.0, 0.1, 1024);
+        let table = Sweep::recorded(0.0, (0..=1024).map(|c| 0.1 * c as f64 / 1024.0).collect::<Vec<_>>().into());
+        assert!(table.boundaries.is_some() && uniform.boundaries.is_none());
+        for centre in [DVec3::new(4.0, 0.0, 0.2), DVec3::new(-4.0, 0.1, 0.2), DVec3::new(1.0, 3.0, 0.2)] {
+            let (_, _, a) = warped_segment_at(&uniform, 3.0, centre);
+            let (_, _, b) = warped_segment_at(&table, 3.0, centre);
+            for (k, (p, q)) in a.iter().zip(&b).enumerate() {
+                assert!((*p - *q).length() < 2e-6, "{centre}, vertex {k}: {p} vs {q}");
+            }
+        }
+    }
+
+    /// Over several keys, a vertex whose column lies beyond the span (its time before `ta` or
+    /// after `tb`) stays at the first pose or takes the last key's.
+    #[test]
+    fn vertices_outside_the_span_take_the_first_pose_or_the_last_key() {
+        let s = Sweep::uniform(0.0, 0.1, 1024);
+        // A segment across straight ahead, keys over only the middle 20 columns' times: most
+        // vertices lie outside.
+        let rest: Vec<[f32; 3]> = (0..21).map(|k| [4.0, -1.0 + 0.1 * k as f32, 0.2]).collect();
+        let moved = |dy: f32| rest.iter().map(|p| [p[0], p[1] + dy, p[2]]).collect::<Vec<_>>();
+        let keys = [moved(0.01), moved(0.02), moved(0.03)];
+        let (ta, tb) = (s.time_at(502.0), s.time_at(522.0));
+        let mut a = rest.clone();
+        s.warp_keys(&mut a, &keys, ta, tb, 512.0);
+        let (mut before, mut after) = (0, 0);
+        for (k, (q, p)) in a.iter().zip(&rest).enumerate() {
+            let t = s.time_at(s.u_of(p[0] as f64, p[1] as f64));
+            if t < ta - 1e-4 {
+                assert_eq!(q, p, "vertex {k}: before the span");
+                before += 1;
+            } else if t > tb + 1e-4 {
+                // (The last key's weight is clamped to 1 - 1e-4 / keys: a micrometre here.)
+                let off = (glam::Vec3::from(*q) - glam::Vec3::from(keys[2][k])).length();
+                assert!(off < 2e-6, "vertex {k}: after the span, {off} m from the last key");
+                after += 1;
+            }
+        }
+        assert!(before > 3 && after > 3, "{before} before, {after} after");
     }
 
     /// Nothing to warp between (no keys, or a span of no time): the vertices stay as given.
