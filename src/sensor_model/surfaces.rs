@@ -563,6 +563,44 @@ mod tests {
         again[0] = out[0];
         stale.scene().cast_footprint(0, &[1], &dirs, &mut again);
         assert_eq!(again, out);
+        // The same for the background behind a ray.
+        stale.bg_hits.triangle[1] = 7;
+        assert_eq!(stale.scene().background_near(1, dirs[1]), None);
+    }
+
+    /// A recording's intensities are read only when they cover the grid: one of another
+    /// length (another sensor's) gives the typical reflectance, as none does.
+    #[test]
+    fn recorded_intensities_of_another_grid_are_not_read() {
+        let e = EdgeScene::new();
+        let recorded = [7.0f32, 7.0];
+        for (intensity, want) in [(&[0.9f32, 0.8][..], 0.9), (&[0.9][..], RECORDED_REFLECTANCE), (&[][..], RECORDED_REFLECTANCE)] {
+            let s = SceneSurfaces { recorded: Some(&recorded), recorded_intensity: intensity, ..e.scene() };
+            let surface = s.clean(0, 7.0, 0).expect("a return");
+            assert_eq!((surface.reflectance, surface.rendered), (want, false), "{} intensities", intensity.len());
+        }
+    }
+
+    /// Under a moving sensor each beam's hit is refined in the world, from its column's pose:
+    /// on a double-sided wall seen from its back (wound away from the sensor) too, at the
+    /// range of the plane x = 5 along the beam from where the sensor is at that column.
+    #[test]
+    fn a_double_sided_wall_seen_from_behind_is_refined_in_the_world() {
+        let world = [DVec3::new(5.0, -10.0, -10.0), DVec3::new(5.0, 0.0, 10.0), DVec3::new(5.0, 10.0, -10.0)];
+        for (indices, double_sided, refined) in [([0u32, 1, 2], false, true), ([0, 2, 1], true, true), ([0, 2, 1], false, false)] {
+            let mut background = FrameGeometry::default();
+            background.push_mesh(&world.map(|p| p.as_vec3().to_array()), &indices, 0, double_sided);
+            let env_meshes = vec![EnvDraw { first_vertex: 0, vertex_count: 3, local_indices: indices.to_vec(), double_sided, adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&indices)), reflectance: 0.5 }];
+            let columns = 4;
+            let dirs: Vec<DVec3> = (0..columns).map(|c| DVec3::new(1.0, 0.1 * (c as f64 - 1.5), 0.05).normalize()).collect();
+            let poses: Vec<DMat4> = (0..columns).map(|c| DMat4::from_translation(DVec3::new(0.3 * c as f64, 0.02 * c as f64, 0.0))).collect();
+            let mut hits = BeamHits { range_m: vec![1.0; columns], triangle: vec![0; columns] };
+            refine_rolling_background(&EnvWorld { positions: &world, meshes: &env_meshes, column_pose: &poses }, &background, &dirs, columns, &mut hits);
+            for (c, d) in dirs.iter().enumerate() {
+                let want = if refined { ((5.0 - 0.3 * c as f64) / d.x) as f32 } else { 1.0 };
+                assert_eq!(hits.range_m[c], want, "column {c}, indices {indices:?}, double-sided {double_sided}");
+            }
+        }
     }
 
     /// Under a sensor that turns during the sweep, the wall's plane behind beam 1 has the
