@@ -669,8 +669,8 @@ mod tests {
         let s = e.scene();
         let dirs = crate::sensor_model::footprint_dirs(0.0, 0.0, [3.0, 3.0]);
         // The fold's plane crosses every ray in front of the front triangle.
-        let fold = DVec3::new(8.0, 2.0, -1.0);
-        assert!(dirs.iter().all(|&d| on_plane(fold, DVec3::new(3.0, -2.0, -2.0).normalize(), DVec3::new(3.0, -2.0, -2.0).length(), d) < 3.0 / d.x));
+        let (fold, corner) = (DVec3::new(8.0, 2.0, -1.0), DVec3::from(verts[0].map(f64::from)));
+        assert!(dirs.iter().all(|&d| on_plane(fold, corner.normalize(), corner.length(), d) < 3.0 / d.x));
         let mut out = [None; FOOTPRINT_RAYS];
         out[0] = s.clean(0, 3.0, 1);
         assert!(s.footprint_on_own_surface(0, &[], &dirs, &mut out));
