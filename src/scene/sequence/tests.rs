@@ -1,0 +1,418 @@
+//! Unit tests of sampling a sequence and of each person's state at an instant.
+
+use super::*;
+use rand::SeedableRng;
+
+fn plan(motion: MotionMode) -> HumanPlan {
+    HumanPlan {
+        model: 0,
+        trajectory: Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: 0.3, speed_mps: 1.2, yaw_rate_rps: 0.1 }.into(),
+        phase0: 0.25,
+        stride_m: 1.2,
+        motion,
+        arm_swing: 1.0,
+        stride_scale: 1.0,
+    }
+}
+
+/// On a curve the shifts keep a stance foot's place and heading on the ground: a point of
+/// the foot, moved straight back by the distance walked as the walk moves it in the body
+/// frame, then by the foot's shift, then into the world by the body's pose, stays where it
+/// is from heel strike to toe-off. On a straight path the shifts are zero; over the swing
+/// they change continuously.
+#[test]
+fn foot_shifts_pin_a_stance_foot_on_a_curve() {
+    let mut p = plan(MotionMode::Full);
+    let world = |p: &HumanPlan, t: f64, foot: usize, q: DVec2| {
+        let at = p.at(t);
+        let f = at.feet[foot];
+        let walked = q - DVec2::X * p.trajectory.distance(t);
+        let body = DVec2::from_angle(f.yaw_rad as f64).rotate(walked) + DVec2::new(f.forward_m as f64, f.left_m as f64);
+        let w = at.position_m.truncate() + DVec2::from_angle(at.heading_rad).rotate(body);
+        (w, at.heading_rad + f.yaw_rad as f64)
+    };
+    for yaw_rate in [0.0, 0.8, -1.5] {
+        if let HumanPath::Arc(a) = &mut p.trajectory {
+            a.yaw_rate_rps = yaw_rate;
+        }
+        // The left foot's stance: phase 0 (heel strike) to 0.62, from t = 0.75 * 1.2 / 1.2.
+        let (t0, t1) = (0.75, 0.75 + 0.62 - 1e-3);
+        let q = DVec2::new(0.1, 0.09);
+        let (w0, h0) = world(&p, t0, 0, q);
+        let mut worst: f64 = 0.0;
+        for k in 0..=40 {
+            let t = t0 + (t1 - t0) * k as f64 / 40.0;
+            let (w, h) = world(&p, t, 0, q);
+            worst = worst.max((w - w0).length()).max((h - h0).abs());
+        }
+        assert!(worst < 1e-5, "yaw rate {yaw_rate}: the planted foot moved {worst} m / rad");
+        let size = |t: f64| p.at(t).feet.iter().map(|f| f.forward_m.abs() + f.left_m.abs() + f.yaw_rad.abs()).sum::<f32>();
+        if yaw_rate == 0.0 {
+            assert!((0..50).all(|k| size(0.05 * k as f64) < 1e-6), "a straight path shifts no foot");
+        } else {
+            assert!(size(0.1) > 1e-3, "a curve shifts the feet");
+            // Continuous over the whole cycle, the swing included.
+            for k in 0..2000 {
+                let (a, b) = (p.at(k as f64 * 1e-3).feet, p.at((k + 1) as f64 * 1e-3).feet);
+                for (x, y) in a.iter().zip(&b) {
+                    let jump = (x.forward_m - y.forward_m).abs() + (x.left_m - y.left_m).abs() + (x.yaw_rad - y.yaw_rad).abs();
+                    assert!(jump < 5e-3, "t = {} ms: the shift jumps by {jump}", k);
+                }
+            }
+        }
+    }
+    // A turn no walk makes (6 rad/s at 1.2 m/s: a 0.2 m radius) moves a foot 0.3 m and
+    // turns it 1.2 rad at most.
+    if let HumanPath::Arc(a) = &mut p.trajectory {
+        a.yaw_rate_rps = 6.0;
+    }
+    for k in 0..200 {
+        for f in p.at(k as f64 * 0.01).feet {
+            assert!(f.forward_m.hypot(f.left_m) <= 0.3 + 1e-6 && f.yaw_rad.abs() <= 1.2 + 1e-6, "{f:?}");
+        }
+    }
+    // A person who does not walk on (in place, standing) has no shifts.
+    for motion in [MotionMode::InPlace, MotionMode::Static, MotionMode::Sliding] {
+        assert_eq!(plan(motion).at(0.4).feet, [FootShift::ZERO; 2]);
+    }
+}
+
+/// Over the swing the shift blends by smoothstep from the one the foot left the ground
+/// with to the one its next stance lands it with: halfway (smoothstep 1/2) it is their mean.
+/// On a track whose curvature changes (on a steady arc every stance's shift is the same,
+/// wherever it lands); the left foot (strike at phase 0) leaves the ground at phase 0.62
+/// and lands at phase 1, so halfway through its swing the phase is 0.81.
+#[test]
+fn a_swinging_foot_goes_halfway_between_toe_off_and_the_next_strike() {
+    let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+    let xy: Vec<DVec2> = times.iter().map(|t| DVec2::new(1.3 * t, (0.5 * t).sin() * 2.0)).collect();
+    let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+    let mut p = plan(MotionMode::Full);
+    (p.trajectory, p.phase0) = (HumanPath::Track(TrackPath::new(track, 1.7, 0.0, 6.0)), 0.0);
+    let at_phase = |phase: f64| p.trajectory.time_at_distance(phase * p.stride_m).unwrap();
+    let (off, mid, on) = (at_phase(0.62) - 1e-9, at_phase(0.81), at_phase(1.0) + 1e-9);
+    assert!((p.at(mid).gait_phase - 0.81).abs() < 1e-5, "{}", p.at(mid).gait_phase);
+    let (a, m, b) = (p.at(off).feet[0], p.at(mid).feet[0], p.at(on).feet[0]);
+    assert!((a.forward_m - b.forward_m).abs() + (a.left_m - b.left_m).abs() + (a.yaw_rad - b.yaw_rad).abs() > 0.05, "{a:?} {b:?}");
+    for (x, y, z) in [(a.forward_m, m.forward_m, b.forward_m), (a.left_m, m.left_m, b.left_m), (a.yaw_rad, m.yaw_rad, b.yaw_rad)] {
+        assert!((y - 0.5 * (x + z)).abs() < 1e-4, "mid-swing {m:?} is not the mean of {a:?} and {b:?}");
+    }
+}
+
+#[test]
+fn track_distance_is_the_arc_length_inside_and_past_its_table() {
+    // A curved walk sampled at 0.4 s; the interpolant's arc length by a fine chord sum.
+    let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+    let xy: Vec<DVec2> = times.iter().map(|t| DVec2::new(1.3 * t, (0.5 * t).sin() * 2.0)).collect();
+    let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+    let path = TrackPath::new(track, 1.7, 0.0, 3.0);
+    let chord = |t: f64| {
+        let n = 200_000;
+        (0..n)
+            .map(|i| {
+                let (a, b) = (t * i as f64 / n as f64, t * (i + 1) as f64 / n as f64);
+                path.state(b).0.distance(path.state(a).0)
+            })
+            .sum::<f64>()
+    };
+    for t in [0.0, 0.005, 0.3, 1.234, 3.0, 4.56] {
+        let (d, want) = (path.distance(t), chord(t));
+        assert!((d - want).abs() < 1e-6 * (1.0 + want), "t {t}: {d} vs {want}");
+    }
+    assert_eq!(path.distance(0.0), 0.0);
+}
+
+/// The path passes through the track's samples (sequence time t is track time t0 + t),
+/// and `time_at_distance` inverts `distance`: inside the 10 ms table to well under a
+/// millisecond, before 0 and past the table at the speed there.
+#[test]
+fn track_time_at_distance_inverts_the_distance() {
+    let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+    let xy: Vec<DVec2> = times.iter().map(|t| DVec2::new(1.3 * t, (0.5 * t).sin() * 2.0)).collect();
+    let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+    let path = HumanPath::Track(TrackPath::new(track, 1.7, 0.0, 3.0));
+    let HumanPath::Track(tp) = &path else { unreachable!() };
+    for (t, k) in [(0.3, 5), (2.3, 10)] {
+        let (p, v, _) = tp.state(t);
+        assert!(p.distance(DVec2::new(1.3 * 0.4 * k as f64, (0.2 * k as f64).sin() * 2.0)) < 1e-9, "t {t}: {p}");
+        assert!(v.length() > 1.0, "walking at t {t}: {v}");
+    }
+    for t in [0.004, 0.25, 1.0, 2.345, 2.99] {
+        let d = path.distance(t);
+        let back = path.time_at_distance(d).unwrap();
+        assert!((back - t).abs() < 1e-4, "t {t}: distance {d} gives back {back}");
+    }
+    // Before 0 and past the table (3 s): at the speed at 0 and at the table's end.
+    let v0 = tp.state(0.0).1.length();
+    assert!((path.time_at_distance(-0.5).unwrap() - (-0.5 / v0)).abs() < 1e-12);
+    let (end, d_end) = (3.0, path.distance(3.0));
+    let v_end = tp.state(end).1.length();
+    let past = path.time_at_distance(d_end + 0.8).unwrap();
+    assert!((past - (end + 0.8 / v_end)).abs() < 1e-6, "{past}");
+}
+
+/// The heading of [`turning_parabola`]'s poses at time t (crossing +-pi at t = 0.125).
+fn turning_angle(t: f64) -> f64 {
+    std::f64::consts::PI - 0.1 + 0.8 * t
+}
+
+/// Poses at uneven times along x = t^2 (y = 1, z = 0.5), turning steadily at 0.8 rad/s.
+fn turning_parabola() -> ([f64; 5], Vec<DMat4>) {
+    let times = [0.0, 0.1, 0.25, 0.3, 0.5];
+    let poses = times.iter().map(|&t| DMat4::from_rotation_translation(DQuat::from_rotation_z(turning_angle(t)), DVec3::new(t * t, 1.0, 0.5))).collect();
+    (times, poses)
+}
+
+/// Recorded poses' velocities: the three-point derivative for uneven steps is exact on a
+/// parabola (x = t^2: 2t) inside, one-sided at the ends; the yaw rate is exact on a steady
+/// turn, across the +-pi wrap too; a window's times start at its first pose.
+#[test]
+fn pose_velocities_are_exact_on_a_parabola_and_a_steady_turn() {
+    let (times, poses) = turning_parabola();
+    let all = PoseTrack::from_poses(&times, &poses, 0..5);
+    for k in 1..4 {
+        assert!((all.velocity_mps[k] - DVec3::new(2.0 * times[k], 0.0, 0.0)).length() < 1e-12, "pose {k}: {}", all.velocity_mps[k]);
+    }
+    assert!((all.velocity_mps[0].x - 0.1).abs() < 1e-12, "one-sided at the start: {}", all.velocity_mps[0]);
+    assert!((all.velocity_mps[4].x - (0.25 - 0.09) / 0.2).abs() < 1e-12, "one-sided at the end: {}", all.velocity_mps[4]);
+    for (k, w) in all.yaw_rate_rps.iter().enumerate() {
+        assert!((w - 0.8).abs() < 1e-9, "yaw rate at pose {k}: {w}");
+    }
+    let window = PoseTrack::from_poses(&times, &poses, 1..3);
+    assert_eq!(window.times_s, vec![0.0, 0.25 - 0.1]);
+    assert!((window.velocity_mps[0] - all.velocity_mps[1]).length() < 1e-15, "a window uses the poses just outside it");
+    // A sensor path gives the same velocity as its poses, and an arc's is its position's
+    // derivative.
+    let path = SensorPath::Poses(all.clone());
+    assert!((path.velocity(times[2]) - all.velocity_mps[2]).length() < 1e-12);
+    let arc = SensorPath::Arc(Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 1.7, heading0_rad: 0.3, speed_mps: 1.2, yaw_rate_rps: 0.4 });
+    let h = 1e-6;
+    let numeric = (arc.position(0.8 + h) - arc.position(0.8 - h)) / (2.0 * h);
+    assert!((arc.velocity(0.8) - numeric).length() < 1e-6 && arc.velocity(0.8).length() > 1.0, "{}", arc.velocity(0.8));
+}
+
+/// Between recorded poses: the translation linear, the rotation by slerp (about one axis:
+/// the angle linear), velocity and yaw rate linear; at a recorded time the recorded pose;
+/// before the first and after the last, held.
+#[test]
+fn poses_between_records_are_interpolated_and_held_outside() {
+    let (times, poses) = turning_parabola();
+    let track = PoseTrack::from_poses(&times, &poses, 0..5);
+    for (t, (i, f)) in [(0.05, (0, 0.5)), (0.175, (1, 0.5)), (0.26, (2, 0.2)), (0.45, (3, 0.75))] {
+        let (pose, v, w) = track.sample(t);
+        let (_, r, p) = pose.to_scale_rotation_translation();
+        let want_p = DVec3::new(times[i] * times[i], 1.0, 0.5).lerp(DVec3::new(times[i + 1] * times[i + 1], 1.0, 0.5), f);
+        assert!((p - want_p).length() < 1e-12, "t {t}: {p} against {want_p}");
+        assert!(r.dot(DQuat::from_rotation_z(turning_angle(t))).abs() > 1.0 - 1e-12, "t {t}: rotation");
+        assert!((v - track.velocity_mps[i].lerp(track.velocity_mps[i + 1], f)).length() < 1e-12, "t {t}: velocity");
+        let want_w = track.yaw_rate_rps[i] * (1.0 - f) + track.yaw_rate_rps[i + 1] * f;
+        assert!((w - want_w).abs() < 1e-12, "t {t}: yaw rate");
+        assert_eq!(track.pose(t), pose);
+    }
+    assert_eq!(track.pose(0.25), poses[2], "a recorded time gives the recorded pose");
+    assert_eq!(track.sample(0.25).1, track.velocity_mps[2]);
+    assert_eq!(track.pose(-1.0), poses[0]);
+    assert_eq!(track.pose(9.0), poses[4]);
+    assert_eq!(track.sample(9.0).1, track.velocity_mps[4]);
+}
+
+/// With recorded tracks a sequence takes only tracks that cover its whole window (a track
+/// exactly as long as the sequence included, one that ends early never), starts the
+/// sensor within the spawn radius of their mean position, and draws each person's arm
+/// swing within its range.
+#[test]
+fn track_windows_take_only_tracks_that_cover_them() {
+    let mut cfg = Config::default();
+    cfg.humans.count = [3, 3];
+    cfg.humans.spawn_radius_m = 1.5;
+    cfg.humans.arm_swing = [0.5, 0.6];
+    let model = crate::human::tests_support::tiny_model();
+    let walk = |id: i64, y: f64, samples: usize| {
+        let times: Vec<f64> = (0..samples).map(|k| k as f64 * 0.1).collect();
+        let xy = times.iter().map(|&t| DVec2::new(t, y)).collect();
+        Arc::new(Track { id, times_s: times, xy_m: xy, heading_rad: None })
+    };
+    // 32 frames at 10 Hz; tracks of 32 samples span the same 3.1 s, one of 21 ends early.
+    let tracks = [walk(1, 0.0, 32), walk(2, 8.0, 32), walk(3, -8.0, 21)];
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0 };
+    for seed in 0..5 {
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+        let mut ids: Vec<i64> = plan
+            .humans
+            .iter()
+            .map(|h| match &h.trajectory {
+                HumanPath::Track(p) => {
+                    assert!(p.t0_s.abs() < 1e-9, "the only window starts with the tracks: {}", p.t0_s);
+                    p.track.id
+                }
+                other => panic!("not a track: {other:?}"),
+            })
+            .collect();
+        ids.sort();
+        assert_eq!(ids, vec![1, 2], "seed {seed}");
+        let start = plan.sensor.position(0.0).truncate();
+        assert!(start.distance(DVec2::new(0.0, 4.0)) <= 1.5 + 1e-9, "seed {seed}: the sensor starts at {start}");
+        for h in &plan.humans {
+            assert!((0.5..=0.6).contains(&h.arm_swing) && h.stride_m > 0.0, "seed {seed}: {h:?}");
+        }
+    }
+    // Tracks longer than the sequence: its window starts anywhere they all cover it, and
+    // a person's stride is the model's for the track's mean speed (1 m/s).
+    let long = [walk(1, 0.0, 100), walk(2, 8.0, 100)];
+    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0 };
+    let starts: Vec<f64> = (0..30)
+        .map(|seed| {
+            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp_long).unwrap();
+            let HumanPath::Track(p) = &plan.humans[0].trajectory else { panic!("not a track") };
+            for h in &plan.humans {
+                assert!((h.stride_m - model.gait_stride_m(1.0)).abs() < 1e-6, "seed {seed}: stride {}", h.stride_m);
+            }
+            p.t0_s
+        })
+        .collect();
+    let (a, b) = (starts.iter().copied().fold(f64::INFINITY, f64::min), starts.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+    assert!(a >= 0.0 && b <= 9.9 - 3.1 + 1e-9 && b - a > 4.0, "windows start within {a}..{b}");
+    // No person is asked for: a window without people is a plan.
+    let mut none = cfg.clone();
+    none.humans.count = [0, 0];
+    assert!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &none, &inp).unwrap().humans.is_empty());
+    // People are asked for but no track keeps clear of the sensor in any window: refused.
+    let mut crowded = cfg.clone();
+    crowded.humans.min_separation_m = 50.0;
+    let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &crowded, &inp).unwrap_err().to_string();
+    assert!(e.contains("humans.tracks") && e.contains("walks clear of obstacles and the sensor"), "{e}");
+}
+
+/// A track that walks 7.8 m and then stands: its last distance is first reached when it
+/// stops (about 6 s in), not at the end of the table; a distance it never walks has no time.
+#[test]
+fn a_track_that_stops_reaches_its_last_distance_when_it_stops() {
+    let times: Vec<f64> = (0..30).map(|k| k as f64 * 0.4).collect();
+    let xy: Vec<DVec2> = times.iter().map(|&t| DVec2::new(1.3 * t.min(6.0), 0.0)).collect();
+    let track = Arc::new(Track { id: 1, times_s: times, xy_m: xy, heading_rad: None });
+    let path = HumanPath::Track(TrackPath::new(track, 0.0, 0.0, 10.0));
+    let d_end = path.distance(10.0);
+    assert!((d_end - 7.8).abs() < 0.05, "{d_end}");
+    let t = path.time_at_distance(d_end).expect("reached when it stops");
+    assert!((5.5..6.5).contains(&t), "reached at {t} s");
+    assert!((path.distance(t) - d_end).abs() < 1e-9, "{} vs {d_end}", path.distance(t));
+    assert_eq!(path.time_at_distance(d_end + 0.1), None, "it never walks further");
+}
+
+/// On a walkable floor people walk planned start-to-goal paths at speeds drawn within
+/// `humans.speed_mps`, the sensor starts anywhere on the floor, and a sequence too long to
+/// walk in the free area is refused naming `frames`.
+#[test]
+fn synthetic_people_walk_planned_paths_on_a_floor() {
+    let (w, h) = (30.0, 30.0);
+    let grid = crate::scene::planner::tests::grid(w, h, &[], 0.25);
+    let mut cfg = Config::default();
+    cfg.humans.count = [4, 4];
+    cfg.humans.speed_mps = [0.8, 1.5];
+    let model = crate::human::tests_support::tiny_model();
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for seed in 0..12 {
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+        for p in &plan.humans {
+            let HumanPath::Walk(walk, _) = &p.trajectory else { panic!("seed {seed}: not a planned walk: {:?}", p.trajectory) };
+            assert!((0.8..=1.5).contains(&walk.speed_mps()), "seed {seed}: {} m/s", walk.speed_mps());
+        }
+        let s = plan.sensor.start_xy();
+        (lo, hi) = (lo.min(s), hi.max(s));
+    }
+    assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
+    // People walk on the floor's height.
+    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75 };
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &raised).unwrap();
+    for p in &plan.humans {
+        assert!(matches!(p.trajectory, HumanPath::Walk(..)) && p.trajectory.position(1.0).z == 0.75, "{:?}", p.trajectory);
+    }
+    // The sensor's heading is drawn over the whole circle.
+    use std::f64::consts::PI;
+    let headings: Vec<f64> = (0..40)
+        .map(|seed| match sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap().sensor {
+            SensorPath::Arc(t) => t.heading0_rad,
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    for quadrant in 0..4 {
+        let (a, b) = (-PI + quadrant as f64 * PI / 2.0, -PI / 2.0 + quadrant as f64 * PI / 2.0);
+        assert!(headings.iter().any(|&h| (a..b).contains(&h)), "no heading in [{a}, {b}): {headings:?}");
+    }
+    // Its speed and turn rate are drawn over their whole ranges, and only within them.
+    cfg.scene.sensor_speed_mps = [0.5, 1.0];
+    cfg.scene.sensor_yaw_rate_rps = [-0.2, 0.3];
+    let arcs: Vec<Trajectory> = (0..40)
+        .map(|seed| match sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap().sensor {
+            SensorPath::Arc(t) => t,
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    for (what, v, [lo, hi]) in [
+        ("speed", arcs.iter().map(|t| t.speed_mps).collect::<Vec<_>>(), [0.5, 1.0]),
+        ("yaw rate", arcs.iter().map(|t| t.yaw_rate_rps).collect(), [-0.2, 0.3]),
+    ] {
+        let (a, b) = (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        assert!(lo <= a && b <= hi && b - a > 0.7 * (hi - lo), "sensor {what} drawn within {a}..{b}");
+    }
+    cfg.frames = 600;
+    let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap_err().to_string();
+    assert!(e.contains("`frames`") && e.contains("free walkable area is at most") && e.contains("nobody can walk"), "{e}");
+    // Nobody asked for: nobody has to walk that far.
+    cfg.humans.count = [0, 0];
+    assert!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap().humans.is_empty());
+}
+
+#[test]
+fn gait_phase_advances_by_distance_over_stride() {
+    let p = plan(MotionMode::Full);
+    // 1.2 m/s for 0.5 s = 0.6 m = half a 1.2 m stride.
+    assert!((p.at(0.5).gait_phase - 0.75).abs() < 1e-12);
+    assert!((p.at(1.0).gait_phase - 0.25).abs() < 1e-12, "wraps after a whole stride");
+    assert!((p.at(0.0).gait_phase - 0.25).abs() < 1e-12);
+}
+
+#[test]
+fn motion_modes_follow_the_papers_ablations() {
+    let t = 0.7;
+    let full = plan(MotionMode::Full).at(t);
+    let sliding = plan(MotionMode::Sliding).at(t);
+    let in_place = plan(MotionMode::InPlace).at(t);
+    let fixed = plan(MotionMode::Static).at(t);
+    let start = plan(MotionMode::Full).at(0.0);
+    assert_eq!(sliding.position_m, full.position_m);
+    assert_eq!(sliding.gait_phase, 0.25);
+    assert_eq!(in_place.position_m, start.position_m);
+    assert_eq!(in_place.velocity_mps, DVec3::ZERO);
+    assert_eq!(in_place.gait_phase, full.gait_phase);
+    assert_eq!(fixed.position_m, start.position_m);
+    assert_eq!(fixed.gait_phase, 0.25);
+    assert_eq!(fixed.velocity_mps, DVec3::ZERO);
+}
+
+#[test]
+fn sampling_is_reproducible_and_respects_counts() {
+    let mut cfg = Config::default();
+    cfg.humans.count = [3, 5];
+    let model = crate::human::tests_support::tiny_model();
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let a = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
+    let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
+    assert_eq!(a, b);
+    assert!((3..=5).contains(&a.humans.len()));
+    let mut seen: Vec<usize> = (0..30).map(|seed| sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap().humans.len()).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    assert_eq!(seen, vec![3, 4, 5], "every count in humans.count and only those");
+    assert_eq!(a.times_s.len(), 32);
+    for t in &a.times_s {
+        for (i, h) in a.humans.iter().enumerate() {
+            let p = h.at(*t).position_m.truncate();
+            assert!(p.distance(a.sensor.position(*t).truncate()) >= cfg.humans.min_separation_m);
+            for g in &a.humans[i + 1..] {
+                assert!(g.at(*t).position_m.truncate().distance(p) >= cfg.humans.min_separation_m);
+            }
+        }
+    }
+}
