@@ -13,6 +13,7 @@ mod gpu_raster;
 mod hostile_inputs;
 mod hostile_models;
 mod humans;
+mod layout;
 mod limb;
 mod output;
 mod production;
