@@ -1,7 +1,8 @@
 //! The layout the README promises a newcomer: no source file over 1,000 lines, anywhere a
 //! reader of the code goes (the library, the binary, the tests, the fuzz targets, the shaders,
 //! the tools and the Python package). Unit tests that outgrow their module's file move to a
-//! file of their own beside it (`#[cfg(test)] mod tests;`).
+//! file of their own beside it (`#[cfg(test)] mod tests;`). The binary and the generator stay
+//! thin: `src/main.rs` at most 200 lines, `src/generator/mod.rs` at most 400.
 
 use std::path::{Path, PathBuf};
 
@@ -29,6 +30,12 @@ fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
+/// Lines of a file (a last line without its newline counts).
+fn line_count(path: &Path) -> usize {
+    let text = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.iter().filter(|&&b| b == b'\n').count() + usize::from(text.last().is_some_and(|&b| b != b'\n'))
+}
+
 fn repository_sources() -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut files = vec![root.join("build.rs")];
@@ -49,13 +56,24 @@ fn no_source_file_is_over_1000_lines() {
     }
     let mut long: Vec<(usize, String)> = files
         .iter()
-        .map(|p| {
-            let text = std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-            let lines = text.iter().filter(|&&b| b == b'\n').count() + usize::from(text.last().is_some_and(|&b| b != b'\n'));
-            (lines, p.strip_prefix(root).unwrap().display().to_string())
-        })
+        .map(|p| (line_count(p), p.strip_prefix(root).unwrap().display().to_string()))
         .filter(|(lines, _)| *lines > MAX_LINES)
         .collect();
     long.sort();
     assert!(long.is_empty(), "source files over {MAX_LINES} lines: {long:?}");
+}
+
+/// Lines of a repository file.
+fn lines_of(rel: &str) -> usize {
+    line_count(&Path::new(env!("CARGO_MANIFEST_DIR")).join(rel))
+}
+
+/// The binary only parses the command line and calls the library; the generator only runs the
+/// stages, which live in their own modules.
+#[test]
+fn the_binary_and_the_generator_stay_thin() {
+    let main = lines_of("src/main.rs");
+    assert!(main <= 200, "src/main.rs has {main} lines (at most 200: commands belong in src/commands/)");
+    let generator = lines_of("src/generator/mod.rs");
+    assert!(generator <= 400, "src/generator/mod.rs has {generator} lines (at most 400: stages belong in their modules)");
 }
