@@ -14,6 +14,7 @@ import json
 import os
 import platform
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -80,10 +81,16 @@ def load_file(path: Path) -> dict[str, Any]:
 
     if not path.is_file():
         raise RunError(f"{path}: no such file")
-    try:
-        obj = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # torch raises many types for a damaged file
-        raise RunError(f"{path}: not a readable pedscan model or checkpoint ({type(e).__name__}: {e})") from e
+    # What torch warns while failing on a damaged file (e.g. "Detected pickle protocol 4") is
+    # noise before the error below; a file that loads gets its warnings as usual.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            obj = torch.load(path, map_location="cpu", weights_only=True)
+        except Exception as e:  # torch raises many types for a damaged file
+            raise RunError(f"{path}: not a readable pedscan model or checkpoint ({type(e).__name__}: {e})") from e
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not isinstance(obj, dict) or obj.get("format") != MODEL_FORMAT:
         raise RunError(f"{path}: not a pedscan model or checkpoint (format is not {MODEL_FORMAT!r})")
     return obj
