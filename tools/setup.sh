@@ -5,6 +5,7 @@
 #   bash tools/setup.sh generate [flags...]   # install, build, run `pedscan generate`
 #   bash tools/setup.sh test                  # install, build, run the whole test suite and a
 #                                             # few seconds of every fuzz target
+#   bash tools/setup.sh test-latest           # the Python tests with the newest PyPI releases
 #   bash tools/setup.sh <any pedscan subcommand and flags>
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,20 +27,33 @@ if ! command -v cargo >/dev/null 2>&1; then
 fi
 
 if [ $# -eq 0 ]; then set -- generate; fi
+# The Python tools' tests in the venv $1, installed with the pip flags that follow, on sequences
+# made by the debug pedscan (PyTorch, ONNX Runtime and matplotlib for the networks' tests; PyPI's
+# torch wheel brings its CUDA libraries, a few GB, and runs on the CPU where there is no GPU).
+python_tests() {
+  local venv=$1
+  shift
+  [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+  "$venv/bin/pip" install --quiet --disable-pip-version-check "$@" -e "tools/python[test]"
+  PEDSCAN="$PWD/target/debug/pedscan" "$venv/bin/python" -m pytest tools/python/tests
+}
+
 case "$1" in
   test)
     shift
     # Lavapipe runs every GPU test; the validation layer is on in each of them.
     cargo test --locked "$@"
-    # The Python tools, in their own venv, on sequences made by the pedscan just built, with
-    # PyTorch, ONNX Runtime and matplotlib (the networks' tests; PyPI's torch wheel brings its
-    # CUDA libraries, a few GB, and runs on the CPU where there is no GPU).
-    venv=tools/python/.venv
-    [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet --disable-pip-version-check -e "tools/python[test]"
-    PEDSCAN="$PWD/target/debug/pedscan" "$venv/bin/python" -m pytest tools/python/tests
+    # The Python packages pinned (tools/python/constraints.txt): the suite does not move when
+    # PyPI serves a new release.
+    python_tests tools/python/.venv -c tools/python/constraints.txt
     # The whole suite (no filter given) ends with a fuzz smoke run: 5 s per reader's target.
     if [ $# -eq 0 ]; then bash tools/fuzz.sh ci 5; fi
+    ;;
+  test-latest)
+    # The Python tests against the newest releases PyPI serves, in a venv of their own (the
+    # Rust crates stay as Cargo.lock has them).
+    cargo build --locked
+    python_tests tools/python/.venv-latest --upgrade --upgrade-strategy eager
     ;;
   *)
     exec cargo run --locked --release --quiet -- "$@"
