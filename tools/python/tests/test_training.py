@@ -44,7 +44,12 @@ def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) ->
     """The mask and the velocities, each alone (together, at this learning rate the human
     velocity's weight of 1,001 shakes the mask for a few hundred steps). The mask's learning
     rate decays (1e-2 / (1 + k / 100)): at a constant 1e-2 its IoU swings by 0.5 from one
-    hundred steps to the next, and where it stands at a given step differs between CPUs."""
+    hundred steps to the next, and where it stands at a given step differs between CPUs.
+
+    Where the mask stands at step 500 moves with the seed, the CPU and torch's version (torch
+    2.15, 2 cores with AVX-512, seeds 0, 1, 2): argmax IoU 0.897, 0.962, 0.733; with the human
+    threshold calibrated on these two frames, 0.985, 0.990, 0.856. So both are held well below
+    that spread, and far above an untrained network (about 0.03, the human share)."""
     common = ["--frames", "2", "--width", "8", "--val", two_frames, "--lr", "1e-2"]
     seg = tmp_path / "seg"
     assert run_train(two_frames, "--out", seg, "--steps", "500", "--val-every", "500", *common, "--decay", "1e-2",
@@ -52,7 +57,7 @@ def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) ->
     last = last_validation(seg)
     assert last["step"] == 500
     assert last["overall"]["human_beams"] > 100
-    assert last["overall"]["iou"] >= 0.9, last["overall"]
+    assert last["overall"]["iou"] >= 0.5, last["overall"]
     vel = tmp_path / "vel"
     assert run_train(two_frames, "--out", vel, "--steps", "150", "--val-every", "150", *common, "--decay", "0",
                      "--loss-weights", "0", "1", "1001") == 0
@@ -73,6 +78,7 @@ def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) ->
     cal = [json.loads(x) for x in (seg / "metrics.jsonl").read_text().splitlines() if '"calibration"' in x][-1]
     assert 0 < model["human_threshold"] < 1 and model["human_threshold"] == cal["human_threshold"]
     assert cal["iou_calibrated"] >= cal["iou_argmax"] == pytest.approx(last["overall"]["iou"])
+    assert cal["iou_calibrated"] >= 0.7, cal
 
 
 def weights(run: Path) -> dict[str, torch.Tensor]:
