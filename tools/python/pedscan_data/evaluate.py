@@ -1,8 +1,10 @@
-"""Scores human segmentation (and velocity) predictions against pedscan ground truth.
+"""Scores human segmentation (and velocity) predictions against pedscan ground truth, or
+per-point predictions against SemanticKITTI's labeled scans.
 
-    python -m pedscan_data.evaluate GROUND_TRUTH PREDICTIONS [--json FILE]
+    python -m pedscan_data.evaluate GROUND_TRUTH PREDICTIONS [--json FILE] [--from-frame K]
 
-GROUND_TRUTH is a pedscan output folder or one sequence file. PREDICTIONS is either
+**pedscan ground truth.** GROUND_TRUTH is a pedscan output folder or one sequence file.
+PREDICTIONS is either
 
 - SemanticKITTI labels: ``PREDICTIONS/sequences/SS/labels/NNNNNN.label`` (SS the sequence
   index, at least two digits; NNNNNN the frame), uint32 per returned beam in row-major grid
@@ -12,8 +14,26 @@ GROUND_TRUTH is a pedscan output folder or one sequence file. PREDICTIONS is eit
 
 Prints the human IoU, precision and recall over all returned beams and in the paper's
 distance bins (0-4, 4-8, 8+ m; no-return beams excluded), and the velocity end-point error
-on the ground truth's human beams when the predictions carry velocities. Exit 0 when scored,
-2 when the predictions do not match the ground truth's frames or their format is unknown.
+on the ground truth's human beams when the predictions carry velocities. A beam whose
+ground-truth ``/label`` is 255 (:data:`NOT_SCORED`: a recording's own people) is not scored.
+
+**Labeled scans, per point.** GROUND_TRUTH is a SemanticKITTI sequence folder (``velodyne/``
+and ``labels/``) or a dataset root (``sequences/SS/labels/``); PREDICTIONS what
+``pedscan_data.predict`` writes for it: ``PRED/predictions/NNNNNN.label`` (or that folder
+itself) for a sequence folder, ``PRED/sequences/SS/predictions/NNNNNN.label`` for a root (also
+semantic-kitti-api's layout), uint32 per point in the scan's order. SemanticKITTI's
+convention: the ground truth's person is class 30 or 254 (lower 16 bits); not scored are the
+classes semantic-kitti-api's learning map makes "unlabeled" (0, 1, 52, 99) and riders (31,
+32, 253, 255: a person on a vehicle is neither a hit nor a false alarm for a pedestrian
+network). Where no rider is present the person IoU is semantic-kitti-api's. Prints person
+IoU, precision and recall overall and by the point's range (the paper's 0-4, 4-8, 8+ m and
+the street's 8-16, 16-32, 32+ m), false-alarm points per scan, and the people found (half or
+more of their points called person) and missed: a person is one scan's person points of one
+nonzero instance (upper 16 bits), in the bin of their median range. Every file is checked
+before any is scored.
+
+Exit 0 when scored, 2 when the predictions do not match the ground truth (every missing or
+mismatched file named) or a file is not what its layout says.
 """
 
 from __future__ import annotations
@@ -30,12 +50,16 @@ import h5py
 import numpy as np
 
 from .reader import PedscanError, Sequence, open_sequences
+from .scans import POINT_BYTES, ScanSequence, is_scan_layout, point_range, read_points, read_u32, scan_sequences
 
 #: Distance bins of the paper, metres: [min, max).
 BINS: tuple[tuple[float, float], ...] = ((0.0, 4.0), (4.0, 8.0), (8.0, math.inf))
 
 #: SemanticKITTI classes that count as a person: person and moving-person.
 PERSON_CLASSES: tuple[int, ...] = (30, 254)
+
+#: A pedscan ``/label`` that is not scored (a recording's own people): neither hit nor miss.
+NOT_SCORED = 255
 
 
 class MismatchError(PedscanError):
@@ -171,6 +195,10 @@ def open_predictions(path: Path) -> KittiPredictions | H5Predictions:
     )
 
 
+def _ratio(a: float, b: float) -> float | None:
+    return a / b if b else None
+
+
 @dataclass
 class Counts:
     """Beam counts of one distance bin."""
@@ -196,13 +224,10 @@ class Counts:
             setattr(self, k, getattr(self, k) + getattr(other, k))
 
     def scores(self, velocity: bool) -> dict[str, Any]:
-        def ratio(a: float, b: float) -> float | None:
-            return a / b if b else None
-
         out: dict[str, Any] = {
-            "iou": ratio(self.tp, self.tp + self.fp + self.fn),
-            "precision": ratio(self.tp, self.tp + self.fp),
-            "recall": ratio(self.tp, self.tp + self.fn),
+            "iou": _ratio(self.tp, self.tp + self.fp + self.fn),
+            "precision": _ratio(self.tp, self.tp + self.fp),
+            "recall": _ratio(self.tp, self.tp + self.fn),
             "beams": self.beams,
             "human_beams": self.human_beams,
             "tp": self.tp,
@@ -210,12 +235,12 @@ class Counts:
             "fn": self.fn,
         }
         if velocity:
-            out["epe_mps"] = ratio(self.epe_sum, self.epe_beams)
+            out["epe_mps"] = _ratio(self.epe_sum, self.epe_beams)
             out["velocity_error_mps"] = {
-                "radial": ratio(self.radial_sum, self.axis_beams),
-                "tangential": ratio(self.tangential_sum, self.axis_beams),
-                "up": ratio(self.up_sum, self.axis_beams),
-                "background_epe": ratio(self.background_epe_sum, self.background_beams),
+                "radial": _ratio(self.radial_sum, self.axis_beams),
+                "tangential": _ratio(self.tangential_sum, self.axis_beams),
+                "up": _ratio(self.up_sum, self.axis_beams),
+                "background_epe": _ratio(self.background_epe_sum, self.background_beams),
             }
         return out
 
@@ -269,9 +294,11 @@ def beam_axes(elevation_deg: np.ndarray, azimuth_deg: np.ndarray) -> np.ndarray:
 def _score_frame(
     report: Report, range_m: np.ndarray, truth: np.ndarray, human: np.ndarray,
     v_true: np.ndarray | None, v_pred: np.ndarray | None, axes: np.ndarray | None = None,
+    scored: np.ndarray | None = None,
 ) -> None:
-    """Adds one frame's beams to the report's bins (``axes``: :func:`beam_axes`)."""
-    returned = range_m > 0
+    """Adds one frame's beams to the report's bins (``axes``: :func:`beam_axes`); only the
+    returned beams where ``scored`` (default: all; pedscan's: ``/label != NOT_SCORED``)."""
+    returned = range_m > 0 if scored is None else (range_m > 0) & scored
     error = along = None
     if v_true is not None and v_pred is not None:
         diff = v_pred.astype(np.float64) - v_true
@@ -329,11 +356,191 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
                 report.notes.append(f"{seq.path}: no /velocity to score the predicted velocities on")
                 noted = True
             report.velocity |= v_true is not None
-            _score_frame(report, range_m, seq.read("label", t) == 1, human, v_true, v_pred, axes)
+            label = seq.read("label", t)
+            _score_frame(report, range_m, label == 1, human, v_true, v_pred, axes, label != NOT_SCORED)
             report.frames += 1
     if problems:
         raise MismatchError(problems)
     return report
+
+
+# --- real scans, per point ------------------------------------------------------------------
+
+#: Scan mode's bins beyond the paper's: people in the street are far.
+STREET_BINS: tuple[tuple[float, float], ...] = ((8.0, 16.0), (16.0, 32.0), (32.0, math.inf))
+
+#: SemanticKITTI classes semantic-kitti-api's learning map sends to "unlabeled" (unlabeled,
+#: outlier, other-structure, other-object): never scored.
+UNLABELED_CLASSES: tuple[int, ...] = (0, 1, 52, 99)
+
+#: Riders (bicyclist, motorcyclist, and moving): a person on a vehicle is neither a hit nor a
+#: false alarm for a pedestrian network. Never scored.
+RIDER_CLASSES: tuple[int, ...] = (31, 32, 253, 255)
+
+
+@dataclass
+class PointCounts:
+    """Point counts of one distance bin (or of all points)."""
+
+    points: int = 0
+    person_points: int = 0
+    tp: int = 0
+    fp: int = 0
+    fn: int = 0
+    #: People (a scan's person points of one nonzero instance), placed by their median range.
+    people: int = 0
+    people_found: int = 0
+
+    def add(self, inside: np.ndarray, truth: np.ndarray, human: np.ndarray) -> None:
+        t, p = truth & inside, human & inside
+        self.points += int(np.count_nonzero(inside))
+        self.person_points += int(np.count_nonzero(t))
+        self.tp += int(np.count_nonzero(t & p))
+        self.fp += int(np.count_nonzero(p & ~t))
+        self.fn += int(np.count_nonzero(t & ~p))
+
+    def scores(self, scans: int) -> dict[str, Any]:
+        return {
+            "iou": _ratio(self.tp, self.tp + self.fp + self.fn),
+            "precision": _ratio(self.tp, self.tp + self.fp),
+            "recall": _ratio(self.tp, self.tp + self.fn),
+            "points": self.points, "person_points": self.person_points, "tp": self.tp, "fp": self.fp, "fn": self.fn,
+            "false_alarm_points_per_scan": _ratio(self.fp, scans),
+            "people": self.people, "people_found": self.people_found, "people_missed": self.people - self.people_found,
+        }
+
+
+@dataclass
+class ScanReport:
+    """What :func:`evaluate_scans` found; :meth:`as_dict` is the ``--json`` content."""
+
+    ground_truth: str
+    predictions: str
+    sequences: int = 0
+    scans: int = 0
+    from_frame: int = 0
+    points: int = 0
+    unlabeled_points: int = 0
+    rider_points: int = 0
+    overall: PointCounts = field(default_factory=PointCounts)
+    bins: list[PointCounts] = field(default_factory=lambda: [PointCounts() for _ in BINS + STREET_BINS])
+
+    def add_scan(self, range_m: np.ndarray, truth_labels: np.ndarray, predicted: np.ndarray) -> None:
+        """One scan: its points' ranges (m), ground-truth and predicted SemanticKITTI labels."""
+        cls = truth_labels & 0xFFFF
+        unlabeled, rider = np.isin(cls, UNLABELED_CLASSES), np.isin(cls, RIDER_CLASSES)
+        scored = ~(unlabeled | rider)
+        truth = np.isin(cls, PERSON_CLASSES) & scored
+        human = np.isin(predicted & 0xFFFF, PERSON_CLASSES) & scored
+        self.scans += 1
+        self.points += int(range_m.size)
+        self.unlabeled_points += int(np.count_nonzero(unlabeled))
+        self.rider_points += int(np.count_nonzero(rider))
+        self.overall.add(scored, truth, human)
+        for (lo, hi), c in zip(BINS + STREET_BINS, self.bins):
+            c.add(scored & (range_m >= lo) & (range_m < hi), truth, human)
+        instance = truth_labels >> 16
+        person = truth & (instance != 0)
+        ids, which = np.unique(instance[person], return_inverse=True)
+        hits = np.bincount(which, weights=human[person], minlength=ids.size)
+        sizes = np.bincount(which, minlength=ids.size)
+        r = range_m[person]
+        for k in range(ids.size):
+            found = int(2 * hits[k] >= sizes[k])
+            middle = float(np.median(r[which == k]))
+            self.overall.people += 1
+            self.overall.people_found += found
+            for (lo, hi), c in zip(BINS + STREET_BINS, self.bins):
+                if lo <= middle < hi:
+                    c.people += 1
+                    c.people_found += found
+
+    def as_dict(self) -> dict[str, Any]:
+        def binned(pairs: tuple[tuple[float, float], ...], counts: list[PointCounts]) -> list[dict[str, Any]]:
+            return [{"min_m": lo, "max_m": None if math.isinf(hi) else hi, **c.scores(self.scans)}
+                    for (lo, hi), c in zip(pairs, counts)]
+
+        return {
+            "ground_truth": self.ground_truth,
+            "predictions": self.predictions,
+            "format": "semantickitti-points",
+            "sequences": self.sequences,
+            "scans": self.scans,
+            "from_frame": self.from_frame,
+            "points": self.points,
+            "not_scored": {"unlabeled": self.unlabeled_points, "rider": self.rider_points},
+            "overall": self.overall.scores(self.scans),
+            "bins": binned(BINS, self.bins[: len(BINS)]),
+            "street_bins": binned(STREET_BINS, self.bins[len(BINS):]),
+        }
+
+
+def scan_predictions(seq: ScanSequence, predictions: Path) -> Path:
+    """The folder of a sequence's predicted labels: ``PRED/predictions`` (or PRED itself, when
+    it holds the .label files) for a sequence folder, ``PRED/sequences/SS/predictions`` in a root."""
+    folder = predictions / seq.predictions
+    if seq.predictions == Path("predictions") and not folder.is_dir() and any(predictions.glob("*.label")):
+        return predictions
+    return folder
+
+
+def evaluate_scans(ground_truth: str | Path, predictions: str | Path, from_frame: int = 0) -> ScanReport:
+    """Scores per-point predictions of SemanticKITTI scans (a sequence folder or a dataset root
+    with labels) on scans ``from_frame`` onwards of each sequence, SemanticKITTI's way (module
+    docs). Every file is checked before any is scored: MismatchError names each missing file
+    and each file of another length; PedscanError a scan that is not whole points or missing."""
+    sequences = scan_sequences(Path(ground_truth), labelled=True)
+    report = ScanReport(str(ground_truth), str(predictions), sequences=len(sequences), from_frame=from_frame)
+    problems: list[str] = []
+    work: list[tuple[Path, Path, Path, int]] = []
+    for seq in sequences:
+        folder = scan_predictions(seq, Path(predictions))
+        if not folder.is_dir():
+            problems.append(f"{folder}: missing ({len(seq.scans)} scans of {seq.folder})")
+            continue
+        stems = {p.stem for p in seq.scans}
+        problems += [f"{p}: no such scan in {seq.folder / 'velodyne'}" for p in sorted(folder.glob("*.label")) if p.stem not in stems]
+        for scan in seq.scans[from_frame:]:
+            n = scan.stat().st_size // POINT_BYTES
+            ok = True
+            for path, what in ((seq.label_path(scan), "labels"), (folder / f"{scan.stem}.label", "predicted labels")):
+                if not path.is_file():
+                    problems.append(f"{path}: missing")
+                    ok = False
+                elif path.stat().st_size != 4 * n:
+                    size = path.stat().st_size
+                    problems.append(f"{path}: {size // 4 if size % 4 == 0 else f'{size} bytes, not whole'} {what}, {scan} has {n} points")
+                    ok = False
+            if ok:
+                work.append((scan, seq.label_path(scan), folder / f"{scan.stem}.label", n))
+    if problems:
+        raise MismatchError(problems)
+    for scan, labels, predicted, n in work:
+        report.add_scan(point_range(read_points(scan)), read_u32(labels, n, "labels", scan.name),
+                        read_u32(predicted, n, "predicted labels", scan.name))
+    return report
+
+
+def format_scan_report(d: dict[str, Any]) -> str:
+    """The printed summary of :meth:`ScanReport.as_dict`."""
+    o, skip = d["overall"], d["not_scored"]
+    lines = [
+        (f"ground truth: {d['sequences']} sequences, {d['scans']} scans, {d['points']} points "
+         f"({o['points']} scored; not scored: {skip['unlabeled']} unlabeled, {skip['rider']} rider)"),
+        f"predictions: {d['format']}",
+        (f"person IoU {_fmt(o['iou'])}  precision {_fmt(o['precision'])}  recall {_fmt(o['recall'])}  "
+         f"(TP {o['tp']}, FP {o['fp']}, FN {o['fn']})"),
+        (f"false alarms {_fmt(o['false_alarm_points_per_scan'], 1)} points per scan; people found "
+         f"{o['people_found']} of {o['people']} (half or more of their points)"),
+        "",
+        f"{'distance':<10}{'IoU':>8}{'precision':>11}{'recall':>8}{'person points':>15}{'people found':>14}{'FA/scan':>9}",
+    ]
+    for b in d["bins"] + d["street_bins"]:
+        name = f"{b['min_m']:g}-{b['max_m']:g} m" if b["max_m"] is not None else f"{b['min_m']:g}+ m"
+        people = f"{b['people_found']}/{b['people']}"
+        lines.append(f"{name:<10}{_fmt(b['iou']):>8}{_fmt(b['precision']):>11}{_fmt(b['recall']):>8}"
+                     f"{b['person_points']:>15}{people:>14}{_fmt(b['false_alarm_points_per_scan'], 1):>9}")
+    return "\n".join(lines)
 
 
 def _fmt(x: float | None, digits: int = 4) -> str:
@@ -381,10 +588,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m pedscan_data.evaluate",
         description="Human IoU, precision, recall (and velocity EPE) of predictions "
-        "against pedscan ground truth.",
+        "against pedscan ground truth or SemanticKITTI's labeled scans.",
     )
-    parser.add_argument("ground_truth", type=Path, help="pedscan output folder or sequence file")
-    parser.add_argument("predictions", type=Path, help="SemanticKITTI folder or HDF5 file(s)")
+    parser.add_argument(
+        "ground_truth", type=Path,
+        help="pedscan output folder or sequence file; or labeled scans: a SemanticKITTI sequence folder "
+        "(velodyne/, labels/) or dataset root (sequences/SS/labels/)",
+    )
+    parser.add_argument(
+        "predictions", type=Path,
+        help="SemanticKITTI folder or HDF5 file(s); for scans, predict's folder (predictions/ or sequences/SS/predictions/)",
+    )
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the scores as JSON")
     parser.add_argument(
         "--from-frame", type=int, default=0, metavar="K",
@@ -394,11 +608,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.from_frame < 0:
             raise PedscanError(f"--from-frame {args.from_frame}: not a frame index")
-        report = evaluate(args.ground_truth, args.predictions, args.from_frame).as_dict()
+        if is_scan_layout(args.ground_truth, labelled=True):
+            report = evaluate_scans(args.ground_truth, args.predictions, args.from_frame).as_dict()
+            text = format_scan_report(report)
+        elif is_scan_layout(args.ground_truth):
+            raise PedscanError(f"{args.ground_truth}: scans without labels/ to score against")
+        else:
+            report = evaluate(args.ground_truth, args.predictions, args.from_frame).as_dict()
+            text = format_report(report)
     except (PedscanError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(format_report(report))
+    print(text)
     if args.json is not None:
         args.json.write_text(json.dumps(report, indent=2) + "\n")
     return 0

@@ -330,3 +330,29 @@ def test_a_mismatch_names_the_first_twenty_problems_and_counts_the_rest() -> Non
     assert not str(exactly).endswith("more")
     one_over = MismatchError([f"p{k}" for k in range(21)])
     assert str(one_over).endswith("\n  p19\n  ... and 1 more")
+
+
+def test_beams_labelled_not_scored_count_nowhere(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A ground-truth /label of 255 (a recording's own people) is neither a hit nor a miss: with
+    every such beam predicted wrongly, the rest predicted right, the scores are perfect and
+    the beams counted are the others."""
+    gt_dir, preds = tmp_path / "gt", tmp_path / "preds"
+    shutil.copytree(sample, gt_dir)
+    returned = not_scored = 0
+    for name, g in ground_truth(sample).items():
+        label = g["label"].copy()
+        ret = g["range"] > 0
+        # Some human beams and some background beams of every frame become 255.
+        pick = ret & ((g["label"] == 1) | (np.arange(label.size).reshape(label.shape) % 7 == 0))
+        pick &= np.arange(label.size).reshape(label.shape) % 2 == 0
+        label[pick] = 255
+        with h5py.File(gt_dir / name, "a") as f:
+            f["label"][...] = label
+        write_h5(preds, name, np.where(pick, g["label"] == 0, g["label"] == 1).astype(np.uint8))
+        returned += int(ret.sum())
+        not_scored += int(pick.sum())
+    assert not_scored > 0
+    code, _, err = run(capsys, gt_dir, preds, "--json", tmp_path / "s.json")
+    assert (code, err) == (0, "")
+    o = json.loads((tmp_path / "s.json").read_text())["overall"]
+    assert (o["iou"], o["fp"], o["fn"], o["beams"]) == (1.0, 0, 0, returned - not_scored)
