@@ -1,15 +1,31 @@
-"""Runs a trained network over pedscan sequences and writes its predictions.
+"""Runs a trained network over pedscan sequences or real scans and writes its predictions.
 
     python -m pedscan_data.predict MODEL DATA --out PRED [--format h5|semantickitti]
                                     [--device auto|cpu|cuda] [--export-onnx FILE]
+    python -m pedscan_data.predict MODEL SCANS --out PRED [--sensor NAME|FILE.toml]
+                                    [--pedscan BIN] [--per-point knn|cell] [--knn K,S,SIGMA,CUT]
 
-MODEL is a run folder (its ``model.pt``) or a model file; DATA a pedscan output folder or one
-sequence file. Per sequence, PRED gets an HDF5 file named like the ground truth with
-``/label`` u8 [T,H,W] (1 human) and ``/velocity`` f32 [T,H,W,3] (m/s, sensor frame), so
-``python -m pedscan_data.evaluate DATA PRED`` scores it unchanged; or, with
-``--format semantickitti``, ``PRED/sequences/SS/labels/NNNNNN.label`` (uint32 per returned
-beam, class 30 person / 0 unlabeled) and ``PRED/sequences/SS/velocity/NNNNNN.bin`` (f32 x y z
-per returned beam).
+MODEL is a run folder (its ``model.pt``) or a model file.
+
+**pedscan sequences.** DATA is a pedscan output folder or one sequence file. Per sequence,
+PRED gets an HDF5 file named like the ground truth with ``/label`` u8 [T,H,W] (1 human) and
+``/velocity`` f32 [T,H,W,3] (m/s, sensor frame), so ``python -m pedscan_data.evaluate DATA
+PRED`` scores it unchanged; or, with ``--format semantickitti``,
+``PRED/sequences/SS/labels/NNNNNN.label`` (uint32 per returned beam, class 30 person / 0
+unlabeled) and ``PRED/sequences/SS/velocity/NNNNNN.bin`` (f32 x y z per returned beam).
+
+**Real scans, per point.** SCANS is a SemanticKITTI sequence folder (``velodyne/NNNNNN.bin``)
+or a dataset root (``sequences/SS/velodyne/``); see :mod:`pedscan_data.scans`. Each scan is
+put on the model's sensor grid by ``pedscan project`` (the projection ``generate`` gives a
+recorded background; the binary is ``--pedscan``, else ``$PEDSCAN``, else this checkout's
+build, else ``PATH``), the network predicts on the grid, and each point gets a label back
+(``--per-point``: RangeNet++'s kNN vote, the default, or its cell's): uint32 per point in the
+scan's order, 30 person / 0 not, in ``PRED/predictions/NNNNNN.label`` (a sequence folder) or
+``PRED/sequences/SS/predictions/NNNNNN.label`` (a root), semantic-kitti-api's layout, with
+``PRED/predict.json`` saying how. The grid is ``--sensor``, else the model file's ``sensor``.
+An N-frame network takes the scans in file order as its frames. Every scan is checked before
+anything is projected, and PRED is written in a temporary sibling and moved into place: on
+bad input (exit 2, the file named) nothing is written.
 
 **Streaming.** Each frame is encoded once; frame t is decoded from the features of frames
 t-N+1 .. t. A frame with fewer than N-1 predecessors (the first N-1 of a sequence) is decoded
@@ -25,11 +41,15 @@ window within 1e-4 before the file is kept.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
+import shutil
 import sys
+import tempfile
 import time
 import warnings
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +57,14 @@ import h5py
 import numpy as np
 
 from .reader import PedscanError, Sequence, open_sequences
+from .scans import (
+    Grid, Knn, ProjectedScan, ProjectFailed, find_pedscan, is_scan_layout, move_into_place, point_labels,
+    projected_scans, read_points, scan_sequences, sensor_argument,
+)
+
+#: How points take the grid's predictions by default: ``knn`` or ``cell``. (Measured on
+#: generated scans: see :func:`predict_scans`.)
+PER_POINT = "knn"
 
 
 def _torch():
@@ -65,43 +93,58 @@ def sequence_inputs(seq: Sequence, intensity: bool, frames: slice = slice(None))
     return input_channels(r, i)
 
 
-def predict_sequence(
-    net: Any, seq: Sequence, device: Any, first: int = 0, chunk: int = 8
-) -> tuple[np.ndarray, np.ndarray, list[float]]:
-    """Streams ``net`` over ``seq``: the human margin f32 [T,H,W] (logit of human minus logit of
-    background; human where it exceeds the model's threshold, :func:`human_margin`), velocity
-    f32 [T,H,W,3] and ms per frame.
+def stream(net: Any, frames: Iterable[np.ndarray], device: Any, first: int = 0) -> Iterator[tuple[int, Any, Any, float]]:
+    """Streams ``net`` over ``frames`` (each the inputs f32 [C,H,W] of one frame, in order):
+    per frame t, (t, human margin f32 [H,W], velocity f32 [H,W,3], ms), the margin and velocity
+    None before ``first``.
 
-    Frames before ``first`` are encoded (the later ones need them) but not decoded; their
-    outputs stay 0. A frame with fewer than N-1 predecessors uses frame 0's features in place
-    of the missing ones.
+    Each frame is encoded once (frames before ``first`` too: the later ones need them); a
+    frame with fewer than N-1 predecessors uses frame 0's features in place of the missing ones.
     """
     torch = _torch()
     n = net.cfg.frames
-    t_total, h, w = seq.frames, seq.rows, seq.columns
-    margin = np.zeros((t_total, h, w), dtype=np.float32)
-    velocity = np.zeros((t_total, h, w, 3), dtype=np.float32)
     feats: list[Any] = []  # per frame, on the device: (inputs, features) of the last N frames only
+    for t, frame in enumerate(frames):
+        start = time.perf_counter()
+        margin = velocity = None
+        with torch.inference_mode():
+            xk = torch.from_numpy(frame)[None].to(device)
+            s1, s2, f = net.encode(xk)
+            feats.append((xk, f))
+            if len(feats) > n:
+                feats.pop(0)
+            if t >= first:
+                window = [feats[0]] * (n - len(feats)) + feats
+                logits, vel = net.decode(
+                    s1, s2, torch.stack([e[1] for e in window], dim=1), torch.stack([e[0] for e in window], dim=1)
+                )
+                margin = (logits[0, 1] - logits[0, 0]).to("cpu").numpy()
+                velocity = vel[0].permute(1, 2, 0).to("cpu").numpy()
+        yield t, margin, velocity, (time.perf_counter() - start) * 1e3
+
+
+def predict_sequence(
+    net: Any, seq: Sequence, device: Any, first: int = 0, chunk: int = 8
+) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """Streams ``net`` over ``seq`` (:func:`stream`): the human margin f32 [T,H,W] (logit of
+    human minus logit of background; human where it exceeds the model's threshold,
+    :func:`human_margin`), velocity f32 [T,H,W,3] and ms per frame.
+
+    Frames before ``first`` are encoded (the later ones need them) but not decoded; their
+    outputs stay 0. Inputs are read ``chunk`` frames at a time.
+    """
+
+    def inputs() -> Iterator[np.ndarray]:
+        for t0 in range(0, seq.frames, chunk):
+            yield from sequence_inputs(seq, net.cfg.intensity, slice(t0, min(t0 + chunk, seq.frames)))
+
+    margin = np.zeros((seq.frames, seq.rows, seq.columns), dtype=np.float32)
+    velocity = np.zeros((seq.frames, seq.rows, seq.columns, 3), dtype=np.float32)
     ms: list[float] = []
-    with torch.inference_mode():
-        for t0 in range(0, t_total, chunk):
-            x = torch.from_numpy(sequence_inputs(seq, net.cfg.intensity, slice(t0, min(t0 + chunk, t_total))))
-            for k in range(x.shape[0]):
-                t = t0 + k
-                start = time.perf_counter()
-                xk = x[k : k + 1].to(device)
-                s1, s2, f = net.encode(xk)
-                feats.append((xk, f))
-                if len(feats) > n:
-                    feats.pop(0)
-                if t >= first:
-                    window = [feats[0]] * (n - len(feats)) + feats
-                    logits, vel = net.decode(
-                        s1, s2, torch.stack([e[1] for e in window], dim=1), torch.stack([e[0] for e in window], dim=1)
-                    )
-                    margin[t] = (logits[0, 1] - logits[0, 0]).to("cpu").numpy()
-                    velocity[t] = vel[0].permute(1, 2, 0).to("cpu").numpy()
-                ms.append((time.perf_counter() - start) * 1e3)
+    for t, m, v, frame_ms in stream(net, inputs(), device, first):
+        if m is not None:
+            margin[t], velocity[t] = m, v
+        ms.append(frame_ms)
     return margin, velocity, ms
 
 
@@ -234,15 +277,132 @@ def predict(
     return {"sequences": len(sequences), "ms_per_frame_median": float(np.median(all_ms)) if all_ms else None}
 
 
+def model_sensor(obj: dict[str, Any]) -> Any:
+    """The sensor a model file says it was trained on (``sensor``: a preset's name or a table
+    with ``elevation_deg`` and ``columns``), or None."""
+    return obj.get("sensor", obj.get("training", {}).get("sensor"))
+
+
+def check_grid(grid: Grid, net: Any, obj: dict[str, Any], model: Any) -> list[str]:
+    """Refuses a grid the network cannot take or whose intensity is not in the units it was
+    trained on; the notes to print (units the model file does not record)."""
+    if grid.rows % 4 or grid.cols % 8:
+        raise PedscanError(
+            f"--sensor {grid.sensor}: a {grid.rows} x {grid.cols} grid; the network takes a multiple of 4 rows and of 8 columns"
+        )
+    if not net.cfg.intensity:
+        return []
+    trained = obj.get("intensity_units", obj.get("training", {}).get("intensity_units"))
+    if trained is None:
+        return [f"{model}: the model file does not say its intensity's units; the scans' are {grid.intensity_units}"]
+    if trained != grid.intensity_units:
+        raise PedscanError(
+            f"{model}: a network trained on intensity in {trained}, the scans' intensity is {grid.intensity_units}"
+        )
+    return []
+
+
+def predict_scans(
+    model: str | os.PathLike[str], scans: Path, out: Path, sensor: str | None = None, pedscan: Path | None = None,
+    knn: Knn | None = Knn(), device: str = "auto", quiet: bool = False,
+) -> dict[str, Any]:
+    """Predicts every scan of a SemanticKITTI sequence folder or dataset root, per point, into
+    ``out`` (module docs; ``knn`` None: each point takes its cell's prediction). Returns what
+    ``PRED/predict.json`` records: counts, timing, notes."""
+    from .model import input_channels
+    from .netio import load_net
+
+    sequences = scan_sequences(scans)
+    binary = find_pedscan(pedscan)
+    if out.exists() and not out.is_dir():
+        raise PedscanError(f"--out {out}: not a folder")
+    dev = pick_device(device)
+    net, obj = load_net(model, dev)
+    cut = human_margin(obj)
+    spec = sensor if sensor is not None else model_sensor(obj)
+    if spec is None:
+        raise PedscanError(f"{model}: the model file does not say which sensor's grid it was trained on; give --sensor NAME|FILE.toml")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    work = tmp / ".work"
+    record: dict[str, Any] = {
+        "model": Path(model).name, "scans": str(scans), "frames_seen": net.cfg.frames,
+        "full_window_from": net.cfg.frames - 1, "human_threshold": float(obj.get("human_threshold", 0.5)),
+        "per_point": "cell" if knn is None else "knn",
+        "knn": None if knn is None else {"k": knn.k, "search": knn.search, "sigma": knn.sigma, "cutoff_m": knn.cutoff_m},
+        "sequences": [], "notes": [],
+    }
+    start = time.perf_counter()
+    all_ms: list[float] = []
+    done = 0
+    total = sum(len(s.scans) for s in sequences)
+    try:
+        sensor_arg = sensor_argument(spec, work)
+        for seq in sequences:
+            folder = tmp / seq.predictions
+            folder.mkdir(parents=True)
+            held: list[ProjectedScan] = []
+            counts = {"scans": 0, "points": 0, "kept": 0, "replaced": 0, "outside_band": 0}
+
+            def inputs() -> Iterator[np.ndarray]:
+                for grid, p in projected_scans(binary, seq, work / "project", sensor_arg):
+                    if counts["scans"] == 0:
+                        record["notes"] += check_grid(grid, net, obj, model)
+                        record.update(sensor=grid.sensor, rows=grid.rows, cols=grid.cols, intensity_units=grid.intensity_units)
+                    for key in ("points", "kept", "replaced", "outside_band"):
+                        counts[key] += int(p.stats.get(key, 0))
+                    counts["scans"] += 1
+                    held.append(p)
+                    yield input_channels(p.range_m, p.intensity if net.cfg.intensity else None)
+
+            ms: list[float] = []
+            for _, margin, _, frame_ms in stream(net, inputs(), dev):
+                p = held.pop(0)
+                labels = point_labels(margin > cut, p.range_m, p.cells, read_points(p.file), knn)
+                labels.tofile(folder / f"{p.file.stem}.label")
+                ms.append(frame_ms)
+                done += 1
+                if not quiet:
+                    print(f"\r{done}/{total} scans, {np.median(ms):.0f} ms per frame", end="", file=sys.stderr)
+            all_ms += after_warm_up(ms)
+            record["sequences"].append({"folder": str(seq.folder), "predictions": str(seq.predictions), **counts})
+        record["seconds"] = time.perf_counter() - start
+        record["ms_per_frame_median"] = float(np.median(all_ms)) if all_ms else None
+        shutil.rmtree(work, ignore_errors=True)
+        (tmp / "predict.json").write_text(json.dumps(record, indent=2) + "\n")
+        move_into_place(tmp, out, [s.predictions for s in sequences] + [Path("predict.json")])
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if not quiet:
+        print(file=sys.stderr)
+        for note in record["notes"]:
+            print(f"note: {note}", file=sys.stderr)
+    return record
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit code (0 written, 1 failed, 2 bad input)."""
     parser = argparse.ArgumentParser(prog="python -m pedscan_data.predict", description=__doc__.split("\n\n")[0])
     parser.add_argument("model", type=Path, help="run folder or model file (.pt)")
-    parser.add_argument("data", type=Path, nargs="?", help="pedscan output folder or sequence file")
+    parser.add_argument(
+        "data", type=Path, nargs="?",
+        help="pedscan output folder or sequence file; or SemanticKITTI scans: a sequence folder (velodyne/) "
+        "or a dataset root (sequences/SS/velodyne/)",
+    )
     parser.add_argument("--out", type=Path, help="folder for the predictions")
-    parser.add_argument("--format", choices=("h5", "semantickitti"), default="h5")
+    parser.add_argument("--format", choices=("h5", "semantickitti"), help="for pedscan data (default h5)")
     parser.add_argument("--device", default="auto", help="auto | cpu | cuda (default auto)")
     parser.add_argument("--export-onnx", type=Path, metavar="FILE", help="write the network as ONNX")
     parser.add_argument("--onnx-grid", default="32x1024", metavar="HxW", help="grid of the ONNX check (default 32x1024)")
+    parser.add_argument("--sensor", metavar="NAME|FILE.toml", help="scans: the grid to project on (default: the model file's)")
+    parser.add_argument("--pedscan", type=Path, metavar="BIN", help="scans: the pedscan binary (default: $PEDSCAN, this checkout's build, PATH)")
+    parser.add_argument(
+        "--per-point", choices=("knn", "cell"), default=PER_POINT,
+        help=f"scans: a point's label from RangeNet++'s kNN vote or its cell's (default {PER_POINT})",
+    )
+    parser.add_argument("--knn", default="5,5,1,1", metavar="K,SEARCH,SIGMA,CUTOFF_M",
+                        help="scans: the kNN vote's neighbours, window, Gaussian sigma (cells) and range cutoff (default 5,5,1,1)")
     args = parser.parse_args(argv)
     from .netio import load_net
 
@@ -256,12 +416,24 @@ def main(argv: list[str] | None = None) -> int:
                 return 0
         if args.data is None or args.out is None:
             parser.error("DATA and --out are needed to predict (or give --export-onnx FILE alone)")
+        if is_scan_layout(args.data):
+            if args.format is not None:
+                raise PedscanError(f"--format {args.format}: for pedscan data; scans are written per point in SemanticKITTI's layout")
+            knn = Knn.parse(args.knn) if args.per_point == "knn" else None
+            rec = predict_scans(args.model, args.data, args.out, args.sensor, args.pedscan, knn, args.device)
+            scans = sum(s["scans"] for s in rec["sequences"])
+            print(f"wrote {scans} scans' predictions to {args.out} in {rec['seconds']:.1f} s; "
+                  f"{rec['ms_per_frame_median']:.1f} ms per frame (median)")
+            return 0
         if args.out.exists() and args.out.resolve() == args.data.resolve():
             raise PedscanError(f"--out {args.out}: the same folder as the data; give another")
-        res = predict(args.model, args.data, args.out, args.format, args.device)
+        res = predict(args.model, args.data, args.out, args.format or "h5", args.device)
     except (PedscanError, FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except ProjectFailed as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     print(f"wrote {res['sequences']} sequences to {args.out}; {res['ms_per_frame_median']:.1f} ms per frame (median)")
     return 0
 

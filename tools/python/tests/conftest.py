@@ -60,6 +60,12 @@ max_range_m = 20.0
 ELEVATION_DEG = sorted(float(x) for x in SENSOR_TOML.split("[")[1].split("]")[0].split(","))[::-1]
 
 
+def generate_test16(folder: Path, *flags: str) -> Path:
+    """``pedscan generate`` on the test sensor (its file written beside) into ``folder/out``."""
+    (folder / "sensor.toml").write_text(SENSOR_TOML)
+    return generate(folder / "out", "--sensor", str(folder / "sensor.toml"), *flags)
+
+
 @pytest.fixture(scope="session")
 def sample(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two sequences of four frames with every output; read-only for the tests."""

@@ -118,12 +118,18 @@ def test_the_command_lines_say_what_they_take(capsys: pytest.CaptureFixture[str]
     text = help_text(pr.main, capsys)
     for want in (
         "usage: python -m pedscan_data.predict",
-        "Runs a trained network over pedscan sequences and writes its predictions.",
+        "Runs a trained network over pedscan sequences or real scans and writes its predictions.",
         "model run folder or model file (.pt)",
         "[data]",
-        "data pedscan output folder or sequence file",
+        "data pedscan output folder or sequence file; or SemanticKITTI scans: a sequence folder (velodyne/) "
+        "or a dataset root (sequences/SS/velodyne/)",
         "--out OUT folder for the predictions",
-        "--format {h5,semantickitti}",
+        "--format {h5,semantickitti} for pedscan data (default h5)",
+        "--sensor NAME|FILE.toml scans: the grid to project on (default: the model file's)",
+        "--pedscan BIN scans: the pedscan binary (default: $PEDSCAN, this checkout's build, PATH)",
+        "--per-point {knn,cell} scans: a point's label from RangeNet++'s kNN vote or its cell's (default knn)",
+        "--knn K,SEARCH,SIGMA,CUTOFF_M scans: the kNN vote's neighbours, window, Gaussian sigma (cells) and "
+        "range cutoff (default 5,5,1,1)",
         "--device DEVICE auto | cpu | cuda (default auto)",
         "--export-onnx FILE write the network as ONNX",
         "--onnx-grid HxW grid of the ONNX check (default 32x1024)",
@@ -132,9 +138,12 @@ def test_the_command_lines_say_what_they_take(capsys: pytest.CaptureFixture[str]
     text = help_text(evaluate_main, capsys)
     for want in (
         "usage: python -m pedscan_data.evaluate",
-        "Human IoU, precision, recall (and velocity EPE) of predictions against pedscan ground truth.",
-        "ground_truth pedscan output folder or sequence file",
-        "predictions SemanticKITTI folder or HDF5 file(s)",
+        "Human IoU, precision, recall (and velocity EPE) of predictions against pedscan ground truth or "
+        "SemanticKITTI's labeled scans.",
+        "ground_truth pedscan output folder or sequence file; or labeled scans: a SemanticKITTI sequence folder "
+        "(velodyne/, labels/) or dataset root (sequences/SS/labels/)",
+        "predictions SemanticKITTI folder or HDF5 file(s); for scans, predict's folder (predictions/ or "
+        "sequences/SS/predictions/)",
         "--json FILE also write the scores as JSON",
         "--from-frame K score frames K onwards of each sequence (an N-frame network's full windows: K = N-1)",
     ):
