@@ -3,9 +3,17 @@
 //! The floor height is estimated per window (or set by `scene.floor_z_m`): the most
 //! populated 5 cm height bin of the window's returns below the sensor, refined by the median
 //! of the returns within 5 cm of it. The walkable area is a 10 cm grid: cells with a floor
-//! return, grown by 1 m to bridge the gaps between rings, minus cells with a return between
-//! 25 cm and 2 m above the floor (anything standing there at any frame of the window, moving
-//! objects included), largest connected region only.
+//! return within 50 m of its sensor, grown to bridge the gaps between rings, minus cells with a
+//! return between 25 cm and 2 m above the floor (anything standing there at any frame of the
+//! window, moving objects included), largest connected region only.
+//!
+//! **Far floor.** The rings on the floor spread with the square of their distance (a ring gap
+//! of angle a seen from height h lands d² a / h apart at distance d: 0.4 deg from 1.73 m, an
+//! HDL-64E on a car, puts them 1.6 m apart at 20 m and 6.5 m at 40 m), and a street's floor is
+//! neither flat nor one plane (camber, slopes, kerbs). So a floor return counts within
+//! `0.1 m + 0.6 %` of its distance of the floor, and grows by `max(1 m, d² / 500 m)`: far
+//! floor stays one region with the near floor, where people can stand at the distances a street
+//! shows them (without this, people composited into KITTI streets stood at a median 6 m).
 
 use super::{WalkableGrid, WALKABLE_CELL_M};
 use crate::error::{Error, Result};
@@ -26,14 +34,30 @@ pub fn walkable(rec: &Recording, frames: std::ops::Range<usize>, floor_z: Option
     Ok((floor, grid))
 }
 
-/// Horizontal distances (m) of the returns used for the floor.
+/// Horizontal distances (m) of the returns used for the floor height.
 const FLOOR_RING_M: [f64; 2] = [1.0, 30.0];
+/// Horizontal distance (m) of the returns the walkable area is built from.
+const WALKABLE_RING_M: f64 = 50.0;
 /// Heights above the floor that block a cell, m.
 const BLOCK_Z_M: [f64; 2] = [0.25, 2.0];
-/// Floor returns count within this height of the floor, m.
+/// Floor returns count within this height of the floor, m, plus [`FLOOR_TOLERANCE_SLOPE`] of
+/// their horizontal distance.
 const FLOOR_TOLERANCE_M: f64 = 0.1;
-/// Floor cells are grown by this much to bridge the gaps between rings, m.
+const FLOOR_TOLERANCE_SLOPE: f64 = 0.006;
+/// Floor cells are grown by at least this much to bridge the gaps between rings, m ...
 const FLOOR_GROW_M: f64 = 1.0;
+/// ... and by d² / this at a distance d (m), the gap of rings 0.4 deg apart seen from 1.73 m.
+const FLOOR_GROW_DIVISOR_M: f64 = 500.0;
+
+/// The height band (± m) of a floor return at horizontal distance `d_m` from its sensor.
+fn floor_tolerance_m(d_m: f64) -> f64 {
+    FLOOR_TOLERANCE_M + FLOOR_TOLERANCE_SLOPE * d_m
+}
+
+/// How far (m) a floor return at horizontal distance `d_m` from its sensor grows the floor.
+fn floor_grow_m(d_m: f64) -> f64 {
+    FLOOR_GROW_M.max(d_m * d_m / FLOOR_GROW_DIVISOR_M)
+}
 
 /// The floor: the most populated 5 cm bin of the returns at least 30 cm below their sensor,
 /// refined to the median of the returns within 5 cm of it. The bins are counted along the
@@ -81,7 +105,7 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
     let mut lo = DVec2::splat(f64::INFINITY);
     let mut hi = DVec2::splat(f64::NEG_INFINITY);
     for (p, o) in pts {
-        if (p.truncate() - o.truncate()).length() <= FLOOR_RING_M[1] {
+        if (p.truncate() - o.truncate()).length() <= WALKABLE_RING_M {
             lo = lo.min(p.truncate());
             hi = hi.max(p.truncate());
         }
@@ -91,11 +115,13 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
     }
     let lo = lo - DVec2::splat(cell_m);
     let (nx, ny) = WalkableGrid::dims(lo, hi + DVec2::splat(cell_m), cell_m)
-        .map_err(|m| format!("the returns within {} m of their sensor: {m}", FLOOR_RING_M[1]))?;
-    let mut seen = vec![false; nx * ny];
+        .map_err(|m| format!("the returns within {WALKABLE_RING_M} m of their sensor: {m}"))?;
+    // Per cell: 0, or 1 + the cells a floor return there grows the floor by (the largest).
+    let mut seen = vec![0u16; nx * ny];
     let mut blocked = vec![false; nx * ny];
     for (p, o) in pts {
-        if (p.truncate() - o.truncate()).length() > FLOOR_RING_M[1] {
+        let d = (p.truncate() - o.truncate()).length();
+        if d > WALKABLE_RING_M {
             continue;
         }
         let q = (p.truncate() - lo) / cell_m;
@@ -104,48 +130,43 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
             continue;
         }
         let h = p.z - floor;
-        if h.abs() <= FLOOR_TOLERANCE_M {
-            seen[j * nx + i] = true;
+        if h.abs() <= floor_tolerance_m(d) {
+            let g = (floor_grow_m(d) / cell_m).round() as u16 + 1;
+            seen[j * nx + i] = seen[j * nx + i].max(g);
         } else if h >= BLOCK_Z_M[0] && h <= BLOCK_Z_M[1] {
             blocked[j * nx + i] = true;
         }
     }
-    // Grow the floor cells (a separable square dilation: rows, then columns).
-    let g = (FLOOR_GROW_M / cell_m).round() as usize;
-    let mut rows = vec![false; nx * ny];
+    // Grow the floor cells: each by its own reach along its row, then every cell so reached by
+    // that reach along its column (a square per floor return, its side twice its reach).
+    let mut rows = vec![0u16; nx * ny];
     for j in 0..ny {
-        dilate_line(&seen, &mut rows, j * nx, 1, nx, g);
+        grow_line(&seen, &mut rows, j * nx, 1, nx);
     }
-    let mut floor_cells = vec![false; nx * ny];
+    let mut reach = vec![0u16; nx * ny];
     for i in 0..nx {
-        dilate_line(&rows, &mut floor_cells, i, nx, ny, g);
+        grow_line(&rows, &mut reach, i, nx, ny);
     }
+    let floor_cells: Vec<bool> = reach.iter().map(|&r| r > 0).collect();
     if !floor_cells.iter().zip(&blocked).any(|(f, b)| *f && !*b) {
         return Err(none());
     }
     Ok(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor_cells, blocked))
 }
 
-/// Sets `dst` at every cell of the line `first + k * stride` (k < n) within `g` cells of a
-/// set cell of `src` on the same line.
-fn dilate_line(src: &[bool], dst: &mut [bool], first: usize, stride: usize, n: usize, g: usize) {
+/// Along the line `first + k * stride` (k < n): every cell within `src - 1` cells of a cell
+/// whose `src` is nonzero gets at least that `src` in `dst`.
+fn grow_line(src: &[u16], dst: &mut [u16], first: usize, stride: usize, n: usize) {
     let at = |k: usize| first + k * stride;
-    let mut last: Option<usize> = None;
     for k in 0..n {
-        if src[at(k)] {
-            last = Some(k);
+        let v = src[at(k)];
+        if v == 0 {
+            continue;
         }
-        if last.is_some_and(|l| k - l <= g) {
-            dst[at(k)] = true;
-        }
-    }
-    let mut next: Option<usize> = None;
-    for k in (0..n).rev() {
-        if src[at(k)] {
-            next = Some(k);
-        }
-        if next.is_some_and(|l| l - k <= g) {
-            dst[at(k)] = true;
+        let g = usize::from(v - 1);
+        for m in k.saturating_sub(g)..(k + g + 1).min(n) {
+            let c = &mut dst[at(m)];
+            *c = (*c).max(v);
         }
     }
 }
@@ -236,5 +257,33 @@ mod tests {
         }
         let g = walkable_from_points(&pts, -1.0, 0.1).unwrap();
         assert!(g.clearance(DVec2::new(2.0, 0.0)) > 1.5, "between rings: {}", g.clearance(DVec2::new(2.0, 0.0)));
+    }
+
+    #[test]
+    fn far_floor_rings_spread_by_distance_stay_one_walkable_region() {
+        // The floor rings of 0.4 deg steps seen from 1.73 m, out to 45 m (the last gaps 5-8 m),
+        // on a floor rising 0.5 % away from the sensor (a road's slope): people can stand at 40 m,
+        // and a 1 x 1 m box at 30 m still blocks.
+        let h = 1.73;
+        let mut pts = Vec::new();
+        let mut depression = (h / 45.0f64).atan();
+        while depression < 0.5 {
+            let r = h / depression.tan();
+            for a in 0..4000 {
+                let t = a as f64 / 4000.0 * std::f64::consts::TAU;
+                pts.push((DVec3::new(r * t.cos(), r * t.sin(), -h + 0.005 * r), DVec3::ZERO));
+            }
+            depression += 0.4f64.to_radians();
+        }
+        for k in 0..20 {
+            for z in 0..10 {
+                let y = -0.5 + k as f64 * 0.05;
+                pts.push((DVec3::new(29.5, y, -h + 0.3 + 0.5 + z as f64 * 0.1), DVec3::ZERO));
+            }
+        }
+        let g = walkable_from_points(&pts, -h, 0.1).unwrap();
+        assert!(g.clearance(DVec2::new(0.0, 40.0)) > 1.0, "at 40 m: {}", g.clearance(DVec2::new(0.0, 40.0)));
+        assert!(g.clearance(DVec2::new(-25.0, 0.0)) > 1.0, "at 25 m: {}", g.clearance(DVec2::new(-25.0, 0.0)));
+        assert_eq!(g.clearance(DVec2::new(29.5, 0.0)), 0.0, "on the box at 30 m");
     }
 }
