@@ -347,7 +347,7 @@ def predict_scans(
             def inputs() -> Iterator[np.ndarray]:
                 for grid, p in projected_scans(binary, seq, work / "project", sensor_arg):
                     if counts["scans"] == 0:
-                        record["notes"] += check_grid(grid, net, obj, model)
+                        record["notes"] += [n for n in check_grid(grid, net, obj, model) if n not in record["notes"]]
                         record.update(sensor=grid.sensor, rows=grid.rows, cols=grid.cols, intensity_units=grid.intensity_units)
                     for key in ("points", "kept", "replaced", "outside_band"):
                         counts[key] += int(p.stats.get(key, 0))

@@ -105,15 +105,8 @@ class ScanSequence:
     predictions: Path
     """relative to the predictions' root: ``predictions`` or ``sequences/SS/predictions``"""
 
-    @property
-    def name(self) -> str:
-        return str(self.predictions.parent) if self.predictions.parent != Path(".") else self.folder.name
-
     def label_path(self, scan: Path) -> Path:
         return self.folder / "labels" / f"{scan.stem}.label"
-
-    def prediction_path(self, root: Path, scan: Path) -> Path:
-        return root / self.predictions / f"{scan.stem}.label"
 
 
 def _root_sequences(path: Path, sub: str) -> list[Path]:
