@@ -293,8 +293,10 @@ def run_project(pedscan: Path, scans: list[Path], work: Path, sensor: str) -> Gr
     return read_grid(out, scans)
 
 
-def projected_scans(pedscan: Path, seq: ScanSequence, work: Path, sensor: str, chunk: int = CHUNK_SCANS) -> Iterator[tuple[Grid, ProjectedScan]]:
-    """Every scan of ``seq`` on the grid, in order, projected ``chunk`` scans at a time."""
+def projected_scans(pedscan: Path, seq: ScanSequence, work: Path, sensor: str, chunk: int | None = None) -> Iterator[tuple[Grid, ProjectedScan]]:
+    """Every scan of ``seq`` on the grid, in order, projected ``chunk`` (default
+    :data:`CHUNK_SCANS`) scans at a time."""
+    chunk = chunk or CHUNK_SCANS
     for k0 in range(0, len(seq.scans), chunk):
         part = seq.scans[k0 : k0 + chunk]
         grid = run_project(pedscan, part, work, sensor)

@@ -118,6 +118,37 @@ def test_a_sequence_folder_is_written_beside_what_is_there(exported: Path, tmp_p
     assert evaluate_scans(seq, out).as_dict()["scans"] == 3
 
 
+def test_scans_projected_a_few_at_a_time_stream_as_one_sequence(exported: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A two-frame network over three scans projected two at a time: the second chunk's first
+    scan is decoded with the first chunk's last, as when all are projected at once."""
+    import pedscan_data.scans as sc
+
+    net = net_for(2, width=4, seed=4)
+    # The threshold at the median margin: about half of the points are called people.
+    margin, _, _ = pr.predict_sequence(net, Sequence(exported / "seq_000000.h5"), "cpu")
+    model = save_model(net, tmp_path / "net.pt", threshold=float(1 / (1 + np.exp(-np.median(margin)))))
+    sensor = tmp_path / "sensor.toml"
+    sensor.write_text(SENSOR_TOML)
+    seq = exported / "semantickitti/sequences/00"
+    pr.predict_scans(model, seq, tmp_path / "whole", str(sensor), knn=None, quiet=True)
+    monkeypatch.setattr(sc, "CHUNK_SCANS", 2)
+    calls: list[int] = []
+    real = sc.run_project
+    monkeypatch.setattr(sc, "run_project", lambda b, scans, *a: (calls.append(len(scans)), real(b, scans, *a))[1])
+    pr.predict_scans(model, seq, tmp_path / "chunked", str(sensor), knn=None, quiet=True)
+    assert calls == [2, 1]
+    for t in range(3):
+        name = f"predictions/{t:06d}.label"
+        assert (tmp_path / "whole" / name).read_bytes() == (tmp_path / "chunked" / name).read_bytes(), t
+    # Which the test can tell: the last scan alone (its window its own frame twice) differs.
+    alone = tmp_path / "alone"
+    (alone / "velodyne").mkdir(parents=True)
+    shutil.copy(seq / "velodyne/000002.bin", alone / "velodyne")
+    pr.predict_scans(model, alone, tmp_path / "alone-pred", str(sensor), knn=None, quiet=True)
+    last = "predictions/000002.label"
+    assert (tmp_path / "alone-pred" / last).read_bytes() != (tmp_path / "whole" / last).read_bytes()
+
+
 def test_bad_input_exits_2_naming_the_file_and_writes_nothing(exported: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     seq = tmp_path / "seq"
     shutil.copytree(exported / "semantickitti/sequences/00", seq)
