@@ -50,7 +50,7 @@ import h5py
 import numpy as np
 
 from .reader import PedscanError, Sequence, open_sequences
-from .scans import POINT_BYTES, ScanSequence, is_scan_layout, point_range, read_points, read_u32, scan_sequences
+from .scans import POINT_BYTES, ScanSequence, count_problem, is_scan_layout, point_range, read_points, read_u32, scan_sequences
 
 #: Distance bins of the paper, metres: [min, max).
 BINS: tuple[tuple[float, float], ...] = ((0.0, 4.0), (4.0, 8.0), (8.0, math.inf))
@@ -502,16 +502,12 @@ def evaluate_scans(ground_truth: str | Path, predictions: str | Path, from_frame
         problems += [f"{p}: no such scan in {seq.folder / 'velodyne'}" for p in sorted(folder.glob("*.label")) if p.stem not in stems]
         for scan in seq.scans[from_frame:]:
             n = scan.stat().st_size // POINT_BYTES
-            ok = True
-            for path, what in ((seq.label_path(scan), "labels"), (folder / f"{scan.stem}.label", "predicted labels")):
-                if not path.is_file():
-                    problems.append(f"{path}: missing")
-                    ok = False
-                elif path.stat().st_size != 4 * n:
-                    size = path.stat().st_size
-                    problems.append(f"{path}: {size // 4 if size % 4 == 0 else f'{size} bytes, not whole'} {what}, {scan} has {n} points")
-                    ok = False
-            if ok:
+            found = [
+                f"{path}: missing" if not path.is_file() else count_problem(path, n, what, str(scan))
+                for path, what in ((seq.label_path(scan), "labels"), (folder / f"{scan.stem}.label", "predicted labels"))
+            ]
+            problems += [f for f in found if f]
+            if not any(found):
                 work.append((scan, seq.label_path(scan), folder / f"{scan.stem}.label", n))
     if problems:
         raise MismatchError(problems)

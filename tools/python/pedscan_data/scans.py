@@ -163,7 +163,7 @@ def check_scans(seq: ScanSequence) -> list[str]:
         for p in seq.scans if p.stat().st_size % POINT_BYTES
     ]
     stems = [p.stem for p in seq.scans]
-    problems += [f"{velodyne}: {a}.bin twice (in two cases)" for a, b in zip(stems, stems[1:]) if a == b]
+    problems += [f"{velodyne}: two scans named {a} (.bin and .BIN)" for a, b in zip(stems, stems[1:]) if a == b]
     if all(s.isdigit() for s in stems):
         have = {int(s) for s in stems}
         width = len(stems[0])
@@ -191,12 +191,20 @@ def point_range(points: np.ndarray) -> np.ndarray:
     return np.sqrt((xyz * xyz).sum(axis=1)).astype(np.float32)
 
 
-def read_u32(path: Path, count: int, what: str, of: str) -> np.ndarray:
-    """One little-endian u32 per point (labels, predictions, cells); PedscanError naming the
-    file when it holds another number of them."""
+def count_problem(path: Path, count: int, what: str, of: str) -> str | None:
+    """What is wrong with a file of one u32 per point (labels, predictions, cells) that should
+    hold ``count`` of them, naming it; None when nothing is."""
     size = path.stat().st_size
-    if size != 4 * count:
-        raise PedscanError(f"{path}: {size // 4 if size % 4 == 0 else f'{size} bytes, not whole'} {what}, {of} has {count} points")
+    if size == 4 * count:
+        return None
+    return f"{path}: {size // 4 if size % 4 == 0 else f'{size} bytes, not whole'} {what}, {of} has {count} points"
+
+
+def read_u32(path: Path, count: int, what: str, of: str) -> np.ndarray:
+    """One little-endian u32 per point; PedscanError (:func:`count_problem`) for another count."""
+    problem = count_problem(path, count, what, of)
+    if problem:
+        raise PedscanError(problem)
     return np.fromfile(path, dtype="<u4")
 
 
