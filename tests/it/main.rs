@@ -6,6 +6,7 @@ mod common;
 mod beam_caster;
 mod beam_exact;
 mod crosscheck;
+mod docs;
 mod exports;
 mod gait;
 mod generate;
