@@ -107,7 +107,8 @@ pub fn strip_bom(bytes: &[u8]) -> &[u8] {
 pub struct Scan {
     /// Returns, metres, sensor frame. Readers drop non-finite and all-zero points.
     pub points: Vec<[f32; 3]>,
-    /// Laser ring per point, when the source has one (pcap, PCD with a `ring` field).
+    /// Laser ring per point, when the source has one (pcap, PCD with a `ring` field, a KITTI
+    /// `.bin` stored laser by laser: [`kitti::lasers_of`]).
     pub ring: Option<Vec<u16>>,
     /// Elevation of each ring, degrees, indexed by ring, when known (pcap: the sensor's
     /// vertical angle table). A PCD `ring` field comes without one.
