@@ -19,9 +19,10 @@
 //! for row on the `hdl32e` target even where a point's computed elevation is noisy (range
 //! noise, the lasers' vertical offsets). A ring with no matching row (or no elevation) falls
 //! back to the point's own elevation. When the scan has rings but no elevations (a PCD `ring`
-//! field) and its ring count (largest ring + 1) equals the target's row count, ring `r` goes to
-//! row `rows - 1 - r` (ring 0 is the lowest beam, the ROS convention); with any other ring count
-//! the rings are ignored and the elevations used. [`ProjectStats::ring_mapped`] says whether
+//! field, the lasers of a KITTI scan's point order: [`super::kitti::lasers_of`]) and its ring
+//! count (largest ring + 1) equals the target's row count, ring `r` goes to row `rows - 1 - r`
+//! (ring 0 is the lowest beam, the ROS convention); with any other ring count the rings are
+//! ignored and the elevations used. [`ProjectStats::ring_mapped`] says whether
 //! rings chose the rows. A ring list whose length differs from the point list is ignored.
 //!
 //! # When the recording sensor differs from the target
@@ -60,6 +61,10 @@ pub struct ProjectStats {
     /// True when the scan's rings chose the rows (see the module docs).
     pub ring_mapped: bool,
 }
+
+/// The cell of a point [`Projector::project_points`] drops (outside every band, not finite,
+/// at the origin).
+pub const NO_CELL: u32 = u32::MAX;
 
 /// Projects recorded scans onto one target beam grid; the row bands are computed once.
 #[derive(Clone, Debug)]
@@ -116,6 +121,22 @@ impl Projector {
     /// [`Projector::project`], and the intensity of the return each cell keeps into
     /// `intensity_out` (same shape; left empty when the scan has no intensity).
     pub fn project_with_intensity(&self, scan: &Scan, range_out: &mut Vec<f32>, intensity_out: &mut Vec<f32>) -> ProjectStats {
+        self.project_into(scan, range_out, intensity_out, None)
+    }
+
+    /// [`Projector::project_with_intensity`], and each point's cell into `cells_out` (one per
+    /// point of the scan, in its order): the cell `row * columns + col` the rule sends it to,
+    /// also when a nearer return keeps that cell, or [`NO_CELL`] for a point outside every
+    /// band, not finite or at the origin.
+    pub fn project_points(&self, scan: &Scan, range_out: &mut Vec<f32>, intensity_out: &mut Vec<f32>, cells_out: &mut Vec<u32>) -> ProjectStats {
+        cells_out.clear();
+        cells_out.resize(scan.points.len(), NO_CELL);
+        self.project_into(scan, range_out, intensity_out, Some(cells_out))
+    }
+
+    /// The one projection loop behind every entry point; `cells_out`, when given, already
+    /// holds [`NO_CELL`] per point.
+    fn project_into(&self, scan: &Scan, range_out: &mut Vec<f32>, intensity_out: &mut Vec<f32>, mut cells_out: Option<&mut Vec<u32>>) -> ProjectStats {
         let rows = self.target.rows();
         let cols = self.target.columns;
         range_out.clear();
@@ -151,6 +172,9 @@ impl Projector {
                 continue;
             };
             let c = row * cols + self.target.column_of(x, y);
+            if let Some(cells) = cells_out.as_deref_mut() {
+                cells[i] = u32::try_from(c).expect("a validated sensor has at most 4096 x 65536 cells");
+            }
             let cell = &mut range_out[c];
             let nearer = *cell == 0.0 || r32 < *cell;
             if *cell == 0.0 {
@@ -475,6 +499,66 @@ mod tests {
         assert!(out[..t.columns].iter().all(|v| *v > 0.0));
         let filled_rows = (0..t.rows()).filter(|r| out[r * t.columns] > 0.0).count();
         assert_eq!(filled_rows, 14);
+    }
+
+    /// `project_points` against `project_with_intensity` on `scan`: the same images and stats,
+    /// every point's cell the one the images say it reached.
+    fn assert_cells_agree(proj: &Projector, scan: &Scan) -> Vec<u32> {
+        let (mut range, mut intensity, mut cells) = (Vec::new(), Vec::new(), vec![7; 3]);
+        let st = proj.project_points(scan, &mut range, &mut intensity, &mut cells);
+        let (mut want_range, mut want_intensity) = (Vec::new(), Vec::new());
+        assert_eq!(proj.project_with_intensity(scan, &mut want_range, &mut want_intensity), st);
+        assert_eq!((range == want_range, intensity == want_intensity), (true, true));
+        assert_eq!(cells.len(), scan.points.len());
+        assert_eq!(cells.iter().filter(|&&c| c == NO_CELL).count(), st.outside_band);
+        // Each point's cell holds a return at most as far as the point; each return is a point
+        // sent to its cell; as many distinct cells as kept returns.
+        let ranges: Vec<f32> = scan.points.iter().map(|p| (p.map(f64::from).iter().map(|v| v * v).sum::<f64>()).sqrt() as f32).collect();
+        for (i, &c) in cells.iter().enumerate().filter(|(_, &c)| c != NO_CELL) {
+            let kept = range[c as usize];
+            assert!(kept > 0.0 && kept <= ranges[i], "point {i} in cell {c}: {kept} vs {}", ranges[i]);
+        }
+        let mut filled: Vec<u32> = cells.iter().copied().filter(|&c| c != NO_CELL).collect();
+        filled.sort_unstable();
+        filled.dedup();
+        assert_eq!(filled.len(), st.kept);
+        assert!(filled.iter().all(|&c| cells.iter().zip(&ranges).any(|(&pc, &r)| pc == c && r == range[c as usize])));
+        cells
+    }
+
+    #[test]
+    fn each_points_cell_is_the_cell_it_reached() {
+        let t = Sensor::hdl32e();
+        let proj = Projector::new(&t);
+        // A vlp16 grid onto the hdl32e (outside points, replaced ones), and a nearer copy of
+        // every 5th return of one row, and points that are dropped.
+        let src = Sensor::vlp16();
+        let mut scan = Scan::default();
+        for r in 0..src.rows() {
+            for c in (0..src.columns).step_by(3) {
+                scan.points.push(point(src.beam_dir(r, c), range_of(r, c)));
+                if r == 9 && c % 5 == 0 {
+                    scan.points.push(point(src.beam_dir(r, c), 1.0));
+                }
+            }
+        }
+        scan.points.extend([[f32::NAN, 1.0, 1.0], [0.0; 3], [0.0, 0.0, 5.0]]);
+        scan.intensity = Some((0..scan.points.len()).map(|i| i as f32).collect());
+        let cells = assert_cells_agree(&proj, &scan);
+        assert_eq!(cells[cells.len() - 3..], [NO_CELL; 3]);
+        // A point and its nearer copy share the cell.
+        let row9 = 9 * src.columns.div_ceil(3);
+        assert_eq!(cells[row9], cells[row9 + 1]);
+        // Rings choose the rows: the cells follow them.
+        let mut ringed = Scan::default();
+        for r in 0..t.rows() {
+            for c in (0..t.columns).step_by(5) {
+                ringed.points.push(point(dir(&t, c, t.elevation_deg[r] + wobble(r, c)), range_of(r, c)));
+            }
+        }
+        ringed.ring = Some((0..ringed.points.len()).map(|i| (31 - i / t.columns.div_ceil(5)) as u16).collect());
+        let cells = assert_cells_agree(&proj, &ringed);
+        assert!(cells.iter().enumerate().all(|(i, &c)| c as usize / t.columns == i / t.columns.div_ceil(5)));
     }
 
     #[test]
