@@ -4,7 +4,7 @@
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
-use pedscan::config::{Config, Flags};
+use pedscan::config::Flags;
 use pedscan::commands::run::{RunOptions, Shard};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -103,6 +103,8 @@ enum Command {
     /// Fit the `[sensor_model]` terms a recording can tell (detection by incidence and power,
     /// dropout, range noise) and write them as TOML.
     SensorFit(pedscan::commands::realism::SensorFitRequest),
+    /// KITTI .bin scans on a sensor's grid by `generate`'s projection: each point's cell, range and intensity images.
+    Project(pedscan::commands::project::ProjectRequest),
     /// Summarise a sequence file written by `generate`.
     Info {
         /// A `seq_NNNNNN.h5` file.
@@ -154,7 +156,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             print!("{}", pedscan::commands::bench::bench(&exe, &req)?);
         }
         Command::Sheet { out, models, phases, validation } => {
-            let models = if models.is_empty() { Config::default().humans.models } else { models };
             pedscan::commands::sheet::write_contact_sheet(&models, &phases, &out, validation)?;
             eprintln!("wrote {}", out.display());
         }
@@ -169,9 +170,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Realism(req) => println!("{}", pedscan::commands::realism::realism(&req)?),
         Command::SensorFit(req) => print!("{}", pedscan::commands::realism::sensor_fit(&req)?.toml),
-        Command::Info { file } => {
-            print!("{}", pedscan::output::info(&file)?);
-        }
+        Command::Project(req) => eprintln!("{}", pedscan::commands::project::project(&req)?),
+        Command::Info { file } => print!("{}", pedscan::output::info(&file)?),
         Command::Devices => {
             for (i, d) in pedscan::gpu::Context::list_devices().context("listing Vulkan devices")?.iter().enumerate() {
                 println!("{i}: {d}");

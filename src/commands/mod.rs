@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod crosscheck;
+pub mod project;
 pub mod realism;
 pub mod run;
 pub mod sheet;

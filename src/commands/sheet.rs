@@ -90,9 +90,11 @@ pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) ->
     Ok(img)
 }
 
-/// Loads `models` and writes the sheet to `out` (temporary name, then rename).
+/// Loads `models` (none: the bundled people) and writes the sheet to `out` (temporary name,
+/// then rename).
 pub fn write_contact_sheet(model_paths: &[std::path::PathBuf], phases: &[f32], out: &Path, validation: bool) -> Result<()> {
-    let files = crate::human::model_files(model_paths)?;
+    let bundled = crate::config::Config::default().humans.models;
+    let files = crate::human::model_files(if model_paths.is_empty() { &bundled } else { model_paths })?;
     let models = files.iter().map(|f| HumanModel::load(f, true)).collect::<Result<Vec<_>>>()?;
     let img = contact_sheet(&models, phases, validation)?;
     crate::output::png::save_png(&img, out)

@@ -18,6 +18,7 @@ mod layout;
 mod limb;
 mod output;
 mod production;
+mod project;
 mod proxy;
 mod real_inputs;
 mod realism;
