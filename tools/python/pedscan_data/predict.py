@@ -320,6 +320,9 @@ def predict_scans(
     net, obj = load_net(model, dev)
     cut = human_margin(obj)
     spec = sensor if sensor is not None else model_sensor(obj)
+    notes = []
+    if sensor is not None and model_sensor(obj) not in (None, sensor):
+        notes.append(f"--sensor {sensor} in place of the model file's sensor {model_sensor(obj)!r}")
     if spec is None:
         raise PedscanError(f"{model}: the model file does not say which sensor's grid it was trained on; give --sensor NAME|FILE.toml")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -330,7 +333,7 @@ def predict_scans(
         "full_window_from": net.cfg.frames - 1, "human_threshold": float(obj.get("human_threshold", 0.5)),
         "per_point": "cell" if knn is None else "knn",
         "knn": None if knn is None else {"k": knn.k, "search": knn.search, "sigma": knn.sigma, "cutoff_m": knn.cutoff_m},
-        "sequences": [], "notes": [],
+        "sequences": [], "notes": notes,
     }
     start = time.perf_counter()
     all_ms: list[float] = []

@@ -69,7 +69,11 @@ def test_points_take_the_predictions_the_network_makes_on_the_grid(exported: Pat
     pr.predict_scans(model, scans, knn, quiet=True)
     assert (rec["per_point"], rec["rows"], rec["cols"], rec["sensor"]) == ("cell", 16, 512, "test16")
     assert [s["predictions"] for s in rec["sequences"]] == ["sequences/00/predictions", "sequences/01/predictions"]
-    assert json.loads((cell / "predict.json").read_text()) == rec
+    assert json.loads((cell / "predict.json").read_text()) == rec and rec["notes"] == []
+    # --sensor wins over the model file's, and says so.
+    other = pr.predict_scans(model, scans, tmp_path / "other", sensor="hdl32e", knn=None, quiet=True)
+    assert other["notes"] == [f"--sensor hdl32e in place of the model file's sensor {obj['sensor']!r}"]
+    assert (other["rows"], other["cols"]) == (32, 1024)
     checked = 0
     for ss, frames in truth.items():
         for t, (margin, r, margin_img) in enumerate(frames):
