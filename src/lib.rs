@@ -18,7 +18,11 @@
 //! 8. `output`: HDF5, XML, PNG, PLY, SemanticKITTI, ROS 2 bags, and the sequence's writer.
 //!
 //! `generator` loads a run's inputs once and runs the stages for every frame; `commands` holds `generate`'s job and the
-//! tools beside it (crosscheck, bench, contact sheet); `plot` draws the bench's figures.
+//! tools beside it (crosscheck, bench, contact sheet); `plot` draws the bench's figures;
+//! `debug` holds the test hooks of a run (`debug.kill`).
+//!
+//! Dependencies go one way: no module uses another that uses it back, directly or through
+//! others, at any level of the module tree (`tests/it/layering.rs` checks it).
 
 pub mod config;
 pub mod sensor;
@@ -37,6 +41,7 @@ pub mod generator;
 pub mod commands;
 pub mod plot;
 pub mod error;
+pub mod debug;
 
 pub use error::{Error, Result};
 

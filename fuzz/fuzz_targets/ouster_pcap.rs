@@ -27,7 +27,7 @@ fuzz_target!(|data: &[u8]| {
         for scan in &rec.scans {
             pedscan_fuzz::project(scan);
             if let Some(firings) = &scan.firing_times {
-                if let Ok(times) = pedscan::sensor_model::shutter::boundary_times(firings, 1024) {
+                if let Ok(times) = pedscan::input::sweep::boundary_times(firings, 1024) {
                     assert!(times.windows(2).all(|w| w[1] > w[0]), "column times increase strictly");
                 }
             }

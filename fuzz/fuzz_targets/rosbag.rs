@@ -10,7 +10,7 @@ fn scan_of(scan: &pedscan::input::Scan) {
     pedscan_fuzz::project(scan);
     if let (Some(firings), Some(t0)) = (&scan.firing_times, scan.time_s) {
         let relative: Vec<[f64; 2]> = firings.iter().map(|&[a, t]| [a, t - t0]).collect();
-        if let Ok(times) = pedscan::sensor_model::shutter::boundary_times(&relative, 1024) {
+        if let Ok(times) = pedscan::input::sweep::boundary_times(&relative, 1024) {
             assert!(times.windows(2).all(|w| w[1] > w[0]), "column times increase strictly");
         }
     }

@@ -247,9 +247,7 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
             config_hash: hash.clone(),
             class_points: seq.class_points,
         };
-        if cfg.debug.kill == Some(crate::config::KillPoint { sequence: index, at: crate::config::KillStage::Manifest }) {
-            crate::config::kill_self();
-        }
+        crate::debug::kill_at(cfg.debug.kill.filter(|k| k.sequence == index).map(|k| k.at), crate::debug::KillStage::Manifest);
         Manifest::append(&out, &entry)?;
         frames += seq.frames;
         files.extend(seq.files);

@@ -5,8 +5,11 @@
 mod flags;
 pub use flags::Flags;
 
+use crate::debug::KillPoint;
 use crate::error::{Error, Result};
 use crate::human::MotionMode;
+use crate::input::recording::RecordingOptions;
+use crate::input::rosbag::BagOptions;
 use crate::input::tracks::{TrackFormat, Transform2};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -153,67 +156,6 @@ pub enum PeoplePath {
     /// Conservative proxies drawn into the beam panorama, covered beams cast exactly, on any
     /// device: the GPU's path, so a CPU device (lavapipe, in CI) can check it.
     Proxies,
-}
-
-/// Where a run kills itself with SIGKILL (`debug.kill`), to test `--resume` at every stage of
-/// a sequence without timing a kill from outside. Written `S:frame-K` (sequence S's frame K
-/// is in its temporary files), `S:rename-N` (the N-th of sequence S's final renames is done:
-/// PNG folder, SemanticKITTI folder, bag folder, XML, HDF5, those written, in that order) or
-/// `S:manifest` (sequence S's files have their names, its manifest line is not written).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(try_from = "String", into = "String")]
-pub struct KillPoint {
-    pub sequence: usize,
-    pub at: KillStage,
-}
-
-/// The stage of a sequence a [`KillPoint`] names.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum KillStage {
-    /// Frame K (0-based) written to the temporary files.
-    Frame(usize),
-    /// N (1-based) of the sequence's final renames done.
-    Rename(usize),
-    /// Every file renamed, the manifest line not yet written.
-    Manifest,
-}
-
-impl TryFrom<String> for KillPoint {
-    type Error = String;
-    fn try_from(s: String) -> std::result::Result<KillPoint, String> {
-        let bad = || format!("`{s}` is not S:frame-K, S:rename-N or S:manifest");
-        let (seq, stage) = s.split_once(':').ok_or_else(bad)?;
-        let sequence = seq.parse().map_err(|_| bad())?;
-        let at = match stage.split_once('-') {
-            Some(("frame", k)) => KillStage::Frame(k.parse().map_err(|_| bad())?),
-            Some(("rename", n)) => KillStage::Rename(n.parse().ok().filter(|n| *n >= 1).ok_or_else(bad)?),
-            None if stage == "manifest" => KillStage::Manifest,
-            _ => return Err(bad()),
-        };
-        Ok(KillPoint { sequence, at })
-    }
-}
-
-impl From<KillPoint> for String {
-    fn from(k: KillPoint) -> String {
-        match k.at {
-            KillStage::Frame(f) => format!("{}:frame-{f}", k.sequence),
-            KillStage::Rename(n) => format!("{}:rename-{n}", k.sequence),
-            KillStage::Manifest => format!("{}:manifest", k.sequence),
-        }
-    }
-}
-
-/// Kills this process with SIGKILL, as `kill -9` from outside would: no destructor runs,
-/// nothing is flushed or removed (`debug.kill`).
-pub fn kill_self() -> ! {
-    // SAFETY: kill(2) on this process's own id; it does not return for SIGKILL.
-    unsafe {
-        libc::kill(libc::getpid(), libc::SIGKILL);
-    }
-    loop {
-        std::thread::park();
-    }
 }
 
 /// HDF5 compression of the per-frame chunks.
@@ -643,9 +585,31 @@ impl Default for SceneConfig {
     }
 }
 
+/// The default of `render.host_cast_beams` (the raster backend's `HOST_BEAMS`, where the
+/// measurements that chose it are).
+pub const DEFAULT_HOST_CAST_BEAMS: u64 = 8192;
+
+impl SceneConfig {
+    /// What the recorded background is read with besides its path: the poses file, an Ouster
+    /// capture's metadata, a ROS 2 bag's topics and world frame (an empty key: `None`).
+    pub fn recording_options(&self) -> RecordingOptions<'_> {
+        let text = |s: &str| (!s.is_empty()).then(|| s.to_string());
+        RecordingOptions {
+            poses: (!path_is_empty(&self.poses)).then_some(self.poses.as_path()),
+            ouster_metadata: (!path_is_empty(&self.ouster_metadata)).then_some(self.ouster_metadata.as_path()),
+            bag: BagOptions {
+                topic: text(&self.topic),
+                world_frame: text(&self.world_frame),
+                poses_topic: text(&self.poses_topic),
+                ..BagOptions::default()
+            },
+        }
+    }
+}
+
 impl RenderConfig {
     fn host_cast_beams_is_default(n: &u64) -> bool {
-        *n == crate::backend::raster::beam_exact::HOST_BEAMS
+        *n == DEFAULT_HOST_CAST_BEAMS
     }
 }
 
@@ -658,7 +622,7 @@ impl Default for RenderConfig {
             refine: Refine::Exact,
             lod_max_error_mrad: 1.0,
             proxy_max_error_m: 0.04,
-            host_cast_beams: crate::backend::raster::beam_exact::HOST_BEAMS,
+            host_cast_beams: DEFAULT_HOST_CAST_BEAMS,
             keep_holes: false,
         }
     }

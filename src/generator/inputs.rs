@@ -48,7 +48,7 @@ impl RunInputs {
     /// Vulkan device opens it on `gpu` meanwhile, on its own thread.
     pub fn load(cfg: &Config, gpu: &mut Gpu) -> Result<RunInputs> {
         let sensor = if cfg.sensor == crate::input::recording::BACKGROUND_SENSOR {
-            let s = crate::input::recording::own_sensor(&cfg.scene.background, &crate::input::recording::RecordingOptions::of_scene(&cfg.scene))?;
+            let s = crate::input::recording::own_sensor(&cfg.scene.background, &cfg.scene.recording_options())?;
             eprintln!(
                 "sensor: the background's own grid, {} rows from {:.2} to {:.2} deg, {} columns, {:.2} Hz",
                 s.rows(),
@@ -81,7 +81,7 @@ impl RunInputs {
         let (environment, grid, recording) = if bg.as_os_str().is_empty() {
             (None, None, None)
         } else if is_recording(bg) {
-            let options = crate::input::recording::RecordingOptions::of_scene(&cfg.scene);
+            let options = cfg.scene.recording_options();
             (None, None, Some(Recording::open_with(bg, &options, &sensor)?))
         } else {
             let env = Environment::load(bg)?;

@@ -1,7 +1,7 @@
 //! Stage 2: recorded inputs. Backgrounds as per-frame point clouds from the formats people
 //! have (KITTI `.bin`, PCD, raw Velodyne `.pcap`), sensor poses (KITTI `poses.txt`, TUM),
-//! the projection of a recorded frame onto the target sensor's beam grid, and recorded
-//! pedestrian tracks ([`tracks`]: ETH/UCY, ATC, CSV).
+//! the projection of a recorded frame onto the target sensor's beam grid, a capture's own
+//! column times ([`sweep`]), and recorded pedestrian tracks ([`tracks`]: ETH/UCY, ATC, CSV).
 //!
 //! Every reader returns [`Scan`]s in the *recording* sensor's frame (x forward, y left, z up,
 //! metres). Bad input is an [`crate::Error::input`] naming the file and the line or record.
@@ -27,6 +27,7 @@ pub mod poses;
 pub mod project;
 pub mod recording;
 pub mod rosbag;
+pub mod sweep;
 pub mod tracks;
 
 pub use recording::Recording;
@@ -121,7 +122,7 @@ pub struct Scan {
     /// The recording's own sweep, when it has one (pcap): per firing in capture order, its
     /// azimuth as a fraction of a turn clockwise from straight behind the sensor (pedscan's
     /// column coordinate over the column count, in `[0, 1)`) and the time it was fired, s (the
-    /// clock of `time_s`). [`crate::sensor_model::shutter::boundary_times`] turns it into
+    /// clock of `time_s`). [`crate::input::sweep::boundary_times`] turns it into
     /// column times.
     pub firing_times: Option<Vec<[f64; 2]>>,
 }

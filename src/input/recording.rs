@@ -26,7 +26,7 @@
 //! A frame's columns are fired over its sweep (the rolling shutter,
 //! [`crate::sensor_model::shutter`]). A pcap carries its own: each frame's column times on the
 //! target grid come from its packets ([`Scan::firing_times`] through
-//! [`crate::sensor_model::shutter::boundary_times`]), as offsets from the capture's frame time,
+//! [`crate::input::sweep::boundary_times`]), as offsets from the capture's frame time,
 //! so they follow the frame's time from whichever source gives it (a poses file's clock too).
 //! A frame whose capture times are refused (a clock that steps back or jumps, too few
 //! firings) and every frame of a KITTI or PCD folder take the uniform sweep over the recorded
@@ -129,7 +129,8 @@ pub fn is_recording(path: &Path) -> bool {
     path.is_dir() || is_pcap(path) || is_bag(path)
 }
 
-/// What a recording is read with besides its path.
+/// What a recording is read with besides its path (a run's: built by the configuration,
+/// [`crate::config::SceneConfig::recording_options`]).
 #[derive(Clone, Debug, Default)]
 pub struct RecordingOptions<'a> {
     /// A poses file (one pose per frame); it wins over a bag's transforms.
@@ -138,24 +139,6 @@ pub struct RecordingOptions<'a> {
     pub ouster_metadata: Option<&'a Path>,
     /// A ROS 2 bag's topic, world frame and odometry topic.
     pub bag: BagOptions,
-}
-
-impl<'a> RecordingOptions<'a> {
-    /// The options of a run's scene configuration.
-    pub fn of_scene(scene: &'a crate::config::SceneConfig) -> RecordingOptions<'a> {
-        let path = |p: &'a Path| (!p.as_os_str().is_empty()).then_some(p);
-        let text = |s: &str| (!s.is_empty()).then(|| s.to_string());
-        RecordingOptions {
-            poses: path(&scene.poses),
-            ouster_metadata: path(&scene.ouster_metadata),
-            bag: BagOptions {
-                topic: text(&scene.topic),
-                world_frame: text(&scene.world_frame),
-                poses_topic: text(&scene.poses_topic),
-                ..BagOptions::default()
-            },
-        }
-    }
 }
 
 /// True when `path` has the `.pcap` extension (any case): a Velodyne or Ouster capture.
@@ -529,7 +512,7 @@ fn sweep_of(s: &Scan, columns: usize) -> std::result::Result<Arc<[f64]>, String>
     };
     // Relative to the frame's time, so a Unix-time clock keeps its microseconds.
     let relative: Vec<[f64; 2]> = firings.iter().map(|&[a, t]| [a, t - t0]).collect();
-    crate::sensor_model::shutter::boundary_times(&relative, columns).map(Into::into)
+    crate::input::sweep::boundary_times(&relative, columns).map(Into::into)
 }
 
 /// The warning naming how many of `frames` fell back to the uniform sweep (`refused`: frame
@@ -636,22 +619,6 @@ mod tests {
             assert_eq!((is_recording(&p), is_pcap(&p)), (recording, pcap), "{name}");
         }
         assert!(is_recording(d.path()) && !is_pcap(d.path()));
-    }
-
-    #[test]
-    fn a_scenes_options_reach_the_recording() {
-        let mut scene = crate::config::Config::default().scene;
-        let none = RecordingOptions::of_scene(&scene);
-        assert!(none.poses.is_none() && none.ouster_metadata.is_none());
-        assert!(none.bag.topic.is_none() && none.bag.world_frame.is_none() && none.bag.poses_topic.is_none());
-        scene.poses = "p.txt".into();
-        scene.ouster_metadata = "m.json".into();
-        scene.topic = "/points".into();
-        scene.world_frame = "map".into();
-        scene.poses_topic = "/odom".into();
-        let o = RecordingOptions::of_scene(&scene);
-        assert_eq!((o.poses, o.ouster_metadata), (Some(Path::new("p.txt")), Some(Path::new("m.json"))));
-        assert_eq!((o.bag.topic.as_deref(), o.bag.world_frame.as_deref(), o.bag.poses_topic.as_deref()), (Some("/points"), Some("map"), Some("/odom")));
     }
 
     #[test]

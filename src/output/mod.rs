@@ -25,7 +25,8 @@ pub use pipeline::write_frames;
 pub use png::{label_png, range_png, velocity_png};
 pub use files::sequence_stem;
 pub(crate) use files::write_file;
-pub use writer::{Compression, Finished, SequenceWriter, WriterOptions};
+pub use h5::Compression;
+pub use writer::{Finished, SequenceWriter, WriterOptions};
 
 /// What a sequence is about; written once per sequence.
 #[derive(Clone, Debug)]

@@ -4,31 +4,16 @@
 //! (an error mid-sequence) deletes every temporary it created, so `out_dir` only ever holds
 //! complete sequences.
 
-use super::h5::H5Writer;
+use super::h5::{Compression, H5Writer};
 use super::png::{bev_png, ego_velocity, label_png, range_png, save_png, velocity_png, PNG_MAX_SPEED_MPS, PNG_ROW_SCALE};
 use super::ros2bag::Ros2BagWriter;
 use super::semantickitti::SemanticKittiWriter;
 use super::files::{rename, replace_dir, sequence_stem, tmp_name};
 use super::xml::XmlWriter;
 use super::{FrameOutput, SequenceMeta};
-use crate::config::{kill_self, KillStage};
+use crate::debug::{kill_at, KillStage};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
-
-/// Compression of the per-beam HDF5 datasets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Compression {
-    /// Stored raw (fastest, ~1.1 MB per HDL-32E frame of all outputs).
-    None,
-    /// Shuffle + deflate (zlib) at this level (0..=9); readable by every HDF5 reader.
-    Deflate(u8),
-}
-
-impl Default for Compression {
-    fn default() -> Self {
-        Compression::Deflate(1)
-    }
-}
 
 /// How a sequence is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -43,7 +28,7 @@ pub struct WriterOptions {
     /// Write a ROS 2 bag (`seq_NNNNNN_bag/`).
     pub mcap: bool,
     /// Kill the process with SIGKILL at this stage of the sequence (`debug.kill`).
-    pub kill: Option<crate::config::KillStage>,
+    pub kill: Option<KillStage>,
 }
 
 impl Default for WriterOptions {
@@ -182,9 +167,7 @@ impl SequenceWriter {
             self.write_pngs(dir, index, frame)?;
         }
         self.frames_written += 1;
-        if self.kill == Some(KillStage::Frame(index)) {
-            kill_self();
-        }
+        kill_at(self.kill, KillStage::Frame(index));
         Ok(())
     }
 
@@ -363,9 +346,7 @@ impl SequenceWriter {
         let mut renames = 0;
         let mut renamed_one = || {
             renames += 1;
-            if kill == Some(KillStage::Rename(renames)) {
-                kill_self();
-            }
+            kill_at(kill, KillStage::Rename(renames));
         };
         let renamed = (|| -> Result<()> {
             if let Some((tmp, fin)) = &self.png_dir {

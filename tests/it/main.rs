@@ -14,6 +14,7 @@ mod gpu_raster;
 mod hostile_inputs;
 mod hostile_models;
 mod humans;
+mod layering;
 mod layout;
 mod limb;
 mod output;

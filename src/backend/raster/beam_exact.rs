@@ -62,7 +62,7 @@ const TILE_COLUMNS: usize = 8;
 /// medians: with nothing cast on the host 2.9 ms (3.7 ms of CPU) a cast, with at most 128
 /// beams 2.5 ms, 512: 2.4, 8,192: 2.1 ms (2.9 ms of CPU; only the triangles around the
 /// sensor are drawn).
-pub const HOST_BEAMS: u64 = 8192;
+pub const HOST_BEAMS: u64 = crate::config::DEFAULT_HOST_CAST_BEAMS;
 /// Texel coordinates are packed into 16 bits per bound.
 const MAX_GRID_SIDE: usize = 1 << 16;
 

@@ -67,7 +67,7 @@
 //! cut, at its laser's offset within the firing, closes one turn and opens the next. A
 //! constant delay between firing and capture (the packet's own length, the network) cancels
 //! out: the recording places column times relative to [`Scan::time_s`], which has the same
-//! delay. [`crate::sensor_model::shutter::boundary_times`] turns the firings into the target
+//! delay. [`crate::input::sweep::boundary_times`] turns the firings into the target
 //! grid's column times, smoothing jitter and refusing clocks that step back or jump.
 //!
 //! # Errors
