@@ -120,7 +120,9 @@ pub struct RunOptions {
     pub progress: bool,
     /// Also write each frame's posed human triangles as PLY under this folder.
     pub export_geometry: Option<PathBuf>,
-    /// Skip sequences whose files verify against the manifest.
+    /// Skip sequences whose files verify against the manifest. A manifest whose entry for one
+    /// of this run's sequences names a file outside the folder is refused (bad input) before
+    /// anything is written ([`Manifest::check_inside`]).
     pub resume: bool,
     /// Replace sequences that another configuration wrote (otherwise a bad-input error).
     pub overwrite: bool,
@@ -190,6 +192,9 @@ fn run(cfg: Config, opts: &RunOptions) -> Result<Summary> {
     let hash = config_hash(gen.recorded_config());
     let mut manifest = Manifest::load(&out)?;
     let indices: Vec<usize> = (cfg.first_sequence..cfg.first_sequence + cfg.sequences).filter(|&i| opts.shard.takes(i)).collect();
+    if opts.resume {
+        manifest.check_inside(&out, &indices)?;
+    }
     let total = (indices.len() * cfg.frames) as u64;
     let bar = if opts.progress { indicatif::ProgressBar::new(total) } else { indicatif::ProgressBar::hidden() };
     bar.set_style(

@@ -5,7 +5,10 @@
 //! (a rerun) gets a new line; the last line of a sequence is the one that counts.
 //!
 //! The manifest is what `generate --resume` trusts (a sequence is done when its last line's
-//! files all exist with that size and hash) and what `pedscan verify` checks.
+//! files all exist with that size and hash) and what `pedscan verify` checks. Its file names
+//! stay inside the folder: a name that is absolute, holds `..` or leads out through a symbolic
+//! link is never opened ([`listed`]); `verify` reports it as a problem, `--resume` refuses the
+//! manifest as bad input.
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -141,6 +144,24 @@ impl Manifest {
         Ok(m)
     }
 
+    /// What `generate --resume` checks before it trusts the entries of `sequences`: none
+    /// names a file outside `out_dir` ([`outside_file`]; such a file is never opened). The
+    /// first that does is a bad-input error naming the manifest, the sequence and the file.
+    pub fn check_inside(&self, out_dir: &Path, sequences: &[usize]) -> Result<()> {
+        for (sequence, e) in sequences.iter().filter_map(|s| self.latest.get(s).map(|e| (s, e))) {
+            if let Some(why) = outside_file(out_dir, e) {
+                return Err(Error::input(
+                    out_dir.join(MANIFEST).display(),
+                    format!(
+                        "sequence {sequence} lists {why}; pedscan writes only files inside the folder, so this manifest was edited \
+                         and --resume does not trust it: remove that sequence's lines, or write to another --out"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Appends `entry` as one line (under an exclusive lock, so concurrent runs of one job
     /// never interleave their lines) and syncs it.
     pub fn append(out_dir: &Path, entry: &ManifestEntry) -> Result<()> {
@@ -177,10 +198,58 @@ fn complete_length(path: &Path) -> Result<u64> {
     Ok(0)
 }
 
+/// Where a file name of the manifest leads, found without opening the file.
+#[derive(Debug)]
+pub enum Listed {
+    /// A file inside the output folder: its path, symbolic links resolved.
+    Inside(PathBuf),
+    /// Nothing there, or a path that cannot be resolved (the error).
+    Unresolved(std::io::Error),
+    /// Outside the output folder, why: an absolute name, one with `..`, or a symbolic link
+    /// out of the folder. pedscan never writes such a name: the manifest was edited.
+    Outside(String),
+}
+
+/// Where `name`, a file of `out_dir`'s manifest, leads ([`Listed`]). A name is relative and
+/// made of plain components; it must resolve, through every symbolic link on the way, to a
+/// path inside the folder.
+pub fn listed(out_dir: &Path, name: &str) -> Listed {
+    use std::path::Component;
+    let components: Vec<Component> = Path::new(name).components().collect();
+    if Path::new(name).has_root() {
+        return Listed::Outside("an absolute path, outside the output folder".into());
+    }
+    if components.contains(&Component::ParentDir) {
+        return Listed::Outside("holds `..`, which leads out of the output folder".into());
+    }
+    if components.is_empty() || !components.iter().all(|c| matches!(c, Component::Normal(_))) {
+        return Listed::Outside("not the name of a file inside the output folder".into());
+    }
+    let real = match (out_dir.canonicalize(), out_dir.join(name).canonicalize()) {
+        (Ok(dir), Ok(real)) if real.starts_with(&dir) => return Listed::Inside(real),
+        (Ok(_), Ok(real)) => real,
+        (Err(e), _) | (_, Err(e)) => return Listed::Unresolved(e),
+    };
+    Listed::Outside(format!("a symbolic link out of the output folder (to {})", real.display()))
+}
+
+/// The first file of `e` that lies outside `out_dir` ([`Listed::Outside`]): its name and why.
+pub fn outside_file(out_dir: &Path, e: &ManifestEntry) -> Option<String> {
+    e.files.iter().find_map(|f| match listed(out_dir, &f.name) {
+        Listed::Outside(why) => Some(format!("`{}`: {why}", f.name)),
+        _ => None,
+    })
+}
+
 /// Why a recorded sequence does not verify, or None when all its files are there, complete.
+/// A file outside the output folder ([`listed`]) is a reason, and is never opened.
 pub fn check_entry(out_dir: &Path, e: &ManifestEntry) -> Option<String> {
     for f in &e.files {
-        let path = out_dir.join(&f.name);
+        let path = match listed(out_dir, &f.name) {
+            Listed::Inside(path) => path,
+            Listed::Unresolved(err) => return Some(format!("{}: {err}", f.name)),
+            Listed::Outside(why) => return Some(format!("{}: {why}; not opened", f.name)),
+        };
         match sha256_file(&path) {
             Err(err) => return Some(format!("{}: {err}", f.name)),
             Ok((_, bytes)) if bytes != f.bytes => return Some(format!("{}: {bytes} bytes, the manifest says {}", f.name, f.bytes)),
@@ -303,9 +372,13 @@ mod tests {
     fn entry(out: &Path, seq: usize, hash: &str) -> ManifestEntry {
         let name = format!("seq_{seq:06}.h5");
         std::fs::write(out.join(&name), format!("data {seq}")).unwrap();
+        entry_of(seq, file_records(out, &[out.join(&name)]).unwrap(), hash)
+    }
+
+    fn entry_of(seq: usize, files: Vec<FileRecord>, hash: &str) -> ManifestEntry {
         ManifestEntry {
             sequence: seq,
-            files: file_records(out, &[out.join(&name)]).unwrap(),
+            files,
             frames: 2,
             people: 1,
             seconds: 0.5,
@@ -352,6 +425,60 @@ mod tests {
         let r = verify_dir(out).unwrap();
         assert_eq!(r.problems.len(), 2, "{r}");
         assert!(r.problems[0].contains("SHA-256") && r.problems[1].contains("seq_000002.h5"), "{r}");
+    }
+
+    /// An entry for sequence 0 whose one file is named `name`, with the size and hash of
+    /// `target` (a file that exists): only where the name leads can make it fail.
+    fn naming(name: &str, target: &Path) -> ManifestEntry {
+        let (sha256, bytes) = sha256_file(target).unwrap();
+        entry_of(0, vec![FileRecord { name: name.into(), bytes, sha256 }], "a")
+    }
+
+    #[test]
+    fn names_that_lead_out_of_the_folder_are_problems_never_opened() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let secret = dir.path().join("secret.txt");
+        std::fs::write(&secret, "not pedscan's").unwrap();
+        std::os::unix::fs::symlink(&secret, out.join("link.h5")).unwrap();
+        std::os::unix::fs::symlink(dir.path(), out.join("up")).unwrap();
+        let absolute = secret.to_string_lossy().into_owned();
+        for (name, why) in [
+            (absolute.as_str(), "an absolute path"),
+            ("../secret.txt", "holds `..`"),
+            ("link.h5/../../secret.txt", "holds `..`"),
+            ("link.h5", "a symbolic link out of the output folder"),
+            ("up/secret.txt", "a symbolic link out of the output folder"),
+            ("./link.h5", "not the name of a file inside"),
+        ] {
+            std::fs::write(out.join(MANIFEST), "").unwrap();
+            Manifest::append(&out, &naming(name, &secret)).unwrap();
+            let r = verify_dir(&out).unwrap();
+            assert_eq!(r.problems.len(), 1, "{name}: {r}");
+            assert!(r.problems[0].starts_with(&format!("sequence 0: {name}: {why}")) && r.problems[0].ends_with("; not opened"), "{name}: {r}");
+            assert!(matches!(listed(&out, name), Listed::Outside(_)), "{name}");
+            let m = Manifest::load(&out).unwrap();
+            let e = m.check_inside(&out, &[0]).unwrap_err();
+            assert!(e.is_input() && e.to_string().contains(&format!("sequence 0 lists `{name}`: {why}")), "{name}: {e}");
+            assert!(m.check_inside(&out, &[1]).is_ok(), "{name}: only the sequences resumed are checked");
+        }
+    }
+
+    #[test]
+    fn names_inside_the_folder_verify_through_symbolic_links_too() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let e = entry(out, 0, "a");
+        std::fs::create_dir(out.join("inner")).unwrap();
+        std::os::unix::fs::symlink(out.join("seq_000000.h5"), out.join("inner/link.h5")).unwrap();
+        let mut linked = naming("inner/link.h5", &out.join("seq_000000.h5"));
+        linked.files.extend(e.files);
+        Manifest::append(out, &linked).unwrap();
+        let r = verify_dir(out).unwrap();
+        assert!(r.ok(), "{r}");
+        Manifest::load(out).unwrap().check_inside(out, &[0]).unwrap();
+        assert!(matches!(listed(out, "missing.h5"), Listed::Unresolved(_)));
     }
 
     #[test]

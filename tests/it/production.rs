@@ -188,6 +188,38 @@ fn verify_finds_altered_and_stray_files_and_resume_repairs_them() {
     assert_eq!(verify(dir, "nowhere").status.code(), Some(2));
 }
 
+/// A manifest whose entry names a file outside its folder (the issue's `../secret.txt`, an
+/// absolute path, a symbolic link in the folder that leads out of it), with that file's true
+/// size and hash: `verify` names it as a problem (exit 1) and `generate --resume` refuses the
+/// manifest as bad input (exit 2) before writing anything; neither opens the file.
+#[test]
+fn a_manifest_naming_files_outside_its_folder_fails_verify_and_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let out = dir.join("out");
+    std::fs::create_dir(&out).unwrap();
+    let secret = dir.join("secret.txt");
+    std::fs::write(&secret, "not pedscan's").unwrap();
+    std::os::unix::fs::symlink(&secret, out.join("link.h5")).unwrap();
+    let (sha256, bytes) = pedscan::output::manifest::sha256_file(&secret).unwrap();
+    let absolute = secret.to_string_lossy().into_owned();
+    for name in ["../secret.txt", absolute.as_str(), "link.h5"] {
+        let line = format!(
+            r#"{{"sequence":0,"files":[{{"name":"{name}","bytes":{bytes},"sha256":"{sha256}"}}],"frames":2,"people":1,"seconds":0.5,"version":"0.1.0","device":"cpu","config_hash":"0123456789abcdef"}}"#
+        );
+        std::fs::write(out.join("manifest.jsonl"), format!("{line}\n")).unwrap();
+        let o = verify(dir, "out");
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(1), "{name}: {text}");
+        assert!(text.contains(&format!("problem: sequence 0: {name}: ")) && text.contains("not opened") && text.ends_with("1 problems\n"), "{name}: {text}");
+        let o = run(&job("out", &["--resume"]), dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains("manifest.jsonl") && err.contains(&format!("sequence 0 lists `{name}`")), "{name}: {err}");
+        assert_eq!(names(&out), ["link.h5", "manifest.jsonl"], "{name}: nothing written");
+    }
+}
+
 #[test]
 fn a_sequence_whose_final_name_is_taken_by_a_folder_leaves_none_of_its_files() {
     let tmp = tempfile::tempdir().unwrap();
