@@ -351,17 +351,12 @@ type Graph = BTreeMap<String, BTreeMap<String, (String, String)>>;
 
 /// `path` from `module`, from the crate: `crate::` dropped, `self` and `super` resolved.
 fn absolute(module: &[String], path: &[String]) -> Vec<String> {
-    let mut base: Vec<String> = module.to_vec();
-    let mut rest = path;
-    match rest.first().map(String::as_str) {
-        Some("crate") => {
-            base.clear();
-            rest = &rest[1..];
-        }
-        Some("self") => rest = &rest[1..],
-        _ if !rest.first().is_some_and(|s| s == "super") => return path.iter().filter(|s| *s != "self").cloned().collect(),
-        _ => {}
-    }
+    let (mut base, mut rest) = match path.first().map(String::as_str) {
+        Some("crate") => (Vec::new(), &path[1..]),
+        Some("self") => (module.to_vec(), &path[1..]),
+        Some("super") => (module.to_vec(), path),
+        _ => (Vec::new(), path),
+    };
     while rest.first().is_some_and(|s| s == "super") {
         base.pop();
         rest = &rest[1..];
