@@ -205,8 +205,8 @@ pub fn device_choice(s: &str) -> DeviceChoice {
 /// The backend that runs for `choice`: `auto` is the ray caster on every device. `pedscan
 /// bench` measures it faster than the raster backend at the same exactness on lavapipe and on
 /// a real GPU too (an NVIDIA H200 with 16 host cores: 77 against 60 frames/s end to end; the
-/// raster path's cost there is per-frame submission and read-back, not drawing: README,
-/// Performance), so `auto` never opens the Vulkan device. Only `raster` does.
+/// raster path's cost there is per-frame submission and read-back, not drawing: docs/performance.md),
+/// so `auto` never opens the Vulkan device. Only `raster` does.
 pub fn resolve(choice: BackendChoice) -> BackendChoice {
     match choice {
         BackendChoice::Auto => BackendChoice::Raycast,

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 /// Flags override the config file, which overrides the defaults.
 #[derive(Args, Clone, Debug, Default)]
 pub struct Flags {
-    /// A TOML configuration (see the README for every key).
+    /// A TOML configuration (see docs/usage.md for every key).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Number of sequences.

@@ -91,12 +91,12 @@ pub enum Refine {
 #[serde(rename_all = "kebab-case")]
 pub enum BackendChoice {
     /// The ray caster, on every device: the benchmark measures it faster than the raster
-    /// backend on lavapipe and on a GPU alike (README, Performance).
+    /// backend on lavapipe and on a GPU alike (docs/performance.md).
     Auto,
     /// Vulkan rasterization into cube faces, resampled and refined (GPU or lavapipe).
     Raster,
     /// The CPU ray caster (BVH, watertight f64): exact by construction; the faster of the two
-    /// on a 2-core machine with lavapipe and on an H200 with 16 host cores (README, Performance).
+    /// on a 2-core machine with lavapipe and on an H200 with 16 host cores (docs/performance.md).
     Raycast,
 }
 
@@ -326,8 +326,8 @@ pub struct OutputConfig {
 
 /// `[sensor_model]`: what a real spinning LiDAR adds to the perfect geometry
 /// (`crate::sensor_model`). Every term applies to what pedscan renders (people, an environment),
-/// never to a recorded background, which carries its own. Defaults and their sources: README,
-/// "Sensor model".
+/// never to a recorded background, which carries its own. Defaults and their sources:
+/// docs/sensor-model.md.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorModelConfig {
@@ -419,7 +419,7 @@ impl Default for SensorModelConfig {
         SensorModelConfig {
             enabled: true,
             rolling_shutter: true,
-            // Fitted to the two HDL-32E captures (`pedscan sensor-fit`; README, "Sensor model").
+            // Fitted to the two HDL-32E captures (`pedscan sensor-fit`; docs/sensor-model.md).
             range_noise_m: 0.012,
             laser_bias_m: 0.005,
             dropout_rate: 0.0025,

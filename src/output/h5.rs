@@ -229,7 +229,7 @@ impl H5Writer {
             "intensity",
             0,
             "1",
-            "Return intensity: the recording's own on recorded beams, else intensity_scale x reflectance x cos(incidence) (README, Sensor model); 0 = no return",
+            "Return intensity: the recording's own on recorded beams, else intensity_scale x reflectance x cos(incidence) (docs/sensor-model.md); 0 = no return",
         ));
         if meta.outputs.clean {
             specs.push((Grid::CleanRange, "clean/range", 0, "m", "Range before the sensor model (no noise, dropout or divergence), 0 = no return"));

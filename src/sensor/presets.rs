@@ -4,7 +4,7 @@
 //! it: every row of a column at that column's azimuth. Per-laser azimuth offsets (VLP-32C
 //! +-1.4 / +-4.2 deg, Ouster +-1.4 / +-4.25 deg, Pandar64 +-1.04 to +-5.21 deg, HDL-64E per
 //! unit) are left out: on the destaggered grid they change only when a pixel's laser fired,
-//! at most 1.45 ms from its column's time at 10 Hz (millimetres of motion; README, Sensor
+//! at most 1.45 ms from its column's time at 10 Hz (millimetres of motion; docs/sensor-model.md, Sensor
 //! presets).
 
 /// Velodyne HDL-64E S3: a unit's calibration (`64e_s3-xiesc.yaml`, ros-drivers/velodyne

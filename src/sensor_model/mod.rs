@@ -1,5 +1,5 @@
 //! Stage 7b: the sensor's own effects on a composited frame, after Velodyne's manuals and
-//! the usual simulator models (see the README, "Sensor model", for every default and its
+//! the usual simulator models (see docs/sensor-model.md for every default and its
 //! source). Applied per beam to what pedscan renders (people, an environment), never to a
 //! recorded background's beams, which carry their own:
 //!

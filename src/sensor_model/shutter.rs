@@ -13,7 +13,7 @@
 //! skinning at interpolated matrices); a vertex's time is that of the column its azimuth falls
 //! in, found by one fixed-point step. A static environment under a moving sensor moves each
 //! vertex by the sensor's pose at the vertex's own time. The error left is second order in the
-//! person's column span (README, "Sensor model", for the measured figures); a person cut by
+//! person's column span (docs/sensor-model.md, for the measured figures); a person cut by
 //! the frame's edge (behind the sensor) is unwrapped around its centre, so it is seen whole at
 //! times just before the sweep instead of torn between its start and its end.
 

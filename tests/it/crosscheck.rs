@@ -25,7 +25,7 @@ fn crosscheck_writes_the_report_strip_and_geometry_and_exact_mode_agrees() {
     }
     assert_eq!(j["per_frame"].as_array().unwrap().len(), 3);
     // Exact refinement against the reference on the same triangles: beams at a silhouette or
-    // depth step are cast exactly, so every human beam agrees (no tolerance; README, Accuracy),
+    // depth step are cast exactly, so every human beam agrees (no tolerance; docs/accuracy.md),
     // and ranges agree within the f32 storage of a hit (p99 <= 1 mm).
     let agreement = j["refined"]["human_beam_agreement"].as_f64().unwrap();
     let p99 = j["refined"]["range_error_m"]["p99"].as_f64().unwrap();

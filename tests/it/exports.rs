@@ -116,7 +116,7 @@ fn rangenet_projection_puts_every_hdl32e_point_in_its_own_cell() {
     assert!(!dir.join("o/seq_000000.h5").exists(), "only the formats asked for");
     let pts = f32s(&dir.join("o/semantickitti/sequences/00/velodyne/000000.bin"));
     assert_eq!(pts.len(), 4 * 32 * 1024, "the hall returns every beam");
-    // The README's parameters for the HDL-32E: fov_up 34/3, fov_down -94/3 deg, 32 x 1024.
+    // The parameters docs/outputs.md gives for the HDL-32E: fov_up 34/3, fov_down -94/3 deg, 32 x 1024.
     for (i, p) in pts.chunks(4).enumerate() {
         let cell = rangenet_cell([p[0], p[1], p[2]], 34.0 / 3.0, -94.0 / 3.0, 32, 1024);
         assert_eq!(cell, (i / 1024, i % 1024), "point {i}");

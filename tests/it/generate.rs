@@ -1,5 +1,5 @@
 //! End to end: runs the built `pedscan` binary on lavapipe (validation layer on) in a temporary
-//! folder and reads the files back, checking the data contract of the README.
+//! folder and reads the files back, checking the data contract of docs/outputs.md.
 
 use crate::common::{expect_input_error, ok, pedscan, pedscan_with_env};
 use std::path::Path;

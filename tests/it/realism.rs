@@ -145,7 +145,7 @@ fn a_fit_gives_back_the_terms_an_output_was_made_with() {
     let cfg: toml::Value = toml::from_str(&text).unwrap();
     let m = &cfg["sensor_model"];
     let f = |k: &str| m[k].as_float().unwrap();
-    // Measured on this estimator (README, "Sensor model"): dropout, the start of the grazing
+    // Measured on this estimator (docs/sensor-model.md): dropout, the start of the grazing
     // fall, the softness and the noise come back; the loss at 90 deg and the detection range
     // trade against each other in a hall 36 m across and come back 25 % low.
     assert!((f("dropout_rate") - 0.03).abs() < 0.004, "{text}");
