@@ -20,9 +20,10 @@
 //! noise, the lasers' vertical offsets). A ring with no matching row (or no elevation) falls
 //! back to the point's own elevation. When the scan has rings but no elevations (a PCD `ring`
 //! field, the lasers of a KITTI scan's point order: [`super::kitti::lasers_of`]) and its ring
-//! count (largest ring + 1) equals the target's row count, ring `r` goes to row `rows - 1 - r`
-//! (ring 0 is the lowest beam, the ROS convention); with any other ring count the rings are
-//! ignored and the elevations used. [`ProjectStats::ring_mapped`] says whether
+//! count (largest ring + 1) equals the target's row count and every ring's median elevation
+//! lies within [`MAX_RING_ROW_OFFSET_DEG`] of that row's, ring `r` goes to row `rows - 1 - r`
+//! (ring 0 is the lowest beam, the ROS convention); otherwise (another ring count, or the rings
+//! of another sensor with as many rows) the rings are ignored and the elevations used. [`ProjectStats::ring_mapped`] says whether
 //! rings chose the rows. A ring list whose length differs from the point list is ignored.
 //!
 //! # When the recording sensor differs from the target
@@ -61,6 +62,16 @@ pub struct ProjectStats {
     /// True when the scan's rings chose the rows (see the module docs).
     pub ring_mapped: bool,
 }
+
+/// How far, degrees, a ring's median elevation may lie from the row it would fill for rings
+/// without elevations to choose the rows (see the module docs). KITTI's HDL-64E lasers, seen
+/// from the origin of their points, lie up to 1.05 deg above the `hdl64e` rows (the lasers'
+/// offset above that origin; SemanticKITTI 07, odometry 01-03, 06, 09, 10); another sensor's
+/// 64 rows lie far further from them (`os1-64`: +21 deg against +2 at the top).
+pub const MAX_RING_ROW_OFFSET_DEG: f64 = 3.0;
+
+/// Points per ring whose median elevation is held against the ring's row.
+const RING_SAMPLES: usize = 256;
 
 /// The cell of a point [`Projector::project_points`] drops (outside every band, not finite,
 /// at the origin).
@@ -203,11 +214,37 @@ impl Projector {
             return RowSource::RingElevation(ring, elev);
         }
         let ring_count = ring.iter().map(|&r| r as usize + 1).max().unwrap_or(0);
-        if ring_count == self.target.rows() {
+        if ring_count == self.target.rows() && self.rings_near_their_rows(&scan.points, ring) {
             RowSource::RingFlip(ring)
         } else {
             RowSource::Elevation
         }
+    }
+
+    /// True when every ring's median elevation (over at most about [`RING_SAMPLES`] of its
+    /// points, evenly spread) lies within [`MAX_RING_ROW_OFFSET_DEG`] of the row `rows - 1 - r`
+    /// that ring `r` would fill.
+    fn rings_near_their_rows(&self, points: &[[f32; 3]], ring: &[u16]) -> bool {
+        let rows = self.target.rows();
+        let mut count = vec![0usize; rows];
+        for &r in ring {
+            count[r as usize] += 1;
+        }
+        let stride: Vec<usize> = count.iter().map(|&n| n.div_ceil(RING_SAMPLES).max(1)).collect();
+        let mut seen = vec![0usize; rows];
+        let mut elevation: Vec<Vec<f64>> = count.iter().map(|&n| Vec::with_capacity(n.min(RING_SAMPLES))).collect();
+        for (p, &r) in points.iter().zip(ring) {
+            let r = r as usize;
+            if seen[r] % stride[r] == 0 {
+                elevation[r].push((p[2] as f64).atan2((p[0] as f64).hypot(p[1] as f64)).to_degrees());
+            }
+            seen[r] += 1;
+        }
+        elevation.iter_mut().enumerate().filter(|(_, e)| !e.is_empty()).all(|(r, e)| {
+            let mid = e.len() / 2;
+            let median = *e.select_nth_unstable_by(mid, f64::total_cmp).1;
+            (median - self.target.elevation_deg[rows - 1 - r]).abs() <= MAX_RING_ROW_OFFSET_DEG
+        })
     }
 
     /// Row whose band holds elevation `e` (degrees), if any.
@@ -559,6 +596,27 @@ mod tests {
         ringed.ring = Some((0..ringed.points.len()).map(|i| (31 - i / t.columns.div_ceil(5)) as u16).collect());
         let cells = assert_cells_agree(&proj, &ringed);
         assert!(cells.iter().enumerate().all(|(i, &c)| c as usize / t.columns == i / t.columns.div_ceil(5)));
+    }
+
+    #[test]
+    fn rings_of_another_sensor_with_as_many_rows_are_not_laid_row_for_row() {
+        // KITTI-like: 64 lasers at the hdl64e's angles, seen 20 cm above the origin, ring 0 the
+        // lowest; their own elevations stray by up to 2 deg at 6 m.
+        let t = Sensor::preset("hdl64e").unwrap();
+        let mut scan = Scan { ring: Some(Vec::new()), ..Scan::default() };
+        for r in 0..t.rows() {
+            for c in (0..t.columns).step_by(7) {
+                let d = t.beam_dir(r, c) * (6.0 + (c % 50) as f64);
+                scan.points.push([d.x as f32, d.y as f32, (d.z + 0.2) as f32]);
+                scan.ring.as_mut().unwrap().push((t.rows() - 1 - r) as u16);
+            }
+        }
+        let mut out = Vec::new();
+        let st = Projector::new(&t).project(&scan, &mut out);
+        assert!(st.ring_mapped);
+        assert!((0..t.rows()).all(|r| out[r * t.columns..(r + 1) * t.columns].iter().filter(|v| **v > 0.0).count() == t.columns.div_ceil(7)));
+        // The same 64 rings onto the os1-64 (+21 to -21 deg): by elevation.
+        assert!(!Projector::new(&Sensor::preset("os1-64").unwrap()).project(&scan, &mut out).ring_mapped);
     }
 
     #[test]
