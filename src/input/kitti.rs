@@ -21,8 +21,8 @@
 //! angle drops by more than half a turn, at most [`MAX_BACKWARD_SHARE`] of all steps
 //! backwards, at least two runs and their median elevations strictly falling. The scan then
 //! carries them as [`Scan::ring`] (ring 0 = the lowest run, the ROS convention) without
-//! elevations, so a target with as many rows as the scan has lasers takes row for laser
-//! ([`super::project`]); a scan that fails any check (another order, a laser with no return
+//! elevations, so a target with as many rows as the scan has lasers, each near its laser's
+//! elevation, takes row for laser ([`super::project`]); a scan that fails any check (another order, a laser with no return
 //! at all, a scan whose runs cannot be told apart) has no rings and is projected by the
 //! elevation of each point.
 //!
