@@ -276,6 +276,17 @@ def check_sequences(paths: list[Path], frames: int, what: str, intensity: bool) 
     return seqs
 
 
+def sensor_of(seqs: list[Sequence]) -> dict[str, Any] | None:
+    """The grid the training sequences share, as a model file records it (``predict`` projects
+    real scans onto it): the sensor's name, its rows' elevations and its columns; None when
+    the sequences were made on different grids."""
+    first = seqs[0]
+    for s in seqs[1:]:
+        if s.columns != first.columns or not np.array_equal(s.elevation_deg, first.elevation_deg):
+            return None
+    return {"name": first.sensor, "elevation_deg": [float(e) for e in first.elevation_deg], "columns": int(first.columns)}
+
+
 def plot_curves(metrics: list[dict[str, Any]], path: Path, title: str) -> None:
     """Training loss and validation IoU per bin against steps."""
     import matplotlib
@@ -408,9 +419,11 @@ def train(args: argparse.Namespace) -> int:
     )
     title = f"{run.name}: N={cfg.frames}, {len(seqs)} training sequences"
 
+    sensor = sensor_of(seqs)
+
     def save(step: int) -> None:
         weights = {k: v.detach().cpu() for k, v in net.state_dict().items()}
-        training = {"step": step, "config": config, "environment": env}
+        training = {"step": step, "config": config, "environment": env, "sensor": sensor}
         atomic_save({
             "format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": weights, "optimizer": opt.state_dict(),
             "scheduler": sched.state_dict(), "torch_rng": torch.get_rng_state(), "step": step, "training": training,

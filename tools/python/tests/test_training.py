@@ -74,6 +74,10 @@ def test_a_tiny_network_overfits_two_frames(two_frames: Path, tmp_path: Path) ->
     assert (seg / "curves.png").stat().st_size > 1000
     model = load_file(seg / "model.pt")
     assert model["training"]["step"] == 500
+    # The grid it was trained on, for predict on real scans: the test sensor's table.
+    with h5py.File(two_frames / "seq_000000.h5", "r") as f:
+        elevation = [float(e) for e in f["sensor/elevation_deg"][()]]
+    assert model["training"]["sensor"] == {"name": "test16", "elevation_deg": elevation, "columns": 512}
     # With --val, the human threshold is calibrated on it at the end, never worse than the argmax.
     cal = [json.loads(x) for x in (seg / "metrics.jsonl").read_text().splitlines() if '"calibration"' in x][-1]
     assert 0 < model["human_threshold"] < 1 and model["human_threshold"] == cal["human_threshold"]
@@ -670,3 +674,14 @@ def test_the_zero_velocity_baseline_is_the_evaluators_error_of_zero_predictions(
     assert epe == pytest.approx(o["epe_mps"], rel=1e-6) and epe > 0.1
     saved = json.loads((work / "scores" / "zero--test.json").read_text())
     assert saved == {"epe_mps": epe, "human_beams": o["human_beams"]}
+
+
+def test_a_model_records_its_grid_only_when_its_sequences_share_one() -> None:
+    class Seq:
+        def __init__(self, name: str, elevation: list[float], columns: int) -> None:
+            self.sensor, self.elevation_deg, self.columns = name, np.array(elevation), columns
+
+    a, b = Seq("s", [1.0, -1.0], 8), Seq("s", [1.0, -1.0], 8)
+    assert tr.sensor_of([a, b]) == {"name": "s", "elevation_deg": [1.0, -1.0], "columns": 8}
+    assert tr.sensor_of([a, Seq("s", [1.0, -1.5], 8)]) is None
+    assert tr.sensor_of([a, Seq("s", [1.0, -1.0], 16)]) is None
