@@ -73,6 +73,8 @@ class TrainConfig:
     lr: float = 1e-3
     decay: float = 1e-3
     loss_weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS
+    crop_columns: int = 0
+    """0: whole frames; else each window is this many columns at a drawn azimuth (wrapping)"""
     data: list[dict[str, Any]] = field(default_factory=list)
     """the training sequences: file name, bytes, index, seed"""
 
@@ -104,11 +106,12 @@ class StepWindows:
     ``numpy.random.default_rng([seed, i])`` alone (a map-style dataset: workers and resume do
     not change what step k sees)."""
 
-    def __init__(self, sequences: list[Sequence], frames: int, seed: int, intensity: bool) -> None:
+    def __init__(self, sequences: list[Sequence], frames: int, seed: int, intensity: bool, crop_columns: int = 0) -> None:
         self.sequences = sequences
         self.frames = frames
         self.seed = seed
         self.intensity = intensity
+        self.crop_columns = crop_columns
 
     def pick(self, i: int) -> tuple[int, int]:
         rng = np.random.default_rng([self.seed, i])
@@ -131,6 +134,12 @@ class StepWindows:
         x = input_channels(r, seq.read("intensity", window) if self.intensity else None)
         label = seq.read("label", t)
         velocity = seq.read("velocity", t)
+        if 0 < self.crop_columns < seq.columns:
+            # Columns c0 .. c0 + crop - 1 around the turn, c0 from a stream of its own (the
+            # sequence and frame of step i stay those of whole-frame training).
+            c0 = int(np.random.default_rng([self.seed, i, 1]).integers(seq.columns))
+            cols = (c0 + np.arange(self.crop_columns)) % seq.columns
+            r, x, label, velocity = r[..., cols], x[..., cols], label[:, cols], velocity[:, cols]
         return {
             "x": torch.from_numpy(x),
             "label": torch.from_numpy(label.astype(np.int64)),
@@ -331,11 +340,13 @@ def train(args: argparse.Namespace) -> int:
     run: Path = args.out
     cfg = TrainConfig(
         frames=args.frames, width=args.width, intensity=args.intensity, range_change=args.range_change, seed=args.seed,
-        batch=args.batch,
+        batch=args.batch, crop_columns=args.crop_columns,
         lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights),
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
+    if cfg.crop_columns < 0 or cfg.crop_columns % 8:
+        raise PedscanError(f"--crop-columns {cfg.crop_columns}: a multiple of 8 (the network's), or 0 for whole frames")
     if cfg.range_change and cfg.frames < 2:
         raise PedscanError("--range-change needs --frames 2 or more (a single frame has no range change)")
     if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, *cfg.loss_weights)):
@@ -411,7 +422,7 @@ def train(args: argparse.Namespace) -> int:
                 metrics.append(m)
     atomic_write_text(metrics_path, "".join(json.dumps(m) + "\n" for m in metrics))
 
-    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity)
+    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns)
     sampler = range(start * cfg.batch, args.steps * cfg.batch)
     loader = torch.utils.data.DataLoader(
         data, batch_size=cfg.batch, sampler=sampler, num_workers=args.workers,
@@ -572,6 +583,9 @@ def parser() -> argparse.ArgumentParser:
                    help="the decoder also sees each beam's range change against the earlier frames, and the "
                         "velocity branch the whole scan's (not in the paper; N >= 2)")
     p.add_argument("--batch", type=int, default=1, help="windows per step (paper: 1)")
+    p.add_argument("--crop-columns", type=int, default=0, metavar="W",
+                   help="train on W columns of each window at a drawn azimuth (a multiple of 8; a step costs about "
+                        "W / columns of a whole frame's; validation and prediction stay whole); 0: whole frames (paper)")
     p.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate (paper: 1e-3)")
     p.add_argument("--decay", type=float, default=1e-3, help="time decay: lr / (1 + decay * step) (paper: 1e-3)")
     p.add_argument("--loss-weights", type=float, nargs=3, default=list(PAPER_LOSS_WEIGHTS),

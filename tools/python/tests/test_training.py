@@ -685,3 +685,26 @@ def test_a_model_records_its_grid_only_when_its_sequences_share_one() -> None:
     assert tr.sensor_of([a, b]) == {"name": "s", "elevation_deg": [1.0, -1.0], "columns": 8}
     assert tr.sensor_of([a, Seq("s", [1.0, -1.5], 8)]) is None
     assert tr.sensor_of([a, Seq("s", [1.0, -1.0], 16)]) is None
+
+
+def test_cropped_windows_are_columns_of_the_whole_ones_around_the_turn(sample: Path) -> None:
+    """--crop-columns: the same sequence and frame as whole-frame training at each step, W
+    columns of it from a drawn azimuth, wrapping past the last column; W not a multiple of 8
+    is refused before anything is written."""
+    seqs = tr.check_sequences(tr.training_paths([sample]), 2, str(sample), False)
+    whole, crop = tr.StepWindows(seqs, 2, 5, False), tr.StepWindows(seqs, 2, 5, False, crop_columns=64)
+    starts = set()
+    for i in range(12):
+        a, b = whole[i], crop[i]
+        assert (a["sequence"], a["frame"]) == (b["sequence"], b["frame"])
+        assert b["x"].shape[-1] == 64 and b["label"].shape[-1] == 64 and b["velocity"].shape[-1] == 64
+        w = a["x"].shape[-1]
+        c0 = [c for c in range(w) if torch.equal(a["x"][..., (c + torch.arange(64)) % w], b["x"])]
+        assert c0, i
+        cols = (c0[0] + torch.arange(64)) % w
+        assert torch.equal(a["label"][:, cols], b["label"]) and torch.equal(a["velocity"][..., cols], b["velocity"])
+        assert torch.equal(a["valid"][:, cols], b["valid"])
+        starts.add(c0[0])
+    assert len(starts) > 6
+    assert tr.main([str(sample), "--frames", "1", "--out", str(sample.parent / "odd"), "--crop-columns", "60", "--quiet"]) == 2
+    assert not (sample.parent / "odd").exists()
