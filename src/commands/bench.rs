@@ -315,7 +315,7 @@ pub fn markdown(points: &[Point]) -> String {
 /// Time against error: every trade-off point of the sweep's base workload (the people and
 /// columns of its first point), by refinement, with the Pareto front and the ray-cast path.
 pub fn plot(points: &[Point]) -> crate::plot::Plot {
-    use crate::plot::{Marker, Plot, Series};
+    use crate::plot::{Draw, Marker, Plot, Series};
     let (humans, columns) = points.first().map_or((10, 1024), |p| (p.spec.humans, p.spec.columns));
     let tradeoff: Vec<&Point> = points.iter().filter(|p| p.spec.humans == humans && p.spec.columns == columns).collect();
     let err = |p: &Point| (1.0 - p.human_beam_agreement).max(1e-5);
@@ -324,27 +324,27 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
         let pts: Vec<(f64, f64)> =
             tradeoff.iter().filter(|p| p.spec.projection == "cube" && p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
         if !pts.is_empty() {
-            series.push(Series { name: format!("cube, refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
+            series.push(Series { name: format!("cube, refine {refine:?}").to_lowercase(), points: pts, colour, draw: Draw::Points(marker) });
         }
     }
     for (refine, colour, marker) in [(Refine::Exact, [23, 190, 207], Marker::Circle), (Refine::None, [227, 119, 194], Marker::Square)] {
         let pts: Vec<(f64, f64)> =
             tradeoff.iter().filter(|p| p.spec.projection == "cylinder" && p.spec.refine == refine).map(|p| (p.ms_per_frame, err(p))).collect();
         if !pts.is_empty() {
-            series.push(Series { name: format!("cylinder, refine {refine:?}").to_lowercase(), points: pts, colour, line: false, marker });
+            series.push(Series { name: format!("cylinder, refine {refine:?}").to_lowercase(), points: pts, colour, draw: Draw::Points(marker) });
         }
     }
     let beam_points: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.projection == "beams").map(|p| (p.ms_per_frame, err(p))).collect();
     if !beam_points.is_empty() {
-        series.push(Series { name: "beam grid (exact)".into(), points: beam_points, colour: [148, 103, 189], line: false, marker: Marker::Triangle });
+        series.push(Series { name: "beam grid (exact)".into(), points: beam_points, colour: [148, 103, 189], draw: Draw::Points(Marker::Triangle) });
     }
     let rc_points: Vec<(f64, f64)> = tradeoff.iter().filter(|p| p.spec.projection == "raycast").map(|p| (p.ms_per_frame, err(p))).collect();
     if !rc_points.is_empty() {
-        series.push(Series { name: "ray-cast backend".into(), points: rc_points, colour: [255, 127, 14], line: false, marker: Marker::Cross });
+        series.push(Series { name: "ray-cast backend".into(), points: rc_points, colour: [255, 127, 14], draw: Draw::Points(Marker::Cross) });
     }
     let all: Vec<(f64, f64)> = tradeoff.iter().map(|p| (p.ms_per_frame, err(p))).collect();
     let front = crate::plot::pareto_front(&all);
-    series.push(Series { name: "Pareto".into(), points: front.iter().map(|&i| all[i]).collect(), colour: [90, 90, 90], line: true, marker: Marker::Cross });
+    series.push(Series { name: "Pareto".into(), points: front.iter().map(|&i| all[i]).collect(), colour: [90, 90, 90], draw: Draw::Line(Marker::Cross) });
     // The reference has no error by definition: drawn at the bottom of the error range. Its
     // time is BVH build + cast of the full-detail people only (no background, post or writing).
     let floor = all.iter().map(|p| p.1).fold(f64::INFINITY, f64::min).min(1e-3) / 2.0;
@@ -355,8 +355,7 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
             name: "reference cast".into(),
             points: vec![(rc_ms, floor)],
             colour: [148, 103, 189],
-            line: false,
-            marker: Marker::Triangle,
+            draw: Draw::Points(Marker::Triangle),
         });
     }
     Plot {
@@ -366,7 +365,7 @@ pub fn plot(points: &[Point]) -> crate::plot::Plot {
         log_x: true,
         log_y: true,
         series,
-        // Wide enough for the legend to move right of the axes when it would cover points.
+        // Wide enough for the long title and a legend of eight entries in a corner.
         width: 1400,
         height: 650,
     }
@@ -903,5 +902,48 @@ fn bench_rates(base: &Config, quick: bool) -> String {
     match gpu.context().and_then(|ctx| Ok((ctx.device_name(), triangle_rates(&ctx, counts, 9)?))) {
         Ok((device, rows)) => rates_markdown(&device, &rows),
         Err(e) => format!("\nTriangle rate: not measured ({e})\n"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plot::tests::ink;
+
+    fn point(projection: &str, refine: Refine, ms_per_frame: f64, agreement: f64) -> Point {
+        Point {
+            spec: PointSpec { projection: projection.into(), resolution: 1.0, lod: 0.0, refine, humans: 10, columns: 1024, frames: 4 },
+            frames_per_s: 1e3 / ms_per_frame,
+            ms_per_frame,
+            peak_rss_mb: 100.0,
+            human_beam_agreement: agreement,
+            median_range_error_m: 0.0,
+            p99_range_error_m: 0.0,
+            triangles_per_frame: 1e5,
+            raycast: RaycastTiming { frames_per_s: 5.0, build_ms: 50.0, cast_ms: 150.0 },
+            stage_ms: StageMs { pose: 1.0, render_resample: 5.0, post: 1.0, write: 1.0 },
+        }
+    }
+
+    #[test]
+    fn the_figure_has_each_family_the_front_and_text() {
+        let points = [
+            point("cube", Refine::Exact, 40.0, 0.999),
+            point("cube", Refine::None, 20.0, 0.99),
+            point("cube", Refine::Plane, 25.0, 0.995),
+            point("cylinder", Refine::Exact, 30.0, 0.998),
+            point("beams", Refine::Exact, 60.0, 0.9995),
+            point("raycast", Refine::Exact, 200.0, 1.0),
+        ];
+        let p = plot(&points);
+        let names: Vec<&str> = p.series.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["cube, refine exact", "cube, refine none", "cube, refine plane", "cylinder, refine exact", "beam grid (exact)", "ray-cast backend", "Pareto", "reference cast"]);
+        let img = p.render();
+        assert_eq!(img.dimensions(), (1400, 650));
+        // Every series' colour is drawn (markers, the front's line) and the title is text.
+        for s in &p.series {
+            assert!(img.pixels().filter(|px| px.0 == s.colour).count() > 20, "{} not drawn", s.name);
+        }
+        assert!(ink(&img, (300, 1100), (0, 40)) > 300);
     }
 }

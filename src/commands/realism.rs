@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::input::recording::{is_recording, Recording};
-use crate::plot::{Marker, Plot, Series, PALETTE};
+use crate::plot::{Draw, Marker, Plot, Series, PALETTE};
 use crate::realism::{compare, Curve, Measure, Report, EXCLUDED};
 use crate::sensor::Sensor;
 use glam::DVec3;
@@ -277,13 +277,14 @@ fn curve_series(c: &Curve, x: impl Fn(f64, f64) -> f64, scale: f64) -> [Series; 
     let min = if c.unit == "m" { crate::realism::MIN_RESIDUALS as u64 } else { crate::realism::MIN_BEAMS };
     let enough = |n: u64| n >= min;
     [
-        Series { name: "recording".into(), points: pts(&|p| p.rec.filter(|_| enough(p.rec_n))), colour: PALETTE[0], line: true, marker: Marker::Circle },
-        Series { name: "pedscan".into(), points: pts(&|p| p.sim.filter(|_| enough(p.sim_n))), colour: PALETTE[1], line: true, marker: Marker::Square },
+        Series { name: "recording".into(), points: pts(&|p| p.rec.filter(|_| enough(p.rec_n))), colour: PALETTE[0], draw: Draw::Line(Marker::Circle) },
+        Series { name: "pedscan".into(), points: pts(&|p| p.sim.filter(|_| enough(p.sim_n))), colour: PALETTE[1], draw: Draw::Line(Marker::Square) },
     ]
 }
 
 /// The report's curves as one picture: hole rate by incidence, by range and by row, range
-/// noise by range, and the intensity histograms (bins with too few beams left out).
+/// noise by range, and the intensity histograms as bars side by side (bins with too few beams
+/// left out).
 pub fn plot(r: &Report) -> image::RgbImage {
     let mid = |lo: f64, hi: f64| if hi.is_finite() { 0.5 * (lo + hi) } else { lo + 0.5 * crate::realism::RANGE_BIN_M };
     let tile = |title: &str, x: &str, y: &str, series: Vec<Series>| Plot { title: title.into(), x_label: x.into(), y_label: y.into(), series, width: 640, height: 380, ..Plot::default() };
@@ -294,17 +295,15 @@ pub fn plot(r: &Report) -> image::RgbImage {
         tile("hole rate by row", "row elevation, deg", "holes, %", curve_series(&r.hole_rate_by_row, |lo, _| lo, 100.0).to_vec()),
     ];
     if let Some(i) = &r.intensity {
-        let centres: Vec<f64> = i.edges.windows(2).map(|e| 0.5 * (e[0] + e[1])).collect();
-        let s = |name: &str, v: &[f64], k: usize| Series { name: name.into(), points: centres.iter().zip(v).map(|(&x, &y)| (x, y)).collect(), colour: PALETTE[k], line: true, marker: Marker::Circle };
-        tiles.push(tile("intensity of returns", "reflectance x cos(incidence)", "fraction of returns", vec![s("recording", &i.rec, 0), s("pedscan", &i.sim, 1)]));
+        // Each bin's two bars share its width: the recording's left of its centre, pedscan's right.
+        let bars = |name: &str, v: &[f64], k: usize, side: f64| {
+            let points = i.edges.windows(2).zip(v).map(|(e, &y)| (0.5 * (e[0] + e[1]) + side * 0.25 * (e[1] - e[0]), y)).collect();
+            let width = i.edges.windows(2).map(|e| 0.45 * (e[1] - e[0])).fold(f64::INFINITY, f64::min);
+            Series { name: name.into(), points, colour: PALETTE[k], draw: Draw::Bars { width: if width.is_finite() { width } else { 0.0 } } }
+        };
+        tiles.push(tile("intensity of returns", "reflectance x cos(incidence)", "fraction of returns", vec![bars("recording", &i.rec, 0, -1.0), bars("pedscan", &i.sim, 1, 1.0)]));
     }
-    let images: Vec<image::RgbImage> = tiles.iter().map(Plot::render).collect();
-    let (tw, th) = images[0].dimensions();
-    let mut out = image::RgbImage::from_pixel(2 * tw, th * images.len().div_ceil(2) as u32, image::Rgb([255, 255, 255]));
-    for (k, img) in images.iter().enumerate() {
-        image::imageops::overlay(&mut out, img, (k as u32 % 2 * tw) as i64, (k as u32 / 2 * th) as i64);
-    }
-    out
+    crate::plot::render_grid(&tiles, 2)
 }
 
 /// Fewest beams with a surface and an intensity for a fit of the detection terms.

@@ -5,7 +5,7 @@
 //! histograms.
 
 use crate::error::{Error, Result};
-use crate::plot::{Marker, Plot, Series, PALETTE};
+use crate::plot::{Draw, Marker, Plot, Series, PALETTE};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -132,70 +132,46 @@ impl Stats {
         Ok(s)
     }
 
-    /// The histograms as one picture: people per frame, human beams per distance bin, class
-    /// weight, walking speed.
+    /// The histograms as one picture, as bars: people per frame (in the scene and seen), human
+    /// beams per distance bin, walking speed; and the class weight's distribution (its
+    /// cumulative fraction of frames, on a log axis).
     pub fn plot(&self) -> image::RgbImage {
-        let bars = |name: &str, colour: [u8; 3], counts: &[(f64, f64)]| Series { name: name.into(), points: counts.to_vec(), colour, line: true, marker: Marker::Circle };
+        let bars = |name: &str, colour: [u8; 3], width: f64, points: Vec<(f64, f64)>| Series { name: name.into(), points, colour, draw: Draw::Bars { width } };
         let frac = |c: u64| c as f64 / self.frames.max(1) as f64;
-        let people = Plot {
-            title: "people per frame".into(),
-            x_label: "people".into(),
-            y_label: "fraction of frames".into(),
-            series: vec![
-                bars("in the scene", PALETTE[0], &self.people_in_scene.iter().enumerate().map(|(k, &c)| (k as f64, frac(c))).collect::<Vec<_>>()),
-                bars("seen (>= 1 beam)", PALETTE[1], &self.people_seen.iter().enumerate().map(|(k, &c)| (k as f64, frac(c))).collect::<Vec<_>>()),
-            ],
+        // Side by side: "in the scene" left of each count, "seen" right of it.
+        let per_frame = |h: &[u64], dx: f64| h.iter().enumerate().map(|(k, &c)| (k as f64 + dx, frac(c))).collect();
+        let tile = |title: &str, x_label: &str, y_label: &str, series: Vec<Series>| Plot {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            series,
             width: 640,
             height: 360,
             ..Plot::default()
         };
-        let bins = Plot {
-            title: "human beams by distance (0-4, 4-8, 8+ m)".into(),
-            x_label: "bin lower edge, m".into(),
-            y_label: "human beams per frame".into(),
-            series: vec![bars(
-                "human beams",
-                PALETTE[2],
-                &[0.0, 4.0, 8.0].iter().zip(self.human_beams_by_distance).map(|(&x, c)| (x, frac(c))).collect::<Vec<_>>(),
-            )],
-            width: 640,
-            height: 360,
-            ..Plot::default()
-        };
+        let people = tile(
+            "people per frame",
+            "people",
+            "fraction of frames",
+            vec![bars("in the scene", PALETTE[0], 0.4, per_frame(&self.people_in_scene, -0.2)), bars("seen (>= 1 beam)", PALETTE[1], 0.4, per_frame(&self.people_seen, 0.2))],
+        );
+        // Bars over 0-4, 4-8 and 8-12 m, the last standing for 8 m and beyond.
+        let distance: Vec<(f64, f64)> = [2.0, 6.0, 10.0].iter().zip(self.human_beams_by_distance).map(|(&x, c)| (x, frac(c))).collect();
+        let bins = tile("human beams by distance (0-4, 4-8, 8+ m)", "distance, m (the last bar: 8 m and beyond)", "human beams per frame", vec![bars("human beams", PALETTE[2], 3.6, distance)]);
         let mut weights = self.class_weight.clone();
         weights.sort_by(f64::total_cmp);
         let cdf: Vec<(f64, f64)> = weights.iter().enumerate().map(|(i, &w)| (w, (i + 1) as f64 / weights.len() as f64)).collect();
-        let weight = Plot {
-            title: "class weight per frame (background / human beams)".into(),
-            x_label: "class weight".into(),
-            y_label: "fraction of frames at or below".into(),
-            log_x: true,
-            series: vec![bars("frames with people", PALETTE[3], &cdf)],
-            width: 640,
-            height: 360,
-            ..Plot::default()
-        };
-        let total: u64 = self.speed_histogram.iter().sum();
-        let speed = Plot {
-            title: "walking speed".into(),
-            x_label: "m/s".into(),
-            y_label: "fraction of person-frames".into(),
-            series: vec![bars(
-                "people",
-                PALETTE[4],
-                &self.speed_histogram.iter().enumerate().map(|(i, &c)| ((i as f64 + 0.5) * SPEED_BIN_MPS, c as f64 / total.max(1) as f64)).collect::<Vec<_>>(),
-            )],
-            width: 640,
-            height: 360,
-            ..Plot::default()
-        };
-        let tiles: Vec<image::RgbImage> = [people, bins, weight, speed].iter().map(Plot::render).collect();
-        let (tw, th) = tiles[0].dimensions();
-        let mut out = image::RgbImage::from_pixel(2 * tw, 2 * th, image::Rgb([255, 255, 255]));
-        for (i, tile) in tiles.iter().enumerate() {
-            image::imageops::overlay(&mut out, tile, (i as u32 % 2 * tw) as i64, (i as u32 / 2 * th) as i64);
-        }
-        out
+        let mut weight = tile(
+            "class weight per frame (background / human beams)",
+            "class weight",
+            "fraction of frames at or below",
+            vec![Series { name: "frames with people".into(), points: cdf, colour: PALETTE[3], draw: Draw::Line(Marker::Circle) }],
+        );
+        weight.log_x = true;
+        let total = self.speed_histogram.iter().sum::<u64>().max(1) as f64;
+        let speeds = self.speed_histogram.iter().enumerate().map(|(i, &c)| ((i as f64 + 0.5) * SPEED_BIN_MPS, c as f64 / total)).collect();
+        let speed = tile("walking speed", "m/s", "fraction of person-frames", vec![bars("people", PALETTE[4], 0.9 * SPEED_BIN_MPS, speeds)]);
+        crate::plot::render_grid(&[people, bins, weight, speed], 2)
     }
 }
 
@@ -246,5 +222,49 @@ impl fmt::Display for Stats {
             f64::NAN
         };
         write!(f, "speed:        median {:.2} m/s, 5-95 % {:.2}-{:.2} m/s over {total} person-frames", q(0.5), q(0.05), q(0.95))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plot::tests::{bars, ink};
+
+    #[test]
+    fn the_picture_draws_the_histograms_as_bars_with_text() {
+        let s = Stats {
+            files: 1,
+            frames: 10,
+            human_beams_by_distance: [300, 200, 100],
+            people_in_scene: vec![0, 0, 10],
+            people_seen: vec![0, 4, 6],
+            class_weight: vec![20.0, 40.0, 80.0],
+            speed_histogram: vec![0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 20, 10],
+            ..Stats::default()
+        };
+        let img = s.plot();
+        assert_eq!(img.dimensions(), (1280, 720));
+        let tile = |k: u32| image::imageops::crop_imm(&img, k % 2 * 640, k / 2 * 360, 640, 360).to_image();
+        // Human beams by distance (top right): three bars, as tall as 300, 200 and 100.
+        let distance: Vec<(u32, u32)> = bars(&tile(1), PALETTE[2]).into_iter().filter(|b| b.1 > 20).collect();
+        assert_eq!(distance.len(), 3, "{distance:?}");
+        for (b, c) in distance.iter().zip([3.0, 2.0, 1.0]) {
+            assert!((b.1 as f64 - c * distance[2].1 as f64).abs() <= 2.0, "{distance:?}");
+        }
+        // Walking speed (bottom right): bars of 5, 10, 20 and 10 person-frames.
+        let speed: Vec<(u32, u32)> = bars(&tile(3), PALETTE[4]).into_iter().filter(|b| b.1 > 15).collect();
+        assert_eq!(speed.len(), 4, "{speed:?}");
+        for (b, c) in speed.iter().zip([1.0, 2.0, 4.0, 2.0]) {
+            assert!((b.1 as f64 - c * speed[0].1 as f64).abs() <= 2.0, "{speed:?}");
+        }
+        // People per frame (top left): 2 in the scene in every frame, seen 1 or 2, side by side.
+        let scene: Vec<(u32, u32)> = bars(&tile(0), PALETTE[0]).into_iter().filter(|b| b.1 > 20).collect();
+        let seen: Vec<(u32, u32)> = bars(&tile(0), PALETTE[1]).into_iter().filter(|b| b.1 > 20).collect();
+        assert_eq!((scene.len(), seen.len()), (1, 2), "{scene:?} {seen:?}");
+        assert!(seen[1].0 > scene[0].0 && seen[0].0 < scene[0].0, "{scene:?} {seen:?}");
+        // Every tile has its title drawn, over its middle.
+        for k in 0..4 {
+            assert!(ink(&tile(k), (150, 490), (0, 28)) > 100, "tile {k} has no title");
+        }
     }
 }

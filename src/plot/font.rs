@@ -1,8 +1,10 @@
-//! A built-in 5x7 bitmap font (printable ASCII 32..=126, plus one descender row), so plot text
-//! renders anywhere without a font file. Each glyph is 8 rows of 5 pixels; bit 4 is the leftmost
-//! pixel. Rows 0..=6 are the body (capitals and digits fill them, lowercase x-height is rows 2..=6),
-//! row 7 holds descenders (g, j, p, q, y, comma, underscore). Glyphs advance 6 pixels.
-//! Any other character is drawn as `?`. Text scales by an integer factor (pixel replication).
+//! A built-in 5x7 bitmap font (printable ASCII 32..=126, plus one descender row) for the text
+//! of the debug images (range, label and bird's-eye PNGs, the contact sheet), which are drawn
+//! pixel by pixel; the charts use the embedded TrueType font instead. Each glyph is 8 rows of 5
+//! pixels; bit 4 is the leftmost pixel. Rows 0..=6 are the body (capitals and digits fill them,
+//! lowercase x-height is rows 2..=6), row 7 holds descenders (g, j, p, q, y, comma, underscore).
+//! Glyphs advance 6 pixels. Any other character is drawn as `?`. Text scales by an integer
+//! factor (pixel replication).
 
 use image::{Rgb, RgbImage};
 
@@ -167,13 +169,6 @@ pub fn draw_text(img: &mut RgbImage, x: i64, y: i64, text: &str, scale: u32, col
     for_each_pixel(text, scale, |dx, dy| put(img, x + dx, y + dy, colour));
 }
 
-/// Draws `text` rotated 90 degrees counter-clockwise (reading bottom to top, as a y-axis title):
-/// the text's baseline runs upwards starting at (`x`, `y`), the glyph tops face left, so the text
-/// occupies `x .. x + text_height` horizontally and `y - text_width .. y` vertically.
-pub fn draw_text_up(img: &mut RgbImage, x: i64, y: i64, text: &str, scale: u32, colour: [u8; 3]) {
-    for_each_pixel(text, scale, |dx, dy| put(img, x + dy, y - 1 - dx, colour));
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -206,7 +201,7 @@ mod tests {
     fn text_lands_inside_its_box() {
         let mut img = RgbImage::from_pixel(60, 30, Rgb([255; 3]));
         draw_text(&mut img, 5, 4, "1e-3", 2, [0, 0, 0]);
-        let (w, h) = (text_width("1e-3", 2) as u32, text_height(2));
+        let (w, h) = (text_width("1e-3", 2), text_height(2));
         assert_eq!(w, (4 * 6 - 1) * 2);
         let mut inside = 0;
         for (x, y, p) in img.enumerate_pixels() {
@@ -218,6 +213,5 @@ mod tests {
         assert!(inside > 40, "only {inside} text pixels");
         // Clipped text does not panic.
         draw_text(&mut img, -10, -10, "clip me", 3, [0, 0, 0]);
-        draw_text_up(&mut img, 55, 5, "up", 2, [0, 0, 0]);
     }
 }
