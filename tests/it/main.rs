@@ -18,6 +18,7 @@ mod layering;
 mod layout;
 mod limb;
 mod output;
+mod plots;
 mod production;
 mod project;
 mod proxy;
