@@ -517,6 +517,62 @@ def evaluate_scans(ground_truth: str | Path, predictions: str | Path, from_frame
     return report
 
 
+def draw_scan(ground_truth: str | Path, predictions: str | Path, png: Path, from_frame: int = 0) -> str:
+    """A top view of the scored scan with the most person points: hits (person called person)
+    green, misses red, false alarms orange, points not scored light blue, the rest grey; beside
+    it, the same around the people. Returns which scan it drew."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .netio import save_figure
+
+    best: tuple[int, Path, Path, Path] | None = None
+    for seq in scan_sequences(Path(ground_truth), labelled=True):
+        folder = scan_predictions(seq, Path(predictions))
+        for scan in seq.scans[from_frame:]:
+            n = scan.stat().st_size // POINT_BYTES
+            people = int(np.isin(read_u32(seq.label_path(scan), n, "labels", scan.name) & 0xFFFF, PERSON_CLASSES).sum())
+            if best is None or people > best[0]:
+                best = (people, scan, seq.label_path(scan), folder / f"{scan.stem}.label")
+    if best is None:
+        raise PedscanError(f"{ground_truth}: no scan to draw")
+    _, scan, labels, predicted = best
+    points = read_points(scan)
+    n = len(points)
+    truth = read_u32(labels, n, "labels", scan.name) & 0xFFFF
+    called = np.isin(read_u32(predicted, n, "predicted labels", scan.name) & 0xFFFF, PERSON_CLASSES)
+    person = np.isin(truth, PERSON_CLASSES)
+    ignored = np.isin(truth, UNLABELED_CLASSES + RIDER_CLASSES)
+    kinds = [
+        ("background", ~person & ~called & ~ignored, "#b0b0b0", 0.3),
+        ("not scored", ignored, "#9ecae1", 0.5),
+        ("hit", person & called & ~ignored, "#1a9850", 4.0),
+        ("miss", person & ~called & ~ignored, "#d73027", 4.0),
+        ("false alarm", ~person & called & ~ignored, "#fd8d3c", 4.0),
+    ]
+    fig, axes = plt.subplots(1, 2, figsize=(14, 7))
+    around = points[person | (called & ~ignored)]
+    centre = np.median(around[:, :2], axis=0) if len(around) else np.zeros(2)
+    for ax, half, title in ((axes[0], 45.0, "within 45 m"), (axes[1], 12.0, "around the people")):
+        c = np.zeros(2) if ax is axes[0] else centre
+        for name, mask, colour, size in kinds:
+            ax.scatter(points[mask, 0], points[mask, 1], s=size, c=colour, linewidths=0,
+                       label=f"{name} ({int(mask.sum())})" if ax is axes[0] else None)
+        ax.plot([0], [0], "k^", markersize=8)
+        ax.set_xlim(c[0] - half, c[0] + half)
+        ax.set_ylim(c[1] - half, c[1] + half)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m, forward)")
+        ax.set_ylabel("y (m, left)")
+        ax.set_title(f"{scan.parent.parent.name}/{scan.name}: {title}")
+    axes[0].legend(loc="lower left", markerscale=3, fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, png)
+    return str(scan)
+
+
 def format_scan_report(d: dict[str, Any]) -> str:
     """The printed summary of :meth:`ScanReport.as_dict`."""
     o, skip = d["overall"], d["not_scored"]
@@ -596,6 +652,9 @@ def main(argv: list[str] | None = None) -> int:
         help="SemanticKITTI folder or HDF5 file(s); for scans, predict's folder (predictions/ or sequences/SS/predictions/)",
     )
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the scores as JSON")
+    parser.add_argument("--png", type=Path, metavar="FILE",
+                        help="scans: also draw the scan with the most person points from above (hits, misses, "
+                        "false alarms)")
     parser.add_argument(
         "--from-frame", type=int, default=0, metavar="K",
         help="score frames K onwards of each sequence (an N-frame network's full windows: K = N-1)",
@@ -607,6 +666,10 @@ def main(argv: list[str] | None = None) -> int:
         if is_scan_layout(args.ground_truth, labelled=True):
             report = evaluate_scans(args.ground_truth, args.predictions, args.from_frame).as_dict()
             text = format_scan_report(report)
+            if args.png is not None:
+                text += f"\nwrote {args.png} ({draw_scan(args.ground_truth, args.predictions, args.png, args.from_frame)})"
+        elif args.png is not None:
+            raise PedscanError("--png draws labeled scans; a pedscan output has `pedscan stats` and --png of generate")
         elif is_scan_layout(args.ground_truth):
             raise PedscanError(f"{args.ground_truth}: scans without labels/ to score against")
         else:

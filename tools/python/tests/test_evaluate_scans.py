@@ -208,3 +208,26 @@ def test_mismatched_or_bad_files_exit_2_naming_each_and_write_nothing(tmp_path: 
     (tmp_path / "bare/velodyne").mkdir(parents=True)
     code, _, err = run(capsys, tmp_path / "bare", pred)
     assert code == 2 and f"{tmp_path / 'bare'}: scans without labels/ to score against" in err
+
+
+def test_the_picture_shows_the_scan_with_most_people_in_its_colours(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--png draws the scored scan with the most person points: each kind of point in its
+    colour (hits green, misses red, false alarms orange); refused for pedscan outputs."""
+    from PIL import Image
+
+    seq, pred = tmp_path / "seq", tmp_path / "pred" / "predictions"
+    x = np.linspace(5.0, 20.0, 400)
+    xyz = np.stack([x, np.zeros_like(x), np.full_like(x, -1.0)], axis=1)
+    few = np.where(np.arange(400) < 20, 30, 40)
+    many = np.where(np.arange(400) < 200, 30, 40)
+    write_scan(seq, "000000", xyz, few, few, pred)
+    called = np.where((np.arange(400) < 100) | (np.arange(400) >= 390), 30, 0)  # hits, misses, false alarms
+    write_scan(seq, "000001", xyz, many, called, pred)
+    png = tmp_path / "scan.png"
+    assert main([str(seq), str(tmp_path / "pred"), "--png", str(png)]) == 0
+    assert "000001.bin" in capsys.readouterr().out.splitlines()[-1]
+    rgb = np.asarray(Image.open(png).convert("RGB")).reshape(-1, 3).astype(int)
+    for colour in ((0x1A, 0x98, 0x50), (0xD7, 0x30, 0x27), (0xFD, 0x8D, 0x3C)):
+        assert (np.abs(rgb - colour).sum(axis=1) < 12).sum() > 20, colour
+    assert main([str(tmp_path / "pred"), str(tmp_path / "pred"), "--png", str(tmp_path / "no.png")]) == 2
+    assert not (tmp_path / "no.png").exists()
