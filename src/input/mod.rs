@@ -20,6 +20,7 @@
 //!   (UTM, say) to a local origin first.
 
 pub mod kitti;
+pub mod labels;
 pub mod ouster;
 pub mod pcap;
 pub mod pcd;

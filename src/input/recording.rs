@@ -413,22 +413,7 @@ impl Recording {
         let keep = matches!(self.frames, Frames::Files(_))
             && frames.len().saturating_mul(self.dirs.len() * 8) <= WINDOW_CACHE_BYTES;
         *self.window.lock().unwrap_or_else(|e| e.into_inner()) = None;
-        // Kept frames are read in parallel (files are independent); the first failing
-        // frame, in order, is the one reported.
-        let kept: Vec<Image> = if keep {
-            use rayon::prelude::*;
-            let read: Vec<Result<Image>> = frames
-                .clone()
-                .into_par_iter()
-                .map(|k| {
-                    let mut img = (Vec::new(), Vec::new());
-                    self.frame(k, &mut img.0, &mut img.1).map(|()| img)
-                })
-                .collect();
-            read.into_iter().collect::<Result<_>>()?
-        } else {
-            Vec::new()
-        };
+        let kept: Vec<Image> = if keep { self.read_window(frames.clone())? } else { Vec::new() };
         for k in frames.clone() {
             let ranges = if keep {
                 &kept[k - frames.start].0
@@ -448,6 +433,50 @@ impl Recording {
             *self.window.lock().unwrap_or_else(|e| e.into_inner()) = Some((frames.start, kept));
         }
         Ok(pts)
+    }
+
+    /// The range images of the window `frames` (as [`Recording::frame_ranges`]); a frame
+    /// folder's window is kept for the frames that follow, as [`Recording::window_points`]
+    /// keeps it.
+    pub fn window_ranges(&self, frames: std::ops::Range<usize>) -> Result<Vec<Vec<f32>>> {
+        let images = self.read_window(frames.clone())?;
+        let ranges = images.iter().map(|i| i.0.clone()).collect();
+        if matches!(self.frames, Frames::Files(_)) && frames.len().saturating_mul(self.dirs.len() * 8) <= WINDOW_CACHE_BYTES {
+            *self.window.lock().unwrap_or_else(|e| e.into_inner()) = Some((frames.start, images));
+        }
+        Ok(ranges)
+    }
+
+    /// The images of the window `frames`, read in parallel (files are independent); the
+    /// first failing frame, in order, is the one reported.
+    fn read_window(&self, frames: std::ops::Range<usize>) -> Result<Vec<Image>> {
+        use rayon::prelude::*;
+        let read: Vec<Result<Image>> = frames
+            .into_par_iter()
+            .map(|k| {
+                let mut img = (Vec::new(), Vec::new());
+                self.frame(k, &mut img.0, &mut img.1).map(|()| img)
+            })
+            .collect();
+        read.into_iter().collect()
+    }
+
+    /// The frame files of a folder of frames, in frame order; `None` for a capture or a bag.
+    pub fn frame_files(&self) -> Option<&[PathBuf]> {
+        match &self.frames {
+            Frames::Files(f) => Some(f),
+            Frames::Images(_) => None,
+        }
+    }
+
+    /// The projection of the recording's frames onto the target grid.
+    pub fn projector(&self) -> &Projector {
+        &self.projector
+    }
+
+    /// The target grid's beam directions (row-major), sensor frame.
+    pub fn beam_dirs(&self) -> &[DVec3] {
+        &self.dirs
     }
 
     /// The recording's name and the window `frames`, for messages.
