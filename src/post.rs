@@ -13,7 +13,7 @@
 
 use crate::config::VelocityModel;
 use crate::geometry::FrameGeometry;
-use crate::output::{FrameOutput, OutputSet};
+use crate::output::{FrameOutput, OutputSet, NOT_SCORED};
 use crate::backend::{BeamHits, NO_TRIANGLE};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -81,6 +81,22 @@ pub fn select(p: &PostParams, human: &BeamHits, human_geom: &FrameGeometry, back
             *instance = inst as u16;
         },
     );
+}
+
+/// The beams of `cells` (a recorded background's not-scored returns) whose returned surface
+/// is that background's (a return, no person) get [`NOT_SCORED`]; `/clean/label` the same on
+/// the clean range and instance. A person in front keeps its label; a beam without a return
+/// stays 0.
+pub fn mark_not_scored(cells: &[u32], out: &mut FrameOutput) {
+    for &c in cells {
+        let c = c as usize;
+        if out.range.get(c).is_some_and(|&r| r > 0.0) && out.instance[c] == 0 {
+            out.label[c] = NOT_SCORED;
+        }
+        if out.clean_range.get(c).is_some_and(|&r| r > 0.0) && out.clean_instance[c] == 0 {
+            out.clean_label[c] = NOT_SCORED;
+        }
+    }
 }
 
 /// xyz and velocity per beam from the frame's final range and instance. A human beam's `limb`
@@ -225,6 +241,29 @@ mod tests {
         assert_eq!(out.instance, vec![0, 0, 1, 0]);
         // The background's own range obeys the same limits.
         assert_eq!(out.background_range, vec![5.0, 4.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn not_scored_cells_mark_the_backgrounds_returns_only() {
+        // Beams: the background returned, a person in front of it (in the clean frame the
+        // background: the person is the sensor model's mixed return), no return, a background
+        // return not in the cells.
+        let mut out = FrameOutput {
+            range: vec![5.0, 3.0, 0.0, 6.0],
+            label: vec![0, 1, 0, 0],
+            instance: vec![0, 2, 0, 0],
+            clean_range: vec![5.0, 5.0, 0.0, 6.0],
+            clean_label: vec![0, 0, 0, 0],
+            clean_instance: vec![0, 0, 0, 0],
+            ..Default::default()
+        };
+        mark_not_scored(&[0, 1, 2], &mut out);
+        assert_eq!(out.label, vec![NOT_SCORED, 1, 0, 0]);
+        assert_eq!(out.clean_label, vec![NOT_SCORED, NOT_SCORED, 0, 0]);
+        // Without the sensor model (no clean frame) too.
+        let mut out = FrameOutput { range: vec![5.0, 3.0], label: vec![0, 1], instance: vec![0, 1], ..Default::default() };
+        mark_not_scored(&[0, 1], &mut out);
+        assert_eq!(out.label, vec![NOT_SCORED, 1]);
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The HDF5 sequence file (stage 5). Layout (T frames, H rows, W columns, N humans):
 //!
 //! ```text
-//! /range f32[T,H,W]  /xyz f32[T,H,W,3]  /label u8[T,H,W]  /instance u16[T,H,W]
+//! /range f32[T,H,W]  /xyz f32[T,H,W,3]  /label u8[T,H,W] (0, 1 human, 255 not scored)  /instance u16[T,H,W]
 //! /velocity f32[T,H,W,3]  /background/range f32[T,H,W]  /intensity f32[T,H,W]
 //! /clean/range f32[T,H,W]  /clean/label u8[T,H,W]  /clean/instance u16[T,H,W]  (sensor model on)
 //! /sensor/time_s f64[T]  /sensor/column_time_s f64[T,W]  /sensor/world_from_sensor f64[T,4,4]
@@ -204,7 +204,7 @@ impl H5Writer {
                 "Return point in the sensor frame (x forward, y left, z up), 0 = no return",
             ));
         }
-        specs.push((Grid::Label, "label", 0, "1", "0 = background or no return, 1 = human"));
+        specs.push((Grid::Label, "label", 0, "1", "0 = background or no return, 1 = human, 255 = not scored (a recorded background's own person or other return that scene.ignore_moving or scene.ignore_labels marks: losses and evaluation skip it)"));
         specs.push((Grid::Instance, "instance", 0, "1", "0 = none, k = k-th human of /humans"));
         if meta.outputs.velocity {
             specs.push((

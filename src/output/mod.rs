@@ -61,6 +61,11 @@ pub struct HumanMeta {
     pub model: String,
 }
 
+/// The `/label` of a beam that is not scored: its return is a recorded background's that
+/// `scene.ignore_moving` or `scene.ignore_labels` marks (the recording's own people); the
+/// training loss and `evaluate` skip it.
+pub const NOT_SCORED: u8 = 255;
+
 /// Which optional datasets are computed and written (range, label and instance always are).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OutputSet {
@@ -92,7 +97,8 @@ pub struct HumanState {
 pub struct FrameOutput {
     /// Metres, 0 = no return.
     pub range: Vec<f32>,
-    /// 0 background / no return, 1 human.
+    /// 0 background / no return, 1 human, [`NOT_SCORED`] a recorded background's own
+    /// person (or other return) that is not scored.
     pub label: Vec<u8>,
     /// 0 none, k = k-th human.
     pub instance: Vec<u16>,

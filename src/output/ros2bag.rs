@@ -8,7 +8,7 @@
 //!   H x W (row 0 = highest beam, as the grid), 40-byte points: `x y z intensity` f32
 //!   (`/intensity`), `ring` u16 (0 = lowest beam, as Velodyne's driver), `instance` u16,
 //!   `time` f32 (seconds after the stamp: the column's time, `/sensor/column_time_s`, minus
-//!   the frame's), `vx vy vz` f32 (`/velocity`), `label` u8;
+//!   the frame's), `vx vy vz` f32 (`/velocity`), `label` u8 (`/label`: 255 = not scored);
 //!   a beam without return has x = y = z = NaN (`is_dense` false when a frame has one).
 //! - `/tf`, `tf2_msgs/msg/TFMessage`: `world` -> `pedscan_sensor` (`world_from_sensor`).
 //!

@@ -18,12 +18,13 @@
 //! skipped. Remission is `/intensity`. Classes: person 30, moving-person
 //! 254 (the person walks faster than [`MOVING_SPEED_MPS`]), background 50 (SemanticKITTI's
 //! "building": pedscan does not know what the background is, and this class, unlike 0, 1, 52
-//! or 99, is one the common learning maps keep). A sequence is written into `SS.tmp/` and
+//! or 99, is one the common learning maps keep); a not-scored beam (`/label` 255, a recorded
+//! background's own person) is 0, "unlabeled", which the learning maps ignore. A sequence is written into `SS.tmp/` and
 //! renamed to `SS/` when complete.
 
 use crate::error::{Error, Result};
 use super::files::write_file;
-use crate::output::{FrameOutput, SequenceMeta};
+use crate::output::{FrameOutput, SequenceMeta, NOT_SCORED};
 use glam::DVec3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -33,6 +34,8 @@ use std::sync::Arc;
 pub const PERSON: u32 = 30;
 /// SemanticKITTI's class of a moving person (LiDAR-MOS: classes >= 250 move).
 pub const MOVING_PERSON: u32 = 254;
+/// SemanticKITTI's "unlabeled": a not-scored point (`/label` 255).
+pub const UNLABELED: u32 = 0;
 /// The class pedscan gives every background point.
 pub const BACKGROUND: u32 = 50;
 /// A person walking faster than this (horizontal world speed, m/s) is a moving person.
@@ -50,12 +53,19 @@ pub fn sequence_dir(out_dir: &Path, index: usize) -> PathBuf {
     out_dir.join(FOLDER).join("sequences").join(sequence_dir_name(index))
 }
 
-/// Points per class of one sequence: background, person, moving person.
+/// Points per class of one sequence: background, person, moving person, unlabeled (not
+/// scored; left out of a manifest entry while 0, as it was before such points existed).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct ClassPoints {
     pub background: u64,
     pub person: u64,
     pub moving_person: u64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub unlabeled: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 impl ClassPoints {
@@ -63,6 +73,7 @@ impl ClassPoints {
         self.background += o.background;
         self.person += o.person;
         self.moving_person += o.moving_person;
+        self.unlabeled += o.unlabeled;
     }
 }
 
@@ -132,7 +143,10 @@ impl SemanticKittiWriter {
                 self.points.extend_from_slice(&c.to_le_bytes());
             }
             let k = f.instance[b] as usize;
-            let class = if k == 0 {
+            let class = if f.label.get(b) == Some(&NOT_SCORED) {
+                self.counts.unlabeled += 1;
+                UNLABELED
+            } else if k == 0 {
                 self.counts.background += 1;
                 BACKGROUND
             } else {
@@ -183,7 +197,7 @@ impl SemanticKittiWriter {
 /// class's share of the points in `counts`; the split puts sequences with index 8 modulo 10 in
 /// `valid`, 9 in `test`, the rest in `train`.
 pub fn yaml(counts: &ClassPoints, sequences: &[usize]) -> String {
-    let total = (counts.background + counts.person + counts.moving_person).max(1) as f64;
+    let total = (counts.background + counts.person + counts.moving_person + counts.unlabeled).max(1) as f64;
     let list = |keep: &dyn Fn(usize) -> bool| {
         let v: Vec<String> = sequences.iter().filter(|&&s| keep(s)).map(|&s| s.to_string()).collect();
         format!("[{}]", v.join(", "))
@@ -193,11 +207,12 @@ pub fn yaml(counts: &ClassPoints, sequences: &[usize]) -> String {
          name: \"pedscan\"\n\
          labels:\n  0: \"unlabeled\"\n  {PERSON}: \"person\"\n  {BACKGROUND}: \"background\"\n  {MOVING_PERSON}: \"moving-person\"\n\
          color_map: # bgr\n  0: [0, 0, 0]\n  {PERSON}: [30, 30, 255]\n  {BACKGROUND}: [200, 200, 200]\n  {MOVING_PERSON}: [255, 30, 30]\n\
-         content: # share of all points\n  0: 0.0\n  {PERSON}: {:.9}\n  {BACKGROUND}: {:.9}\n  {MOVING_PERSON}: {:.9}\n\
+         content: # share of all points\n  0: {:.9}\n  {PERSON}: {:.9}\n  {BACKGROUND}: {:.9}\n  {MOVING_PERSON}: {:.9}\n\
          learning_map:\n  0: 0\n  {PERSON}: 2\n  {BACKGROUND}: 1\n  {MOVING_PERSON}: 2\n\
          learning_map_inv:\n  0: 0\n  1: {BACKGROUND}\n  2: {PERSON}\n\
          learning_ignore:\n  0: True\n  1: False\n  2: False\n\
          split:\n  train: {}\n  valid: {}\n  test: {}\n",
+        counts.unlabeled as f64 / total,
         counts.person as f64 / total,
         counts.background as f64 / total,
         counts.moving_person as f64 / total,
@@ -223,7 +238,7 @@ mod tests {
 
     #[test]
     fn the_yaml_splits_sequences_and_shares_points() {
-        let y = yaml(&ClassPoints { background: 6, person: 1, moving_person: 3 }, &[0, 1, 8, 9, 18]);
+        let y = yaml(&ClassPoints { background: 6, person: 1, moving_person: 3, unlabeled: 0 }, &[0, 1, 8, 9, 18]);
         assert!(y.contains("train: [0, 1]") && y.contains("valid: [8, 18]") && y.contains("test: [9]"), "{y}");
         assert!(y.contains("30: 0.100000000") && y.contains("50: 0.600000000") && y.contains("254: 0.300000000"), "{y}");
     }
