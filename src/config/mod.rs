@@ -274,6 +274,19 @@ pub struct SceneConfig {
     /// from the recorded points of each window.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub floor_z_m: Option<f64>,
+    /// Under a recorded background: its returns that the window's other frames see through
+    /// (people and things that move) get `/label` 255, not scored ([`crate::scene::not_scored`]).
+    #[serde(skip_serializing_if = "is_false")]
+    pub ignore_moving: bool,
+    /// Under a KITTI `.bin` background: a folder of SemanticKITTI `.label` files, one per frame
+    /// with the same stem; the cells that points of `ignore_classes` project to get `/label`
+    /// 255, not scored. Empty = none.
+    #[serde(skip_serializing_if = "path_is_empty")]
+    pub ignore_labels: PathBuf,
+    /// The classes (the labels' lower 16 bits) `ignore_labels` marks: by default SemanticKITTI's
+    /// people and riders.
+    #[serde(skip_serializing_if = "SceneConfig::ignore_classes_is_default")]
+    pub ignore_classes: Vec<u32>,
     pub sensor_height_m: f64,
     pub sensor_speed_mps: [f64; 2],
     pub sensor_yaw_rate_rps: [f64; 2],
@@ -577,6 +590,9 @@ impl Default for SceneConfig {
             world_frame: String::new(),
             poses_topic: String::new(),
             floor_z_m: None,
+            ignore_moving: false,
+            ignore_labels: PathBuf::new(),
+            ignore_classes: crate::input::labels::PEOPLE_CLASSES.to_vec(),
             sensor_height_m: 0.8,
             sensor_speed_mps: [0.3, 1.0],
             sensor_yaw_rate_rps: [-0.15, 0.15],
@@ -590,6 +606,10 @@ impl Default for SceneConfig {
 pub const DEFAULT_HOST_CAST_BEAMS: u64 = 8192;
 
 impl SceneConfig {
+    fn ignore_classes_is_default(c: &[u32]) -> bool {
+        c == crate::input::labels::PEOPLE_CLASSES
+    }
+
     /// What the recorded background is read with besides its path: the poses file, an Ouster
     /// capture's metadata, a ROS 2 bag's topics and world frame (an empty key: `None`).
     pub fn recording_options(&self) -> RecordingOptions<'_> {
@@ -672,6 +692,7 @@ impl Config {
             &mut self.scene.background,
             &mut self.scene.poses,
             &mut self.scene.ouster_metadata,
+            &mut self.scene.ignore_labels,
             &mut self.humans.tracks,
         ])
     }
@@ -705,8 +726,9 @@ impl Config {
     /// Every input file this configuration reads, by its recorded name ([`recorded_path`]),
     /// with the SHA-256 of its content, in name order: the human models (unless no person is
     /// asked for), the background (a file, or a folder's files and the KITTI `times.txt`
-    /// beside it; a `.pcap`'s Ouster metadata, given or the `.json` beside it), the poses, the
-    /// tracks and a sensor file (TOML or Ouster JSON).
+    /// beside it; a `.pcap`'s Ouster metadata, given or the `.json` beside it), the label
+    /// files of `scene.ignore_labels`, the poses, the tracks and a sensor file (TOML or Ouster
+    /// JSON).
     pub fn input_digests(&self) -> Result<Vec<(String, String)>> {
         let mut files: Vec<PathBuf> = Vec::new();
         if self.humans.count[1] > 0 {
@@ -732,6 +754,13 @@ impl Config {
         }
         if !self.scene.ouster_metadata.as_os_str().is_empty() {
             files.push(self.scene.ouster_metadata.clone());
+        }
+        let labels = &self.scene.ignore_labels;
+        if labels.is_dir() {
+            let mut inside: Vec<PathBuf> =
+                std::fs::read_dir(labels).map_err(|e| Error::io(labels, e))?.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
+            inside.sort();
+            files.extend(inside);
         }
         for p in [&self.scene.poses, &self.humans.tracks] {
             if !p.as_os_str().is_empty() {
@@ -824,6 +853,12 @@ impl Config {
                 return bad("scene.floor_z_m", format!("{z} is not a usable height"));
             }
         }
+        if let Some(c) = self.scene.ignore_classes.iter().find(|&&c| c > 0xFFFF) {
+            return bad("scene.ignore_classes", format!("{c} is not a SemanticKITTI class (the labels' lower 16 bits: 0 to 65535)"));
+        }
+        if self.scene.ignore_classes.is_empty() && !path_is_empty(&self.scene.ignore_labels) {
+            return bad("scene.ignore_classes", "is empty: scene.ignore_labels would mark nothing".into());
+        }
         self.sensor_model.validate()?;
         if self.humans.models.is_empty() && hi > 0 {
             return bad("humans.models", "no model given but people are requested".into());
@@ -854,6 +889,11 @@ fn non_negative(key: &str, v: f64) -> Result<()> {
         return Err(Error::input(format!("config key `{key}`"), format!("{v} must be a non-negative number")));
     }
     Ok(())
+}
+
+/// Serde: a switch that is off is left out of the written configuration.
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 /// Serde: an unset path (empty) is left out of the written configuration.

@@ -11,6 +11,7 @@ use crate::input::recording::is_recording;
 use crate::input::tracks::{read_tracks, Track, TrackOptions};
 use crate::input::Recording;
 use crate::pose::PoseInputs;
+use crate::scene::not_scored::NotScored;
 use crate::scene::{EnvDraw, Environment, WalkableGrid, WALKABLE_CELL_M};
 use crate::sensor::Sensor;
 use glam::{DMat4, DVec3};
@@ -27,6 +28,8 @@ pub struct RunInputs {
     pub grid: Option<WalkableGrid>,
     /// A recorded background sequence (instead of an environment).
     pub recording: Option<Recording>,
+    /// What makes the recording's own returns not scored (`scene.ignore_*`).
+    pub not_scored: NotScored,
     /// Recorded sensor poses with their times (from `scene.poses`, or a static sensor under a
     /// recording without poses): the sensor follows them.
     pub sensor_poses: Option<(Vec<f64>, Vec<DMat4>)>,
@@ -94,6 +97,7 @@ impl RunInputs {
             }
             (Some(env), Some(grid), None)
         };
+        let not_scored = not_scored_of(cfg, recording.as_ref())?;
         let sensor_poses = match &recording {
             Some(rec) => Some((rec.times_s.clone(), (0..rec.len()).map(|k| rec.pose(k)).collect::<Vec<_>>())),
             None if !cfg.scene.poses.as_os_str().is_empty() => {
@@ -158,6 +162,7 @@ impl RunInputs {
             environment,
             grid,
             recording,
+            not_scored,
             sensor_poses,
             tracks,
             env_meshes,
@@ -177,7 +182,34 @@ impl RunInputs {
             environment: self.environment.as_ref(),
             env_meshes: &self.env_meshes,
             recording: self.recording.as_ref(),
+            not_scored: &self.not_scored,
             proxies,
         }
     }
+}
+
+/// The not-scored sources of the configuration (`scene.ignore_moving`, `scene.ignore_labels`),
+/// checked against the background: both need a recording, labels a folder of KITTI `.bin`
+/// frames with a label file each.
+fn not_scored_of(cfg: &Config, recording: Option<&Recording>) -> Result<NotScored> {
+    let scene = &cfg.scene;
+    let labels_dir = (!scene.ignore_labels.as_os_str().is_empty()).then_some(scene.ignore_labels.as_path());
+    let key = match (scene.ignore_moving, labels_dir) {
+        (false, None) => return Ok(NotScored::default()),
+        (true, _) => "scene.ignore_moving",
+        (false, Some(_)) => "scene.ignore_labels",
+    };
+    let Some(rec) = recording else {
+        return Err(Error::input(format!("config key `{key}`"), "needs a recorded background (a capture, a bag or a folder of frames)"));
+    };
+    let labels = match labels_dir {
+        None => None,
+        Some(dir) => {
+            let Some(files) = rec.frame_files() else {
+                return Err(Error::input(rec.source.display(), "scene.ignore_labels needs a folder of KITTI .bin frames as the background"));
+            };
+            Some(crate::input::labels::FrameLabels::open(files, dir, &scene.ignore_classes)?)
+        }
+    };
+    Ok(NotScored { moving: scene.ignore_moving, labels })
 }

@@ -284,6 +284,7 @@ impl Generator {
             select(&self.post_params(state), &s.human_hits, &self.posed.humans, &s.bg_hits.range_m, out);
         }
         self.apply_sensor_model(state, out);
+        crate::post::mark_not_scored(&self.posed.not_scored, out);
         {
             derive(&self.post_params(state), &self.scratch.human_hits, &self.posed.humans, out);
         }

@@ -12,6 +12,7 @@ use crate::human::{GaitStyle, HumanModel, MODEL_TO_BODY};
 use crate::input::Recording;
 use crate::output::HumanState;
 use crate::post::ColumnMotion;
+use crate::scene::not_scored::NotScored;
 use crate::scene::sequence::SequencePlan;
 use crate::scene::{EnvDraw, Environment};
 use crate::sensor::Sensor;
@@ -90,6 +91,8 @@ pub struct PoseInputs<'a> {
     /// The environment's meshes as drawn (see [`EnvDraw`]).
     pub env_meshes: &'a [EnvDraw],
     pub recording: Option<&'a Recording>,
+    /// What makes the recording's own returns not scored.
+    pub not_scored: &'a NotScored,
     /// The people's proxies, when the backend draws them.
     pub proxies: Option<&'a [ModelProxies]>,
 }
@@ -133,6 +136,10 @@ pub struct PoseStage {
     pub recorded: Option<Vec<f32>>,
     /// Its intensity per beam, in the recording's units (empty when it has none).
     pub recorded_intensity: Vec<f32>,
+    /// The cells of the current frame whose recorded return is not scored, ascending.
+    pub not_scored: Vec<u32>,
+    /// The window (first recorded frame, frames) they were found for, and its cells per frame.
+    not_scored_window: Option<(usize, usize, Vec<Vec<u32>>)>,
     /// The people in `humans`: (instance, model, level of detail).
     pub layout: Vec<(u32, usize, usize)>,
     /// The sweep of the frame posed last.
@@ -189,6 +196,16 @@ impl PoseStage {
             _ => {
                 s.recorded = None;
                 s.recorded_intensity.clear();
+            }
+        }
+        s.not_scored.clear();
+        if let (Some(rec), Some(start), true) = (inp.recording, plan.recording_start, inp.not_scored.is_on()) {
+            let frames = plan.times_s.len();
+            if s.not_scored_window.as_ref().is_none_or(|w| (w.0, w.1) != (start, frames)) {
+                s.not_scored_window = Some((start, frames, inp.not_scored.window(rec, start..start + frames)?));
+            }
+            if let Some((_, _, cells)) = &s.not_scored_window {
+                s.not_scored.extend_from_slice(&cells[state.frame]);
             }
         }
         s.background.clear();

@@ -7,6 +7,7 @@
 //! velocity labels need no numerical differentiation.
 
 
+pub mod not_scored;
 pub mod planner;
 pub mod recorded;
 pub mod sequence;

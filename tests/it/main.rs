@@ -17,6 +17,7 @@ mod humans;
 mod layering;
 mod layout;
 mod limb;
+mod not_scored;
 mod output;
 mod plots;
 mod production;
