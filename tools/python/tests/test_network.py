@@ -348,3 +348,39 @@ def test_the_ego_motion_pools_over_beams_that_returned_in_the_last_frame_and_an_
     assert mask.shape == (2, 1, 8, 64)
     np.testing.assert_array_equal(mask[:, 0].numpy(), want.numpy().astype(np.float32))
     assert 0.3 < want.float().mean() < 0.9
+
+
+def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matches_its_onnx(tmp_path: Path) -> None:
+    """data/models/hdl64e.pt: trained for the HDL-64E on pedscan data alone, it says so (its
+    grid, its backgrounds and their licence); its ONNX twin gives the same outputs on that grid;
+    predict takes real-layout scans with it out of the box (no --sensor)."""
+    import onnxruntime as ort
+
+    from pedscan_data.netio import load_net
+    from pedscan_data.predict import main as predict_main
+
+    models = ROOT / "data" / "models"
+    net, obj = load_net(models / "hdl64e.pt")
+    sensor = obj["training"]["sensor"]
+    assert sensor["name"] == "hdl64e" and len(sensor["elevation_deg"]) == 64 and sensor["columns"] == 2048
+    assert 0 < obj["human_threshold"] < 1
+    assert "CC BY-NC-SA" in obj["licence"] and obj["provenance"]["backgrounds"]
+    assert not any("semantickitti" in b for b in obj["provenance"]["backgrounds"])
+    sess = ort.InferenceSession(str(models / "hdl64e.onnx"), providers=["CPUExecutionProvider"])
+    assert float(sess.get_modelmeta().custom_metadata_map["human_threshold"]) == obj["human_threshold"]
+    rng = np.random.default_rng(1)
+    r = rng.uniform(0.5, 60, (net.cfg.frames, 64, 2048)).astype(np.float32)
+    r[rng.random(r.shape) < 0.1] = 0
+    x = torch.from_numpy(input_channels(r)).unsqueeze(0)
+    with torch.no_grad():
+        ref = [o.numpy() for o in net(x)]
+    for a, b in zip(ref, sess.run(None, {"input": x.numpy()})):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
+    # A scan folder in SemanticKITTI's layout: one label per point back.
+    (tmp_path / "seq" / "velodyne").mkdir(parents=True)
+    az = np.linspace(0, 2 * np.pi, 5000, endpoint=False)
+    pts = np.stack([10 * np.cos(az), 10 * np.sin(az), np.full_like(az, -1.0), np.full_like(az, 0.3)], axis=1)
+    pts.astype("<f4").tofile(tmp_path / "seq" / "velodyne" / "000000.bin")
+    assert predict_main([str(models / "hdl64e.pt"), str(tmp_path / "seq"), "--out", str(tmp_path / "p")]) == 0
+    labels = np.fromfile(tmp_path / "p" / "predictions" / "000000.label", "<u4")
+    assert len(labels) == 5000 and set(np.unique(labels)) <= {0, 30}
