@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from .evaluate import NOT_SCORED
 from .reader import PedscanError, Sequence, sequence_paths
 
 #: The paper's loss weights: cross-entropy, background velocity, human velocity.
@@ -154,7 +155,9 @@ def paper_loss(
     logits: Any, velocity: Any, label: Any, v_true: Any, valid: Any,
     weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS,
 ) -> tuple[Any, dict[str, float]]:
-    """The paper's loss over a batch; no-return beams (``valid`` False) count in no term.
+    """The paper's loss over a batch; no-return beams (``valid`` False) and not-scored beams
+    (``label`` 255, :data:`~pedscan_data.evaluate.NOT_SCORED`: a recorded background's own
+    people) count in no term, nor in the class weight.
 
     logits [B,2,H,W], velocity and v_true [B,3,H,W], label [B,H,W] (1 human), valid [B,H,W].
     Returns the loss and its three terms (unweighted) for the log.
@@ -162,6 +165,7 @@ def paper_loss(
     import torch
     from torch.nn import functional as F
 
+    valid = valid & (label != NOT_SCORED)
     valid_f = valid.to(logits.dtype)
     human = (label == 1) & valid
     n_valid = valid_f.sum(dim=(1, 2)).clamp(min=1.0)
@@ -193,9 +197,9 @@ def validate(
         margin, vel, frame_ms = predict_sequence(net, seq, device, first=score_from)
         ms += after_warm_up(frame_ms)
         for t in range(score_from, seq.frames):
-            r, truth, v = seq.read("range", t), seq.read("label", t) == 1, seq.read("velocity", t)
+            r, label, v = seq.read("range", t), seq.read("label", t), seq.read("velocity", t)
             for cut, report in zip(cuts, reports):
-                _score_frame(report, r, truth, margin[t] > cut, v, vel[t])
+                _score_frame(report, r, label == 1, margin[t] > cut, v, vel[t], scored=label != NOT_SCORED)
                 report.frames += 1
     net.train()
     out = []
@@ -221,9 +225,10 @@ def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int)
     for seq in sequences:
         m, _, _ = predict_sequence(net, seq, device, first=score_from)
         for t in range(score_from, seq.frames):
-            ok = seq.read("range", t) > 0
+            label = seq.read("label", t)
+            ok = (seq.read("range", t) > 0) & (label != NOT_SCORED)
             margins.append(m[t][ok])
-            truth.append(seq.read("label", t)[ok] == 1)
+            truth.append(label[ok] == 1)
     net.train()
     m, y = np.concatenate(margins).astype(np.float64), np.concatenate(truth)
     if not y.any():

@@ -14,16 +14,18 @@ from typing import Any
 
 import numpy as np
 
+from .evaluate import NOT_SCORED
 from .reader import PedscanError, Sequence, open_sequences
 
 
 def class_weight(label: np.ndarray, range_m: np.ndarray) -> float:
     """The paper's human class weight for one frame: background beams / human beams.
 
-    Only beams with a return count (``range_m > 0``). A frame without a human beam gets 1.0,
-    so a weighted loss stays unweighted there.
+    Only beams with a return count (``range_m > 0``), and not the not-scored ones (``label``
+    255: a recorded background's own people). A frame without a human beam gets 1.0, so a
+    weighted loss stays unweighted there.
     """
-    returned = range_m > 0
+    returned = (range_m > 0) & (label != NOT_SCORED)
     humans = int(np.count_nonzero(returned & (label == 1)))
     if humans == 0:
         return 1.0
