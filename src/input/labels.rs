@@ -178,7 +178,7 @@ mod tests {
         let e = err(&[a.clone(), b.clone()], &dir);
         assert_eq!(e.to_string(), format!("{}: does not exist", dir.join("000001.label").display()));
         // Not a folder; a PCD frame.
-        let e = err(&[a.clone()], &d.path().join("nowhere"));
+        let e = err(std::slice::from_ref(&a), &d.path().join("nowhere"));
         assert!(e.to_string().contains("is not a folder of SemanticKITTI .label files"), "{e}");
         let e = err(&[d.path().join("x.pcd")], &dir);
         assert!(e.to_string().contains("KITTI .bin frames only"), "{e}");

@@ -130,12 +130,12 @@ fn the_cells_a_label_file_marks_are_not_scored_and_a_person_in_front_keeps_its_l
     let mut people = 0;
     for k in 0..4 {
         let (_, returned) = &truth[start + k];
-        for b in 0..hw {
+        for (b, &recorded) in returned.iter().enumerate() {
             let i = k * hw + b;
             match label[i] {
-                NOT_SCORED => assert!(returned[b] && instance[i] == 0 && range[i] > 0.0, "frame {k} beam {b}"),
+                NOT_SCORED => assert!(recorded && instance[i] == 0 && range[i] > 0.0, "frame {k} beam {b}"),
                 1 => people += 1,
-                0 => assert!(range[i] == 0.0 || !returned[b], "frame {k} beam {b}: a marked return scored as background"),
+                0 => assert!(range[i] == 0.0 || !recorded, "frame {k} beam {b}: a marked return scored as background"),
                 l => panic!("label {l}"),
             }
             assert!(clean[i] == 0 || clean[i] == 1 || clean[i] == NOT_SCORED);
