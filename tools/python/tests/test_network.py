@@ -261,27 +261,32 @@ def test_the_calibrated_cut_is_the_best_of_every_cut() -> None:
     assert iou > np.sum(human & (margin > 0)) / np.sum(human | (margin > 0))  # better than the argmax here
 
 
-@pytest.mark.parametrize("name", ["frames1", "frames16"])
-def test_the_shipped_networks_load_predict_and_match_their_onnx(name: str, sample: Path, tmp_path: Path) -> None:
+def onnx_matches(net: SequenceNet, obj: dict, onnx: Path, rows: int, columns: int, far_m: float) -> None:
+    """The shipped ONNX twin of a model file: its threshold, and its outputs within 1e-4 of
+    PyTorch's on a random window of the grid (a tenth of the beams holes)."""
     import onnxruntime as ort
 
-    from pedscan_data.netio import load_net
-    from pedscan_data.predict import main as predict_main
-
-    models = ROOT / "data" / "models"
-    net, obj = load_net(models / f"{name}.pt")
-    assert net.cfg.frames == int(name[len("frames"):]) and 0.5 < obj["human_threshold"] < 1
-    sess = ort.InferenceSession(str(models / f"{name}.onnx"), providers=["CPUExecutionProvider"])
-    meta = sess.get_modelmeta().custom_metadata_map
-    assert float(meta["human_threshold"]) == obj["human_threshold"]
+    sess = ort.InferenceSession(str(onnx), providers=["CPUExecutionProvider"])
+    assert float(sess.get_modelmeta().custom_metadata_map["human_threshold"]) == obj["human_threshold"]
     rng = np.random.default_rng(0)
-    r = rng.uniform(0.5, 40, (net.cfg.frames, 32, 1024)).astype(np.float32)
+    r = rng.uniform(0.5, far_m, (net.cfg.frames, rows, columns)).astype(np.float32)
     r[rng.random(r.shape) < 0.1] = 0
     x = torch.from_numpy(input_channels(r)).unsqueeze(0)
     with torch.no_grad():
         ref = [o.numpy() for o in net(x)]
     for a, b in zip(ref, sess.run(None, {"input": x.numpy()})):
         np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.parametrize("name", ["frames1", "frames16"])
+def test_the_shipped_networks_load_predict_and_match_their_onnx(name: str, sample: Path, tmp_path: Path) -> None:
+    from pedscan_data.netio import load_net
+    from pedscan_data.predict import main as predict_main
+
+    models = ROOT / "data" / "models"
+    net, obj = load_net(models / f"{name}.pt")
+    assert net.cfg.frames == int(name[len("frames"):]) and 0.5 < obj["human_threshold"] < 1
+    onnx_matches(net, obj, models / f"{name}.onnx", 32, 1024, 40.0)
     # Out of the box on a pedscan output of another sensor (16 x 512).
     assert predict_main([str(models / f"{name}.pt"), str(sample), "--out", str(tmp_path / "p")]) == 0
     assert sorted(p.name for p in (tmp_path / "p").iterdir()) == sorted(p.name for p in sample.glob("seq_*.h5"))
@@ -354,8 +359,6 @@ def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matche
     """data/models/hdl64e.pt: trained for the HDL-64E on pedscan data alone, it says so (its
     grid, its backgrounds and their licence); its ONNX twin gives the same outputs on that grid;
     predict takes real-layout scans with it out of the box (no --sensor)."""
-    import onnxruntime as ort
-
     from pedscan_data.netio import load_net
     from pedscan_data.predict import main as predict_main
 
@@ -366,16 +369,7 @@ def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matche
     assert 0 < obj["human_threshold"] < 1
     assert "CC BY-NC-SA" in obj["licence"] and obj["provenance"]["backgrounds"]
     assert not any("semantickitti" in b for b in obj["provenance"]["backgrounds"])
-    sess = ort.InferenceSession(str(models / "hdl64e.onnx"), providers=["CPUExecutionProvider"])
-    assert float(sess.get_modelmeta().custom_metadata_map["human_threshold"]) == obj["human_threshold"]
-    rng = np.random.default_rng(1)
-    r = rng.uniform(0.5, 60, (net.cfg.frames, 64, 2048)).astype(np.float32)
-    r[rng.random(r.shape) < 0.1] = 0
-    x = torch.from_numpy(input_channels(r)).unsqueeze(0)
-    with torch.no_grad():
-        ref = [o.numpy() for o in net(x)]
-    for a, b in zip(ref, sess.run(None, {"input": x.numpy()})):
-        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
+    onnx_matches(net, obj, models / "hdl64e.onnx", 64, 2048, 60.0)
     # A scan folder in SemanticKITTI's layout: one label per point back.
     (tmp_path / "seq" / "velodyne").mkdir(parents=True)
     az = np.linspace(0, 2 * np.pi, 5000, endpoint=False)
