@@ -603,6 +603,9 @@ TRAIN_OPTIONS = [
     (["--range-change"], None, False, False, 0, None, "the decoder also sees each beam's range change against the "
      "earlier frames, and the velocity branch the whole scan's (not in the paper; N >= 2)"),
     (["--batch"], int, 1, False, None, None, "windows per step (paper: 1)"),
+    (["--crop-columns"], int, 0, False, None, "W",
+     "train on W columns of each window at a drawn azimuth (a multiple of 8; a step costs about W / columns of a "
+     "whole frame's; validation and prediction stay whole); 0: whole frames (paper)"),
     (["--lr"], float, 1e-3, False, None, None, "Adam learning rate (paper: 1e-3)"),
     (["--decay"], float, 1e-3, False, None, None, "time decay: lr / (1 + decay * step) (paper: 1e-3)"),
     (["--loss-weights"], float, [10000.0, 1.0, 1001.0], False, 3, ("CE", "BG", "HUMAN"), "paper: 10000 1 1001"),
