@@ -234,12 +234,10 @@ impl Recording {
             for f in &files {
                 // Every frame must be a readable file (a dangling link is named now, not when
                 // a window reaches it); .bin sizes must be whole points.
-                let len = file_len(f)?;
-                if kind == Some(FileKind::Bin) && len % 16 != 0 {
-                    return Err(Error::input(
-                        f.display(),
-                        format!("truncated: {len} bytes is not a whole number of 16-byte points"),
-                    ));
+                if kind == Some(FileKind::Bin) {
+                    kitti::check_bin_len(f)?;
+                } else {
+                    file_len(f)?;
                 }
             }
             let d = format!("{} {} frames", files.len(), if kind == Some(FileKind::Bin) { "KITTI .bin" } else { "PCD" });
