@@ -46,8 +46,9 @@ pub struct Flags {
     /// Sensor preset (`hdl32e`, `vlp16`, `hdl64e`, `vlp32c`, `os1-64`, `os1-128`, `os0-128`, `pandar64`), a sensor file (TOML, Ouster metadata JSON), or `background`: the recorded background's own grid (a ROS 2 bag's rings, an Ouster capture's metadata).
     #[arg(long)]
     pub sensor: Option<String>,
-    /// Background: an environment glTF (.glb/.gltf, rendered), a Velodyne .pcap, or a folder
-    /// of KITTI .bin / PCD frames, a ROS 2 bag (.mcap or its folder) (recorded); `none` for an empty world.
+    /// Background: `street` or `indoor` (built-in worlds, a new layout per sequence), an
+    /// environment glTF (.glb/.gltf, rendered), a Velodyne .pcap, or a folder of KITTI .bin /
+    /// PCD frames, a ROS 2 bag (.mcap or its folder) (recorded); `none` for an empty world.
     #[arg(long, visible_alias = "environment")]
     pub background: Option<PathBuf>,
     /// Sensor poses, KITTI poses.txt (3x4 per line) or TUM (t x y z qx qy qz qw).
@@ -108,7 +109,7 @@ pub struct Flags {
     #[arg(long, value_enum, value_delimiter = ',')]
     pub formats: Option<Vec<Format>>,
     /// Per-beam outputs to compute and store: range, label and instance always, plus any of
-    /// xyz, velocity, background (comma separated, e.g. `range,label,instance,velocity`).
+    /// xyz, velocity, background, class (comma separated, e.g. `range,label,instance,velocity`).
     #[arg(long, value_delimiter = ',')]
     pub outputs: Option<Vec<String>>,
     /// Turn on the Vulkan validation layer (slow; for debugging).
@@ -261,16 +262,18 @@ impl Flags {
             cfg.output.xyz = false;
             cfg.output.velocity_field = false;
             cfg.output.background = false;
+            cfg.output.class = false;
             for o in list {
                 match o.trim() {
                     "range" | "label" | "instance" => {}
                     "xyz" => cfg.output.xyz = true,
                     "velocity" => cfg.output.velocity_field = true,
                     "background" => cfg.output.background = true,
+                    "class" => cfg.output.class = true,
                     other => {
                         return Err(Error::input(
                             "--outputs",
-                            format!("unknown output `{other}` (range, label, instance, xyz, velocity, background)"),
+                            format!("unknown output `{other}` (range, label, instance, xyz, velocity, background, class)"),
                         ))
                     }
                 }

@@ -227,6 +227,14 @@ pub struct HumansConfig {
     /// uniform in [min, max]; the legs are re-solved for it within 0.6-1.2 times the model's
     /// own stride (models named like the bundled ones; others walk their own stride).
     pub stride_variation: [f64; 2],
+    /// Share of synthetic people who stand (waiting, looking around; a third of them turn on
+    /// the spot at 0.15-0.5 rad/s), 0..1.
+    pub standing: f64,
+    /// Share of synthetic people who join the person placed before them: face to face 0.8-1.4 m
+    /// away when that one stands (talking), side by side 0.75-0.95 m apart when it walks, 0..1.
+    pub groups: f64,
+    /// Share of walkers who stop once or twice for 1-6 s and walk on, 0..1.
+    pub stop_and_go: f64,
     /// People start within this distance of the sensor's start, m.
     pub spawn_radius_m: f64,
     /// People keep at least this distance from each other and from the sensor, m.
@@ -246,11 +254,45 @@ pub struct HumansConfig {
     pub tracks_transform: Transform2,
 }
 
+/// Which built-in world (`crate::scene::world`) a background value names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WorldKind {
+    /// A city street: road with parked cars, sidewalks with street furniture and trees,
+    /// facades with doors and recesses, plazas, alleys, green slopes, raised crossings.
+    Street,
+    /// A building's floor: halls and corridors with pillars, furniture, plants, shelves,
+    /// display cases, mannequins, kiosks and stairs.
+    Indoor,
+}
+
+impl WorldKind {
+    /// The names `scene.background` takes for the built-in worlds.
+    pub const NAMES: [&'static str; 2] = ["street", "indoor"];
+
+    /// The world a background value names: exactly `street` or `indoor` (a file or folder of
+    /// that name must be given as `./street`).
+    pub fn of_background(p: &Path) -> Option<WorldKind> {
+        match p.to_str()? {
+            "street" => Some(WorldKind::Street),
+            "indoor" => Some(WorldKind::Indoor),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            WorldKind::Street => "street",
+            WorldKind::Indoor => "indoor",
+        }
+    }
+}
+
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SceneConfig {
-    /// The background: an environment glTF (`.glb` / `.gltf`, rendered), a Velodyne `.pcap`,
-    /// or a folder of `.bin` / `.pcd` frames (recorded); empty = none (an empty world).
+    /// The background: a built-in world drawn anew for each sequence (`street`, `indoor`), an
+    /// environment glTF (`.glb` / `.gltf`, rendered), a Velodyne `.pcap`, or a folder of
+    /// `.bin` / `.pcd` frames (recorded); empty = none (an empty world).
     #[serde(alias = "environment")]
     pub background: PathBuf,
     /// Sensor poses (KITTI `poses.txt` or TUM): the sensor follows them; required to know the
@@ -335,6 +377,9 @@ pub struct OutputConfig {
     pub xyz: bool,
     pub velocity_field: bool,
     pub background: bool,
+    /// `/class`: each beam's SemanticKITTI class (person 30 or moving person 254, else the
+    /// class of the background surface it hits).
+    pub class: bool,
 }
 
 /// `[sensor_model]`: what a real spinning LiDAR adds to the perfect geometry
@@ -568,6 +613,9 @@ impl Default for HumansConfig {
             arm_swing: [0.6, 1.4],
             stride_variation: [0.9, 1.1],
             yaw_rate_rps: [-0.3, 0.3],
+            standing: 0.0,
+            groups: 0.0,
+            stop_and_go: 0.0,
             spawn_radius_m: 12.0,
             min_separation_m: 0.7,
             clearance_m: 0.35,
@@ -657,6 +705,7 @@ impl Default for OutputConfig {
             xyz: true,
             velocity_field: true,
             background: true,
+            class: true,
         }
     }
 }
@@ -668,7 +717,9 @@ impl Config {
         let mut cfg: Config = toml::from_str(&text).map_err(|e| Error::input(path.display(), e))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let fix = |p: &mut PathBuf| {
-            if p.to_str().is_some_and(|s| s.starts_with(BUNDLED)) {
+            if WorldKind::of_background(p).is_some() {
+                // A built-in world's name, not a path.
+            } else if p.to_str().is_some_and(|s| s.starts_with(BUNDLED)) {
                 *p = resolve_bundled(p);
             } else if p.is_relative() && !p.as_os_str().is_empty() {
                 *p = dir.join(&*p);
@@ -735,7 +786,9 @@ impl Config {
             files.extend(crate::human::model_files(&self.humans.models)?);
         }
         let bg = &self.scene.background;
-        if bg.is_dir() {
+        if WorldKind::of_background(bg).is_some() {
+            // A built-in world: no file; the version of pedscan that built it is recorded.
+        } else if bg.is_dir() {
             let mut inside: Vec<PathBuf> = std::fs::read_dir(bg)
                 .map_err(|e| Error::io(bg, e))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
@@ -820,6 +873,11 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go)] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(key, format!("{v} is not a share in 0..1"));
+            }
+        }
         range_ok("humans.yaw_rate_rps", self.humans.yaw_rate_rps, -10.0, 10.0)?;
         range_ok("humans.arm_swing", self.humans.arm_swing, 0.0, 2.0)?;
         range_ok("humans.stride_variation", self.humans.stride_variation, 0.5, 1.5)?;

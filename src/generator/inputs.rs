@@ -12,6 +12,7 @@ use crate::input::tracks::{read_tracks, Track, TrackOptions};
 use crate::input::Recording;
 use crate::pose::PoseInputs;
 use crate::scene::not_scored::NotScored;
+use crate::scene::world::WorldKind;
 use crate::scene::{EnvDraw, Environment, WalkableGrid, WALKABLE_CELL_M};
 use crate::sensor::Sensor;
 use glam::{DMat4, DVec3};
@@ -28,6 +29,8 @@ pub struct RunInputs {
     pub grid: Option<WalkableGrid>,
     /// A recorded background sequence (instead of an environment).
     pub recording: Option<Recording>,
+    /// A built-in world, drawn for each sequence (instead of an environment).
+    pub world: Option<WorldKind>,
     /// What makes the recording's own returns not scored (`scene.ignore_*`).
     pub not_scored: NotScored,
     /// Recorded sensor poses with their times (from `scene.poses`, or a static sensor under a
@@ -81,7 +84,8 @@ impl RunInputs {
             }
         })?;
         let bg = &cfg.scene.background;
-        let (environment, grid, recording) = if bg.as_os_str().is_empty() {
+        let world = WorldKind::of_background(bg);
+        let (environment, grid, recording) = if bg.as_os_str().is_empty() || world.is_some() {
             (None, None, None)
         } else if is_recording(bg) {
             let options = cfg.scene.recording_options();
@@ -162,6 +166,7 @@ impl RunInputs {
             environment,
             grid,
             recording,
+            world,
             not_scored,
             sensor_poses,
             tracks,

@@ -36,11 +36,15 @@ impl Generator {
         let mut v = vec![("backend".to_string(), backend.to_string()), (
             "background".to_string(),
             match (&self.inputs.recording, &self.inputs.environment) {
+                _ if plan.world.is_some() => format!("world {}", name(bg)),
                 (Some(_), _) => format!("recording {}", name(bg)),
                 (None, Some(_)) => format!("environment {}", name(bg)),
                 _ => "none".into(),
             },
         )];
+        if let Some(w) = &plan.world {
+            v.push(("world".into(), w.summary()));
+        }
         if let (Some(rec), Some(s)) = (&self.inputs.recording, plan.recording_start) {
             v.push(("recording_first_frame".into(), s.to_string()));
             v.push(("recording_frames".into(), rec.len().to_string()));

@@ -9,6 +9,7 @@ mod inputs;
 mod meta;
 mod model;
 mod timings;
+mod world;
 
 pub use crate::pose::FrameState;
 pub use checks::{Posed, ReferenceHit};
@@ -23,6 +24,8 @@ use crate::output::{write_frames, Compression, FrameOutput, OutputSet, SequenceW
 use crate::pose::PoseStage;
 use crate::post::{derive, select, PostParams};
 use crate::scene::sequence::{sample_plan, PlanInputs, PoseTrack, SequencePlan};
+use crate::scene::world::World;
+use std::sync::Arc;
 use crate::sensor::Sensor;
 use crate::sensor_model::shutter::Sweep;
 use crate::sensor_model::surfaces::{refine_rolling_background, EnvWorld};
@@ -59,6 +62,8 @@ pub struct Generator {
     export_geometry: Option<PathBuf>,
     /// Seconds spent per stage so far (see `--timings`).
     timings: StageTimes,
+    /// The built-in world the environment holds now (see [`Generator::enter_world`]).
+    world: Option<Arc<World>>,
 }
 
 /// The later stages' per-frame buffers, reused (no per-frame allocation in steady state).
@@ -101,6 +106,7 @@ impl Generator {
             scratch: Scratch::default(),
             export_geometry: None,
             timings: StageTimes::default(),
+            world: None,
         })
     }
 
@@ -178,10 +184,19 @@ impl Generator {
             }
             _ => (self.inputs.grid.as_ref(), self.cfg.scene.floor_z_m.unwrap_or(0.0)),
         };
-        let inputs = PlanInputs { rate_hz: self.inputs.sensor.rate_hz, grid, models: &self.inputs.models, tracks: &self.inputs.tracks, sensor, floor_z_m };
+        let world = match self.inputs.world {
+            Some(kind) => Some(Arc::new(World::build(kind, self.cfg.seed, index, &self.world_params())?)),
+            None => None,
+        };
+        let (grid, sensor_arc) = match &world {
+            Some(w) => (Some(&w.grid), w.sensor),
+            None => (grid, None),
+        };
+        let inputs = PlanInputs { rate_hz: self.inputs.sensor.rate_hz, grid, models: &self.inputs.models, tracks: &self.inputs.tracks, sensor, floor_z_m, sensor_arc };
         let mut plan = sample_plan(&mut rng, &self.cfg, &inputs)?;
         plan.recording_start = if self.inputs.recording.is_some() { start } else { None };
         plan.floor_z_m = floor_z_m;
+        plan.world = world;
         Ok(plan)
     }
 
@@ -192,6 +207,7 @@ impl Generator {
             velocity: self.cfg.output.velocity_field,
             background: self.cfg.output.background,
             clean: self.cfg.sensor_model.enabled,
+            class: self.cfg.output.class,
         }
     }
 
@@ -219,6 +235,7 @@ impl Generator {
     }
 
     fn pose_frame_at(&mut self, plan: &SequencePlan, state: &FrameState, lod_max_error_mrad: f64, rolling: bool) -> Result<()> {
+        self.enter_world(plan);
         let inputs = self.inputs.pose(self.backend.proxies());
         self.posed.pose(&inputs, plan, state, lod_max_error_mrad, rolling)
     }
@@ -297,7 +314,11 @@ impl Generator {
         out.sensor_velocity_mps = state.sensor_velocity_mps.to_array();
         out.sensor_yaw_rate_rps = state.sensor_yaw_rate_rps;
         out.humans.clone_from(&state.humans);
+        if self.cfg.output.class {
+            self.classes(out);
+        }
     }
+
 
     /// Everything of one frame: pose, render, resample, composite.
     pub fn frame(&mut self, plan: &SequencePlan, k: usize, out: &mut FrameOutput) -> Result<FrameState> {

@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! /range f32[T,H,W]  /xyz f32[T,H,W,3]  /label u8[T,H,W] (0, 1 human, 255 not scored)  /instance u16[T,H,W]
+//! /class u16[T,H,W] (SemanticKITTI ids)
 //! /velocity f32[T,H,W,3]  /background/range f32[T,H,W]  /intensity f32[T,H,W]
 //! /clean/range f32[T,H,W]  /clean/label u8[T,H,W]  /clean/instance u16[T,H,W]  (sensor model on)
 //! /sensor/time_s f64[T]  /sensor/column_time_s f64[T,W]  /sensor/world_from_sensor f64[T,4,4]
@@ -61,6 +62,7 @@ enum Grid {
     CleanRange,
     CleanLabel,
     CleanInstance,
+    Class,
 }
 
 struct BeamDataset {
@@ -206,6 +208,9 @@ impl H5Writer {
         }
         specs.push((Grid::Label, "label", 0, "1", "0 = background or no return, 1 = human, 255 = not scored (a recorded background's own person or other return that scene.ignore_moving or scene.ignore_labels marks: losses and evaluation skip it)"));
         specs.push((Grid::Instance, "instance", 0, "1", "0 = none, k = k-th human of /humans"));
+        if meta.outputs.class {
+            specs.push((Grid::Class, "class", 0, "1", "SemanticKITTI class: 30 person, 254 moving person, else the class of the background surface hit (50 where the background does not say: a glTF without extras.class, a recording); 0 = no return or not scored"));
+        }
         if meta.outputs.velocity {
             specs.push((
                 Grid::Velocity,
@@ -258,7 +263,7 @@ impl H5Writer {
             };
             let (ds, elem) = match grid {
                 Grid::Label | Grid::CleanLabel => (beam_dataset::<u8>(parent, leaf, shape, chunk, compression), 1),
-                Grid::Instance | Grid::CleanInstance => (beam_dataset::<u16>(parent, leaf, shape, chunk, compression), 2),
+                Grid::Instance | Grid::CleanInstance | Grid::Class => (beam_dataset::<u16>(parent, leaf, shape, chunk, compression), 2),
                 _ => (beam_dataset::<f32>(parent, leaf, shape, chunk, compression), 4),
             };
             let ds = ds.map_err(&e)?;
@@ -333,6 +338,7 @@ impl H5Writer {
                     Grid::CleanRange => bytemuck::cast_slice(&f.clean_range),
                     Grid::CleanLabel => &f.clean_label,
                     Grid::CleanInstance => bytemuck::cast_slice(&f.clean_instance),
+                    Grid::Class => bytemuck::cast_slice(&f.class),
                 }
             })
             .collect();

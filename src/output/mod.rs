@@ -74,11 +74,13 @@ pub struct OutputSet {
     pub background: bool,
     /// `/clean/*`: range, label and instance before the sensor model (written when it is on).
     pub clean: bool,
+    /// `/class`: each beam's SemanticKITTI class.
+    pub class: bool,
 }
 
 impl Default for OutputSet {
     fn default() -> Self {
-        OutputSet { xyz: true, velocity: true, background: true, clean: false }
+        OutputSet { xyz: true, velocity: true, background: true, clean: false, class: false }
     }
 }
 
@@ -111,6 +113,9 @@ pub struct FrameOutput {
     pub background_range: Vec<f32>,
     /// Return intensity per beam (see `crate::sensor_model`), 0 = no return.
     pub intensity: Vec<f32>,
+    /// SemanticKITTI class per beam, 0 = no return or not scored (present iff
+    /// `OutputSet::class`).
+    pub class: Vec<u16>,
     /// Range, label and instance before the sensor model (present iff `OutputSet::clean`).
     pub clean_range: Vec<f32>,
     pub clean_label: Vec<u8>,

@@ -16,9 +16,11 @@
 //!
 //! Points are the returned beams in row-major grid order (row 0 = highest beam), holes
 //! skipped. Remission is `/intensity`. Classes: person 30, moving-person
-//! 254 (the person walks faster than [`MOVING_SPEED_MPS`]), background 50 (SemanticKITTI's
-//! "building": pedscan does not know what the background is, and this class, unlike 0, 1, 52
-//! or 99, is one the common learning maps keep); a not-scored beam (`/label` 255, a recorded
+//! 254 (the person walks faster than [`MOVING_SPEED_MPS`]); a background point takes `/class`
+//! (a built-in world's road 40, sidewalk 48, building 50, car 10, vegetation 70, ...: the ids
+//! of [`CLASS_NAMES`]), and 50 (SemanticKITTI's "building") where the background does not say
+//! what it is (a glTF without `extras.class`, a recording: this class, unlike 0, 1, 52 or 99,
+//! is one the common learning maps keep); a not-scored beam (`/label` 255, a recorded
 //! background's own person) is 0, "unlabeled", which the learning maps ignore. A sequence is written into `SS.tmp/` and
 //! renamed to `SS/` when complete.
 
@@ -38,6 +40,28 @@ pub const MOVING_PERSON: u32 = 254;
 pub const UNLABELED: u32 = 0;
 /// The class pedscan gives every background point.
 pub const BACKGROUND: u32 = 50;
+/// SemanticKITTI's names and colours (BGR, semantic-kitti.yaml) of the classes pedscan writes.
+pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 18] = [
+    (0, "unlabeled", [0, 0, 0]),
+    (10, "car", [245, 150, 100]),
+    (11, "bicycle", [245, 230, 100]),
+    (30, "person", [30, 30, 255]),
+    (31, "bicyclist", [200, 40, 255]),
+    (40, "road", [255, 0, 255]),
+    (48, "sidewalk", [75, 0, 75]),
+    (49, "other-ground", [75, 0, 175]),
+    (50, "building", [0, 200, 255]),
+    (51, "fence", [50, 120, 255]),
+    (60, "lane-marking", [150, 255, 170]),
+    (70, "vegetation", [0, 175, 0]),
+    (71, "trunk", [0, 60, 135]),
+    (72, "terrain", [80, 240, 150]),
+    (80, "pole", [150, 240, 255]),
+    (81, "traffic-sign", [0, 0, 255]),
+    (99, "other-object", [255, 255, 50]),
+    (254, "moving-person", [255, 30, 30]),
+];
+
 /// A person walking faster than this (horizontal world speed, m/s) is a moving person.
 pub const MOVING_SPEED_MPS: f64 = 0.1;
 /// The export's folder under the output folder.
@@ -55,13 +79,16 @@ pub fn sequence_dir(out_dir: &Path, index: usize) -> PathBuf {
 
 /// Points per class of one sequence: background, person, moving person, unlabeled (not
 /// scored; left out of a manifest entry while 0, as it was before such points existed).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct ClassPoints {
     pub background: u64,
     pub person: u64,
     pub moving_person: u64,
     #[serde(default, skip_serializing_if = "is_zero")]
     pub unlabeled: u64,
+    /// The background points by class (`/class`), when the frames carry classes.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub background_classes: std::collections::BTreeMap<u16, u64>,
 }
 
 fn is_zero(n: &u64) -> bool {
@@ -74,6 +101,9 @@ impl ClassPoints {
         self.person += o.person;
         self.moving_person += o.moving_person;
         self.unlabeled += o.unlabeled;
+        for (c, n) in &o.background_classes {
+            *self.background_classes.entry(*c).or_insert(0) += n;
+        }
     }
 }
 
@@ -148,7 +178,13 @@ impl SemanticKittiWriter {
                 UNLABELED
             } else if k == 0 {
                 self.counts.background += 1;
-                BACKGROUND
+                match f.class.get(b) {
+                    Some(&c) if c != 0 => {
+                        *self.counts.background_classes.entry(c).or_insert(0) += 1;
+                        c as u32
+                    }
+                    _ => BACKGROUND,
+                }
             } else {
                 let v = f.humans.get(k - 1).map_or([0.0; 3], |h| h.velocity_mps);
                 if (v[0] as f64).hypot(v[1] as f64) > MOVING_SPEED_MPS {
@@ -202,24 +238,52 @@ pub fn yaml(counts: &ClassPoints, sequences: &[usize]) -> String {
         let v: Vec<String> = sequences.iter().filter(|&&s| keep(s)).map(|&s| s.to_string()).collect();
         format!("[{}]", v.join(", "))
     };
-    format!(
-        "# pedscan's SemanticKITTI export: labels in semantic-kitti-api's config format.\n\
-         name: \"pedscan\"\n\
-         labels:\n  0: \"unlabeled\"\n  {PERSON}: \"person\"\n  {BACKGROUND}: \"background\"\n  {MOVING_PERSON}: \"moving-person\"\n\
-         color_map: # bgr\n  0: [0, 0, 0]\n  {PERSON}: [30, 30, 255]\n  {BACKGROUND}: [200, 200, 200]\n  {MOVING_PERSON}: [255, 30, 30]\n\
-         content: # share of all points\n  0: {:.9}\n  {PERSON}: {:.9}\n  {BACKGROUND}: {:.9}\n  {MOVING_PERSON}: {:.9}\n\
-         learning_map:\n  0: 0\n  {PERSON}: 2\n  {BACKGROUND}: 1\n  {MOVING_PERSON}: 2\n\
-         learning_map_inv:\n  0: 0\n  1: {BACKGROUND}\n  2: {PERSON}\n\
+    // Background points by class: those the frames gave a class, the rest under 50.
+    let classed: u64 = counts.background_classes.values().sum();
+    let mut background = counts.background_classes.clone();
+    *background.entry(BACKGROUND as u16).or_insert(0) += counts.background.saturating_sub(classed);
+    let named = !counts.background_classes.is_empty();
+    let mut rows: Vec<(u16, String, [u8; 3], u64, u8)> = vec![(0, "unlabeled".into(), [0, 0, 0], counts.unlabeled, 0)];
+    rows.push((PERSON as u16, "person".into(), [30, 30, 255], counts.person, 2));
+    for (&c, &n) in &background {
+        let known = CLASS_NAMES.iter().find(|k| k.0 == c);
+        let name = match known {
+            // An export without classes keeps calling its one background class so.
+            _ if c == BACKGROUND as u16 && !named => "background".to_string(),
+            Some(k) => k.1.to_string(),
+            None => format!("class-{c}"),
+        };
+        rows.push((c, name, known.map_or([200, 200, 200], |k| k.2), n, 1));
+    }
+    rows.push((MOVING_PERSON as u16, "moving-person".into(), [255, 30, 30], counts.moving_person, 2));
+    rows.sort_by_key(|r| r.0);
+    rows.dedup_by_key(|r| r.0);
+    let mut out = String::from("# pedscan's SemanticKITTI export: labels in semantic-kitti-api's config format.\nname: \"pedscan\"\nlabels:\n");
+    for r in &rows {
+        let _ = writeln!(out, "  {}: \"{}\"", r.0, r.1);
+    }
+    out.push_str("color_map: # bgr\n");
+    for r in &rows {
+        let _ = writeln!(out, "  {}: [{}, {}, {}]", r.0, r.2[0], r.2[1], r.2[2]);
+    }
+    out.push_str("content: # share of all points\n");
+    for r in &rows {
+        let _ = writeln!(out, "  {}: {:.9}", r.0, r.3 as f64 / total);
+    }
+    out.push_str("learning_map:\n");
+    for r in &rows {
+        let _ = writeln!(out, "  {}: {}", r.0, r.4);
+    }
+    let _ = write!(
+        out,
+        "learning_map_inv:\n  0: 0\n  1: {BACKGROUND}\n  2: {PERSON}\n\
          learning_ignore:\n  0: True\n  1: False\n  2: False\n\
          split:\n  train: {}\n  valid: {}\n  test: {}\n",
-        counts.unlabeled as f64 / total,
-        counts.person as f64 / total,
-        counts.background as f64 / total,
-        counts.moving_person as f64 / total,
         list(&|s| s % 10 < 8),
         list(&|s| s % 10 == 8),
         list(&|s| s % 10 == 9),
-    )
+    );
+    out
 }
 
 /// Writes `OUT/semantickitti/pedscan.yaml` atomically.
@@ -238,8 +302,21 @@ mod tests {
 
     #[test]
     fn the_yaml_splits_sequences_and_shares_points() {
-        let y = yaml(&ClassPoints { background: 6, person: 1, moving_person: 3, unlabeled: 0 }, &[0, 1, 8, 9, 18]);
+        let y = yaml(&ClassPoints { background: 6, person: 1, moving_person: 3, ..Default::default() }, &[0, 1, 8, 9, 18]);
         assert!(y.contains("train: [0, 1]") && y.contains("valid: [8, 18]") && y.contains("test: [9]"), "{y}");
         assert!(y.contains("30: 0.100000000") && y.contains("50: 0.600000000") && y.contains("254: 0.300000000"), "{y}");
+        assert!(y.contains("50: \"background\"") && !y.contains("building"), "{y}");
+    }
+
+    #[test]
+    fn the_yaml_names_every_background_class_and_maps_it_to_background() {
+        let classes = [(40, 2), (10, 1), (50, 1)].into_iter().collect();
+        // Six background points: four with a class, two without (written as 50).
+        let y = yaml(&ClassPoints { background: 6, person: 2, moving_person: 2, background_classes: classes, ..Default::default() }, &[0]);
+        for line in ["10: \"car\"", "40: \"road\"", "50: \"building\"", "  40: 0.200000000", "  50: 0.300000000", "  10: 0.100000000"] {
+            assert!(y.contains(line), "{line}: {y}");
+        }
+        let map = &y[y.find("learning_map:").unwrap()..y.find("learning_map_inv:").unwrap()];
+        assert_eq!(map, "learning_map:\n  0: 0\n  10: 1\n  30: 2\n  40: 1\n  50: 1\n  254: 2\n");
     }
 }

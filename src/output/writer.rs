@@ -196,6 +196,7 @@ impl SequenceWriter {
             ("velocity", f.velocity.len(), m.outputs.velocity),
             ("background_range", f.background_range.len(), m.outputs.background),
             ("intensity", f.intensity.len(), true),
+            ("class", f.class.len(), m.outputs.class),
             ("clean_range", f.clean_range.len(), m.outputs.clean),
             ("clean_label", f.clean_label.len(), m.outputs.clean),
             ("clean_instance", f.clean_instance.len(), m.outputs.clean),

@@ -11,6 +11,7 @@ pub mod not_scored;
 pub mod planner;
 pub mod recorded;
 pub mod sequence;
+pub mod world;
 
 use crate::error::{Error, Result};
 use crate::human::checks;
@@ -46,11 +47,15 @@ pub struct EnvMesh {
     /// Near-infrared reflectance for the sensor model's intensity: the material's
     /// `extras.reflectance` when it has one (0..1), else the luminance of its base colour.
     pub reflectance: f32,
+    /// SemanticKITTI class of its surfaces (`/class`): the material's `extras.class` when it
+    /// has one (0..65535), else 0 (unlabeled).
+    pub class: u16,
 }
 
 /// One non-empty environment mesh as the frames draw it: its vertex range in
 /// [`Environment::positions`], its indices local to that range, and its triangle one-rings
 /// (built once per run).
+#[derive(Clone)]
 pub struct EnvDraw {
     pub first_vertex: usize,
     pub vertex_count: usize,
@@ -59,6 +64,8 @@ pub struct EnvDraw {
     pub adjacency: std::sync::Arc<crate::geometry::Adjacency>,
     /// The mesh's reflectance (the sensor model's intensity).
     pub reflectance: f32,
+    /// The mesh's SemanticKITTI class (0: not given).
+    pub class: u16,
 }
 
 /// A material's near-infrared reflectance: `extras.reflectance` (a number in 0..1) when given,
@@ -72,6 +79,12 @@ fn material_reflectance(m: &gltf::Material) -> f32 {
     }
     let [r, g, b, _] = m.pbr_metallic_roughness().base_color_factor();
     (0.2126 * r + 0.7152 * g + 0.0722 * b).clamp(0.0, 1.0)
+}
+
+/// A material's SemanticKITTI class: `extras.class` (an integer in 0..65535) when given, else 0.
+fn material_class(m: &gltf::Material) -> u16 {
+    let extra = m.extras().as_ref().and_then(|raw| serde_json::from_str::<serde_json::Value>(raw.get()).ok());
+    extra.as_ref().and_then(|v| v.get("class")).and_then(|v| v.as_u64()).and_then(|c| u16::try_from(c).ok()).unwrap_or(0)
 }
 
 /// glTF (y up) -> world (z up): `(x, y, z)_world = (x, -z, y)_gltf`, as Blender exports.
@@ -97,6 +110,7 @@ impl Environment {
                     double_sided: m.double_sided,
                     adjacency,
                     reflectance: m.reflectance,
+                    class: m.class,
                 }
             })
             .collect()
@@ -179,6 +193,7 @@ impl Environment {
                     indices: local,
                     double_sided: prim.material().double_sided(),
                     reflectance: material_reflectance(&prim.material()),
+                    class: material_class(&prim.material()),
                 });
             }
         }
@@ -229,6 +244,13 @@ impl WalkableGrid {
             lo = lo.min(p.truncate());
             hi = hi.max(p.truncate());
         }
+        WalkableGrid::from_environment_within(env, cell_m, lo, hi)
+    }
+
+    /// [`WalkableGrid::from_environment`] over the area from `lo` to `hi` only (plus a ring of
+    /// cells): a grid no larger than where one can stand (an environment whose buildings and
+    /// roads reach far beyond its floor).
+    pub fn from_environment_within(env: &Environment, cell_m: f64, lo: DVec2, hi: DVec2) -> Result<WalkableGrid> {
         // One ring of cells beyond the environment: never floor, so the edge of the floor is
         // an obstacle for the clearance.
         let lo = lo - DVec2::splat(cell_m);
@@ -326,38 +348,41 @@ impl WalkableGrid {
             }
         }
         // Clearance: exact Euclidean distance to the nearest blocked cell centre, by a
-        // brute-force-free two-pass sweep of nearest-seed propagation (8-neighbour).
-        let inf = f64::INFINITY;
-        let mut seed: Vec<Option<(usize, usize)>> = vec![None; nx * ny];
+        // brute-force-free two-pass sweep of nearest-seed propagation (8-neighbour). Seeds are
+        // compared by squared distance in whole cells (exact integers; the square root is
+        // monotone and distinct integers below 2^52 keep distinct roots, so the choice is the
+        // one distances would make), and the root is taken once per cell at the end.
+        const NONE: (i32, i32) = (i32::MIN, i32::MIN);
+        let mut seed: Vec<(i32, i32)> = vec![NONE; nx * ny];
         for j in 0..ny {
             for i in 0..nx {
                 if blocked[j * nx + i] || !floor[j * nx + i] {
-                    seed[j * nx + i] = Some((i, j));
+                    seed[j * nx + i] = (i as i32, j as i32);
                 }
             }
         }
-        let dist = |i: usize, j: usize, s: Option<(usize, usize)>| match s {
-            Some((si, sj)) => {
-                let dx = i as f64 - si as f64;
-                let dy = j as f64 - sj as f64;
-                (dx * dx + dy * dy).sqrt()
+        let dist2 = |i: i64, j: i64, s: (i32, i32)| -> i64 {
+            if s == NONE {
+                i64::MAX
+            } else {
+                let (dx, dy) = (i - s.0 as i64, j - s.1 as i64);
+                dx * dx + dy * dy
             }
-            None => inf,
         };
         for pass in 0..2 {
             let order: Box<dyn Iterator<Item = usize>> =
                 if pass == 0 { Box::new(0..nx * ny) } else { Box::new((0..nx * ny).rev()) };
             for k in order {
-                let (i, j) = (k % nx, k / nx);
+                let (i, j) = ((k % nx) as i64, (k / nx) as i64);
                 let mut best = seed[k];
-                let mut bd = dist(i, j, best);
+                let mut bd = dist2(i, j, best);
                 for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (1, -1), (-1, 1), (1, 1)] {
-                    let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                    let (ni, nj) = (i + di, j + dj);
                     if ni < 0 || nj < 0 || ni >= nx as i64 || nj >= ny as i64 {
                         continue;
                     }
                     let s = seed[nj as usize * nx + ni as usize];
-                    let d = dist(i, j, s);
+                    let d = dist2(i, j, s);
                     if d < bd {
                         bd = d;
                         best = s;
@@ -368,11 +393,10 @@ impl WalkableGrid {
         }
         let clearance_m = (0..nx * ny)
             .map(|k| {
-                let (i, j) = (k % nx, k / nx);
-                let d = dist(i, j, seed[k]);
+                let d2 = dist2((k % nx) as i64, (k / nx) as i64, seed[k]);
                 // The nearest blocked cell is itself half a cell wide; distances at the grid
                 // edge (outside = not floor) are measured to the first outside cell.
-                if d.is_finite() { ((d - 0.5).max(0.0) * cell_m) as f32 } else { f32::INFINITY }
+                if d2 == i64::MAX { f32::INFINITY } else { (((d2 as f64).sqrt() - 0.5).max(0.0) * cell_m) as f32 }
             })
             .collect();
         WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m }
@@ -440,7 +464,7 @@ fn dist_point_segment_2d(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 }
 
 /// Distance from a point to a 2D triangle (0 inside); degenerate triangles are segments.
-fn dist_point_triangle_2d(p: DVec2, t: &[DVec2; 3]) -> f64 {
+pub(crate) fn dist_point_triangle_2d(p: DVec2, t: &[DVec2; 3]) -> f64 {
     let cross = |a: DVec2, b: DVec2, c: DVec2| (b - a).perp_dot(c - a);
     let area = cross(t[0], t[1], t[2]);
     if area.abs() > 1e-12 {
@@ -529,7 +553,7 @@ mod tests {
             DVec3::new(5.0, 5.0, 0.0),
             DVec3::new(-5.0, 5.0, 0.0),
         ];
-        env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5 });
+        env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5, class: 0 });
         let b = env.positions.len() as u32;
         for z in [0.0, 1.0] {
             for (x, y) in [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)] {
@@ -541,7 +565,7 @@ mod tests {
         for (a, c) in [(0, 1), (1, 2), (2, 3), (3, 0)] {
             idx.extend(side(a, c, c + 4, a + 4));
         }
-        env.meshes.push(EnvMesh { name: "box".into(), indices: idx, double_sided: false, reflectance: 0.5 });
+        env.meshes.push(EnvMesh { name: "box".into(), indices: idx, double_sided: false, reflectance: 0.5, class: 0 });
         let g = WalkableGrid::from_environment(&env, 0.1).unwrap();
         assert_eq!(g.clearance(DVec2::new(0.0, 0.0)), 0.0, "inside the box");
         assert!(g.clearance(DVec2::new(0.55, 0.0)) < 0.1);

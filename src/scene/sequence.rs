@@ -21,6 +21,11 @@ pub enum HumanPath {
     Walk(WalkPath, f64),
     /// A recorded track; sequence time 0 is track time `t0_s`.
     Track(TrackPath),
+    /// Another path walked with stops: the same places, the walk held still while stopped.
+    Paused(Box<HumanPath>, Pauses),
+    /// Beside another path, `lateral_m` to its left (negative: right) of it, at its pace: a
+    /// companion walking side by side. Its distance (the gait's) is the other path's.
+    Beside(Box<HumanPath>, f64),
 }
 
 impl From<Trajectory> for HumanPath {
@@ -36,6 +41,11 @@ impl HumanPath {
             HumanPath::Arc(a) => a.position(t_s),
             HumanPath::Walk(w, z) => w.position(t_s) + DVec3::Z * *z,
             HumanPath::Track(k) => k.state(t_s).0.extend(k.z_m),
+            HumanPath::Paused(p, s) => p.position(s.walked_time(t_s)),
+            HumanPath::Beside(p, lateral) => {
+                let h = p.heading_rad(t_s);
+                p.position(t_s) + *lateral * DVec3::new(-h.sin(), h.cos(), 0.0)
+            }
         }
     }
     pub fn velocity(&self, t_s: f64) -> DVec3 {
@@ -43,6 +53,11 @@ impl HumanPath {
             HumanPath::Arc(a) => a.velocity(t_s),
             HumanPath::Walk(w, _) => w.velocity(t_s),
             HumanPath::Track(k) => k.state(t_s).1.extend(0.0),
+            HumanPath::Paused(p, s) => p.velocity(s.walked_time(t_s)) * s.pace(t_s),
+            HumanPath::Beside(p, lateral) => {
+                let h = p.heading_rad(t_s);
+                p.velocity(t_s) - *lateral * p.heading_rate(t_s) * DVec3::new(h.cos(), h.sin(), 0.0)
+            }
         }
     }
     /// Facing direction, radians counter-clockwise from +x.
@@ -51,6 +66,21 @@ impl HumanPath {
             HumanPath::Arc(a) => a.heading_rad(t_s),
             HumanPath::Walk(w, _) => w.heading_rad(t_s),
             HumanPath::Track(k) => k.state(t_s).2,
+            HumanPath::Paused(p, s) => p.heading_rad(s.walked_time(t_s)),
+            HumanPath::Beside(p, _) => p.heading_rad(t_s),
+        }
+    }
+    /// Rate of turn of the heading, rad/s: exact on arcs, a central difference over 1 ms
+    /// elsewhere (lines joined by fillets and recorded tracks are smooth at that scale).
+    pub fn heading_rate(&self, t_s: f64) -> f64 {
+        match self {
+            HumanPath::Arc(a) => a.yaw_rate_rps,
+            HumanPath::Paused(p, s) => p.heading_rate(s.walked_time(t_s)) * s.pace(t_s),
+            HumanPath::Beside(p, _) => p.heading_rate(t_s),
+            _ => {
+                let h = 5e-4;
+                (self.heading_rad(t_s + h) - self.heading_rad(t_s - h)) / (2.0 * h)
+            }
         }
     }
     /// Distance walked since time 0, m (drives the gait phase).
@@ -59,6 +89,8 @@ impl HumanPath {
             HumanPath::Arc(a) => a.distance(t_s),
             HumanPath::Walk(w, _) => w.distance(t_s),
             HumanPath::Track(k) => k.distance(t_s),
+            HumanPath::Paused(p, s) => p.distance(s.walked_time(t_s)),
+            HumanPath::Beside(p, _) => p.distance(t_s),
         }
     }
     /// The first time at which the distance walked is `d_m` (before 0 or past a track's
@@ -66,6 +98,8 @@ impl HumanPath {
     pub fn time_at_distance(&self, d_m: f64) -> Option<f64> {
         let at_speed = |t0: f64, d0: f64, v: f64| (v > 1e-9).then(|| t0 + (d_m - d0) / v);
         match self {
+            HumanPath::Paused(p, s) => p.time_at_distance(d_m).map(|u| s.time_walked(u)),
+            HumanPath::Beside(p, _) => p.time_at_distance(d_m),
             HumanPath::Arc(a) => at_speed(0.0, 0.0, a.speed_mps),
             HumanPath::Walk(w, _) => at_speed(0.0, 0.0, w.speed_mps()),
             HumanPath::Track(k) => {
@@ -83,6 +117,94 @@ impl HumanPath {
                 Some((i as f64 - 1.0 + f) * TRACK_DISTANCE_STEP_S)
             }
         }
+    }
+}
+
+/// When a person who walks a path stops: stops `[start, end)` in sequence time, each entered
+/// and left over [`Pauses::RAMP_S`] at a pace falling (rising) linearly between 1 and 0, so
+/// the speed, and with it the blend to the standing pose, change smoothly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pauses {
+    /// Sorted, each at least two ramps after the one before.
+    stops: Vec<(f64, f64)>,
+}
+
+impl Pauses {
+    /// Time to slow down from the walk to a stop, and to get going again, s.
+    pub const RAMP_S: f64 = 0.6;
+
+    /// Stops `[start, end)`, kept in order and apart (a stop that would begin within two
+    /// ramps of the previous one's end is dropped).
+    pub fn new(mut stops: Vec<(f64, f64)>) -> Pauses {
+        stops.retain(|(a, b)| a.is_finite() && b.is_finite() && b > a);
+        stops.sort_by(|p, q| p.0.total_cmp(&q.0));
+        let mut kept: Vec<(f64, f64)> = Vec::new();
+        for s in stops {
+            if kept.last().is_none_or(|k| s.0 - Pauses::RAMP_S >= k.1 + Pauses::RAMP_S) {
+                kept.push(s);
+            }
+        }
+        Pauses { stops: kept }
+    }
+
+    /// The pace at `t_s`: 1 walking, 0 stopped, linear over the ramps.
+    pub fn pace(&self, t_s: f64) -> f64 {
+        let r = Pauses::RAMP_S;
+        for &(a, b) in &self.stops {
+            if t_s >= a - r && t_s < a {
+                return (a - t_s) / r;
+            }
+            if t_s >= a && t_s < b {
+                return 0.0;
+            }
+            if t_s >= b && t_s < b + r {
+                return (t_s - b) / r;
+            }
+        }
+        1.0
+    }
+
+    /// The time along the walked path at sequence time `t_s`: `t_s` less what the stops have
+    /// held back so far (the integral of 1 - pace from the first ramp).
+    pub fn walked_time(&self, t_s: f64) -> f64 {
+        let r = Pauses::RAMP_S;
+        let mut lost = 0.0;
+        for &(a, b) in &self.stops {
+            if t_s <= a - r {
+                break;
+            }
+            // Slowing: 1 - pace = (s - a + r) / r over [a - r, a].
+            let x = t_s.min(a) - (a - r);
+            lost += x * x / (2.0 * r);
+            if t_s > a {
+                lost += t_s.min(b) - a;
+            }
+            if t_s > b {
+                // Getting going: 1 - pace = 1 - (s - b) / r over [b, b + r].
+                let y = t_s.min(b + r) - b;
+                lost += y - y * y / (2.0 * r);
+            }
+        }
+        t_s - lost
+    }
+
+    /// The first sequence time at which the walked time is `u` (the inverse of
+    /// [`Pauses::walked_time`], which never decreases), by bisection to 1 us.
+    pub fn time_walked(&self, u: f64) -> f64 {
+        let total: f64 = self.stops.iter().map(|(a, b)| b - a + Pauses::RAMP_S).sum();
+        let (mut lo, mut hi) = (u, u + total + 1e-9);
+        if self.walked_time(lo) >= u {
+            return lo;
+        }
+        while hi - lo > 1e-6 {
+            let mid = 0.5 * (lo + hi);
+            if self.walked_time(mid) < u { lo = mid } else { hi = mid }
+        }
+        hi
+    }
+
+    pub fn stops(&self) -> &[(f64, f64)] {
+        &self.stops
     }
 }
 
@@ -449,6 +571,8 @@ pub struct SequencePlan {
     pub recording_start: Option<usize>,
     /// World z of the floor the people stand on.
     pub floor_z_m: f64,
+    /// The sequence's own built-in world, when the background is one.
+    pub world: Option<Arc<crate::scene::world::World>>,
 }
 
 /// What a sequence is sampled from besides the configuration.
@@ -465,6 +589,52 @@ pub struct PlanInputs<'a> {
     pub sensor: Option<PoseTrack>,
     /// Height of the floor people stand on, world z, m.
     pub floor_z_m: f64,
+    /// The sensor's path when the background sets it (a built-in street's lane); None: a
+    /// sampled arc (or the recorded `sensor`, which wins).
+    pub sensor_arc: Option<Trajectory>,
+}
+
+/// Tries at joining the person placed before (`humans.groups`) before placing one alone.
+const JOIN_TRIES: usize = 20;
+
+/// A companion for `leader` of model `model`: face to face 0.8-1.4 m away when the leader
+/// stands, else side by side 0.75-0.95 m to its left or right, at its pace.
+fn companion(rng: &mut impl rand::Rng, leader: &HumanPlan, model: usize, m: &HumanModel) -> HumanPlan {
+    let still = leader.trajectory.velocity(0.0).length() == 0.0 && !matches!(leader.trajectory, HumanPath::Paused(..));
+    let trajectory = if still {
+        let c = leader.trajectory.position(0.0);
+        let a = rng.random::<f64>() * std::f64::consts::TAU;
+        let d = 0.8 + 0.6 * rng.random::<f64>();
+        let p = c.truncate() + d * DVec2::new(a.cos(), a.sin());
+        // Facing the leader, give or take 20 degrees.
+        let heading = a + std::f64::consts::PI + (rng.random::<f64>() - 0.5) * 0.7;
+        HumanPath::Arc(Trajectory::fixed(p, c.z, heading))
+    } else {
+        let side = if rng.random::<f64>() < 0.5 { -1.0 } else { 1.0 };
+        HumanPath::Beside(Box::new(leader.trajectory.clone()), side * (0.75 + 0.2 * rng.random::<f64>()))
+    };
+    HumanPlan {
+        model,
+        stride_m: if still { m.gait_stride_m(0.0) } else { m.gait_stride_m(leader.trajectory.velocity(0.0).length()) },
+        trajectory,
+        phase0: rng.random::<f64>(),
+        motion: leader.motion,
+        arm_swing: 1.0,
+        stride_scale: 1.0,
+    }
+}
+
+/// One or two stops of 1-6 s anywhere in a sequence of `duration` s (one may be under way at
+/// its start).
+fn sample_pauses(rng: &mut impl rand::Rng, duration: f64) -> Pauses {
+    let n = if rng.random::<f64>() < 0.4 { 2 } else { 1 };
+    let stops = (0..n)
+        .map(|_| {
+            let a = -2.0 + (duration + 2.0) * rng.random::<f64>();
+            (a, a + 1.0 + 5.0 * rng.random::<f64>())
+        })
+        .collect();
+    Pauses::new(stops)
 }
 
 /// Tries per person (synthetic) or per window (tracks) before giving up.
@@ -507,12 +677,13 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
     let [lo, hi] = hc.count;
     let count = lo + (rng.random::<f64>() * (hi - lo + 1) as f64).floor().min((hi - lo) as f64) as usize;
     if inp.tracks.is_empty() {
-        let sensor = match &inp.sensor {
-            Some(p) => SensorPath::Poses(p.clone()),
-            None => sample_sensor_arc(rng, cfg, inp.grid, &times_s, None)?,
+        let sensor = match (&inp.sensor, inp.sensor_arc) {
+            (Some(p), _) => SensorPath::Poses(p.clone()),
+            (None, Some(a)) => SensorPath::Arc(a),
+            (None, None) => sample_sensor_arc(rng, cfg, inp.grid, &times_s, None)?,
         };
         let humans = sample_synthetic_people(rng, cfg, inp, &sensor, &times_s, count)?;
-        return Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m });
+        return Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m, world: None });
     }
 
     // Recorded tracks: a random window of the tracks' time span, the tracks that cover it
@@ -538,9 +709,10 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
         }
         let paths: Vec<TrackPath> =
             covering.iter().map(|&i| TrackPath::new(inp.tracks[i].clone(), t0, inp.floor_z_m, duration)).collect();
-        let sensor = match &inp.sensor {
-            Some(p) => SensorPath::Poses(p.clone()),
-            None => {
+        let sensor = match (&inp.sensor, inp.sensor_arc) {
+            (Some(p), _) => SensorPath::Poses(p.clone()),
+            (None, Some(a)) => SensorPath::Arc(a),
+            (None, None) => {
                 // The sensor starts among the people of the window.
                 let c = paths.iter().map(|p| p.state(0.0).0).fold(DVec2::ZERO, |a, b| a + b) / paths.len() as f64;
                 match sample_sensor_arc(rng, cfg, inp.grid, &times_s, Some(c)) {
@@ -584,7 +756,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
         }
     }
     match best {
-        Some((sensor, humans)) if !humans.is_empty() || count == 0 => Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m }),
+        Some((sensor, humans)) if !humans.is_empty() || count == 0 => Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m, world: None }),
         _ => Err(Error::input(
             "humans.tracks",
             format!(
@@ -680,13 +852,41 @@ fn sample_synthetic_people(
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     for k in 0..count {
         let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
+        let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
+        let stands = hc.standing > 0.0 && rng.random::<f64>() < hc.standing;
         let mut placed = None;
+        let mut tries = 0;
+        let placeable = |plan: &HumanPlan| {
+            times_s.iter().all(|&t| {
+                let p = plan.position_m(t).truncate();
+                let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
+                let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
+                let apart = humans.iter().all(|h| h.position_m(t).truncate().distance(p) >= hc.min_separation_m);
+                free && off_sensor && apart
+            })
+        };
         for _ in 0..TRIES {
             let mut u01 = || rng.random::<f64>();
             let r = hc.spawn_radius_m * u01().sqrt();
             let a = u01() * std::f64::consts::TAU;
             let start = s0 + r * DVec2::new(a.cos(), a.sin());
-            let speed = uniform(&mut u01, hc.speed_mps);
+            let mut speed = uniform(&mut u01, hc.speed_mps);
+            // Behaviours (drawn only where asked for, so a run without them draws as before):
+            // joining the person placed last, standing.
+            let joins = tries < JOIN_TRIES && k > 0 && hc.groups > 0.0 && joining;
+            if joins {
+                let leader = &humans[k - 1];
+                let plan = companion(rng, leader, model, &inp.models[model]);
+                if placeable(&plan) {
+                    placed = Some(plan);
+                    break;
+                }
+                tries += 1;
+                continue;
+            }
+            if stands {
+                speed = 0.0;
+            }
             if inp.grid.is_some_and(|g| g.clearance(start) < hc.clearance_m) {
                 continue;
             }
@@ -697,6 +897,13 @@ fn sample_synthetic_people(
                         Some(w) => HumanPath::Walk(w, inp.floor_z_m),
                         None => continue,
                     }
+                }
+                _ if stands => {
+                    // Waiting or looking around: a third turn on the spot.
+                    let mut u01 = || rng.random::<f64>();
+                    let heading = (u01() * 2.0 - 1.0) * std::f64::consts::PI;
+                    let turn = if u01() < 1.0 / 3.0 { (0.15 + 0.35 * u01()) * if u01() < 0.5 { -1.0 } else { 1.0 } } else { 0.0 };
+                    HumanPath::Arc(Trajectory { start_m: start, z_m: inp.floor_z_m, heading0_rad: heading, speed_mps: 0.0, yaw_rate_rps: turn })
                 }
                 _ => {
                     let mut u01 = || rng.random::<f64>();
@@ -709,6 +916,11 @@ fn sample_synthetic_people(
                     })
                 }
             };
+            let path = if speed > 0.0 && hc.stop_and_go > 0.0 && rng.random::<f64>() < hc.stop_and_go {
+                HumanPath::Paused(Box::new(path), sample_pauses(rng, duration))
+            } else {
+                path
+            };
             let plan = HumanPlan {
                 model,
                 trajectory: path,
@@ -718,14 +930,7 @@ fn sample_synthetic_people(
                 arm_swing: 1.0,
                 stride_scale: 1.0,
             };
-            let ok = times_s.iter().all(|&t| {
-                let p = plan.position_m(t).truncate();
-                let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
-                let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
-                let apart = humans.iter().all(|h| h.position_m(t).truncate().distance(p) >= hc.min_separation_m);
-                free && off_sensor && apart
-            });
-            if ok {
+            if placeable(&plan) {
                 placed = Some(plan);
                 break;
             }

@@ -397,6 +397,7 @@ mod tests {
             double_sided: false,
             adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(indices)),
             reflectance: 0.25,
+            class: 0,
         }
     }
 
@@ -590,7 +591,7 @@ mod tests {
         for (indices, double_sided, refined) in [([0u32, 1, 2], false, true), ([0, 2, 1], true, true), ([0, 2, 1], false, false)] {
             let mut background = FrameGeometry::default();
             background.push_mesh(&world.map(|p| p.as_vec3().to_array()), &indices, 0, double_sided);
-            let env_meshes = vec![EnvDraw { first_vertex: 0, vertex_count: 3, local_indices: indices.to_vec(), double_sided, adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&indices)), reflectance: 0.5 }];
+            let env_meshes = vec![EnvDraw { first_vertex: 0, vertex_count: 3, local_indices: indices.to_vec(), double_sided, adjacency: std::sync::Arc::new(crate::geometry::Adjacency::build(&indices)), reflectance: 0.5, class: 0 }];
             let columns = 4;
             let dirs: Vec<DVec3> = (0..columns).map(|c| DVec3::new(1.0, 0.1 * (c as f64 - 1.5), 0.05).normalize()).collect();
             let poses: Vec<DMat4> = (0..columns).map(|c| DMat4::from_translation(DVec3::new(0.3 * c as f64, 0.02 * c as f64, 0.0))).collect();

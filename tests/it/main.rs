@@ -26,4 +26,5 @@ mod proxy;
 mod real_inputs;
 mod realism;
 mod sensor_model;
+mod worlds;
 mod stability;

@@ -240,7 +240,7 @@ fn roundtrip_no_humans() {
 #[test]
 fn optional_outputs_absent_when_disabled() {
     let dir = tempfile::tempdir().unwrap();
-    let m = meta(0, 2, 1, OutputSet { xyz: false, velocity: false, background: false, clean: false });
+    let m = meta(0, 2, 1, OutputSet { xyz: false, velocity: false, background: false, clean: false, class: false });
     let paths = write_seq(dir.path(), &m, &WriterOptions { png: true, ..Default::default() });
     let f = hdf5::File::open(&paths[0]).unwrap();
     assert!(f.dataset("range").is_ok());

@@ -9,7 +9,7 @@ pub(crate) fn grid(w: f64, h: f64, boxes: &[[f64; 4]], cell_m: f64) -> WalkableG
         positions: vec![DVec3::new(0.0, 0.0, 0.0), DVec3::new(w, 0.0, 0.0), DVec3::new(w, h, 0.0), DVec3::new(0.0, h, 0.0)],
         ..Default::default()
     };
-    env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5 });
+    env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5, class: 0 });
     for (n, b) in boxes.iter().enumerate() {
         let base = env.positions.len() as u32;
         for z in [0.0, 1.0] {
@@ -22,7 +22,7 @@ pub(crate) fn grid(w: f64, h: f64, boxes: &[[f64; 4]], cell_m: f64) -> WalkableG
             idx.extend([base + a, base + c, base + c + 4, base + a, base + c + 4, base + a + 4]);
         }
         idx.extend([base + 4, base + 5, base + 6, base + 4, base + 6, base + 7]);
-        env.meshes.push(EnvMesh { name: format!("box{n}"), indices: idx, double_sided: true, reflectance: 0.5 });
+        env.meshes.push(EnvMesh { name: format!("box{n}"), indices: idx, double_sided: true, reflectance: 0.5, class: 0 });
     }
     WalkableGrid::from_environment(&env, cell_m).unwrap()
 }

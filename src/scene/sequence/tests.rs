@@ -234,7 +234,7 @@ fn track_windows_take_only_tracks_that_cover_them() {
     };
     // 32 frames at 10 Hz; tracks of 32 samples span the same 3.1 s, one of 21 ends early.
     let tracks = [walk(1, 0.0, 32), walk(2, 8.0, 32), walk(3, -8.0, 21)];
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0 };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0, sensor_arc: None };
     for seed in 0..5 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
         let mut ids: Vec<i64> = plan
@@ -259,7 +259,7 @@ fn track_windows_take_only_tracks_that_cover_them() {
     // Tracks longer than the sequence: its window starts anywhere they all cover it, and
     // a person's stride is the model's for the track's mean speed (1 m/s).
     let long = [walk(1, 0.0, 100), walk(2, 8.0, 100)];
-    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0 };
+    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0, sensor_arc: None };
     let starts: Vec<f64> = (0..30)
         .map(|seed| {
             let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp_long).unwrap();
@@ -310,7 +310,7 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
     cfg.humans.count = [4, 4];
     cfg.humans.speed_mps = [0.8, 1.5];
     let model = crate::human::tests_support::tiny_model();
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for seed in 0..12 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
@@ -323,7 +323,7 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
     }
     assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
     // People walk on the floor's height.
-    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75 };
+    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75, sensor_arc: None };
     let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &raised).unwrap();
     for p in &plan.humans {
         assert!(matches!(p.trajectory, HumanPath::Walk(..)) && p.trajectory.position(1.0).z == 0.75, "{:?}", p.trajectory);
@@ -396,7 +396,7 @@ fn sampling_is_reproducible_and_respects_counts() {
     let mut cfg = Config::default();
     cfg.humans.count = [3, 5];
     let model = crate::human::tests_support::tiny_model();
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0 };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
     let a = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
     let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
     assert_eq!(a, b);
@@ -415,4 +415,116 @@ fn sampling_is_reproducible_and_respects_counts() {
             }
         }
     }
+}
+
+/// Every kind of path's velocity is the derivative of its position, and its heading rate the
+/// derivative of its heading (central differences), through stops and beside a turning walk.
+#[test]
+fn paused_and_companion_paths_move_as_their_velocities_say() {
+    let arc: HumanPath = Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: 0.3, speed_mps: 1.3, yaw_rate_rps: 0.4 }.into();
+    let paused = HumanPath::Paused(Box::new(arc.clone()), Pauses::new(vec![(1.0, 2.5), (4.0, 4.5)]));
+    let beside = HumanPath::Beside(Box::new(paused.clone()), -0.85);
+    for path in [&paused, &beside, &HumanPath::Beside(Box::new(arc.clone()), 0.8)] {
+        for k in 0..140 {
+            let t = -0.5 + 0.05 * k as f64 + 0.013;
+            let h = 1e-5;
+            let num = (path.position(t + h) - path.position(t - h)) / (2.0 * h);
+            assert!((num - path.velocity(t)).length() < 1e-6, "{path:?} at {t}: {num} vs {}", path.velocity(t));
+            let rate = (path.heading_rad(t + h) - path.heading_rad(t - h)) / (2.0 * h);
+            assert!((rate - path.heading_rate(t)).abs() < 1e-6, "at {t}: {rate} vs {}", path.heading_rate(t));
+        }
+    }
+    // Stopped: still, facing where the walk left off; the walk resumes where it stopped.
+    let stopped = paused.position(1.7);
+    assert_eq!(paused.velocity(2.0), DVec3::ZERO);
+    assert_eq!(paused.position(2.4), stopped);
+    let walked = Pauses::new(vec![(1.0, 2.5), (4.0, 4.5)]).walked_time(6.0);
+    assert!((walked - (6.0 - 1.5 - 0.6 - 0.5 - 0.6)).abs() < 1e-12, "{walked}");
+    // Side by side: 0.85 m to the right of the paused walker at every instant.
+    for t in [0.0, 1.2, 2.0, 3.3, 5.0] {
+        let (a, b) = (paused.position(t), beside.position(t));
+        let right = DVec2::from_angle(paused.heading_rad(t) - std::f64::consts::FRAC_PI_2);
+        assert!((b - a).truncate().distance(right * 0.85) < 1e-12, "at {t}");
+    }
+    // The gait: distance held while stopped, and the time a distance is reached found back.
+    assert_eq!(paused.distance(1.6), paused.distance(2.4));
+    for d in [0.3, 1.0, 2.0, 4.0] {
+        let t = paused.time_at_distance(d).unwrap();
+        assert!((paused.distance(t) - d).abs() < 1e-5, "{d}: at {t} walked {}", paused.distance(t));
+        assert!(paused.distance(t - 0.01) < d);
+    }
+}
+
+/// Overlapping or empty stops are dropped; a stop begins with a walk slowing down.
+#[test]
+fn pauses_keep_apart_and_ramp() {
+    // (3, 4) would begin slowing at 2.4, while the walk is still getting going after 2.
+    let p = Pauses::new(vec![(3.0, 4.0), (1.0, 2.0), (4.5, 6.0), (f64::NAN, 1.0), (7.0, 7.0)]);
+    assert_eq!(p.stops(), &[(1.0, 2.0), (4.5, 6.0)]);
+    assert_eq!(p.pace(0.0), 1.0);
+    assert!((p.pace(0.7) - 0.5).abs() < 1e-12);
+    assert_eq!(p.pace(1.5), 0.0);
+    assert!((p.pace(2.3) - 0.5).abs() < 1e-12);
+    assert_eq!(p.pace(2.7), 1.0);
+}
+
+/// `humans.standing`, `groups` and `stop_and_go`: the shares come out near what is asked;
+/// standing people stand (a share of them turning), companions stand face to face or walk
+/// side by side, and stop-and-go walkers stop; nobody collides. With every share at 0 the
+/// people are drawn exactly as before.
+#[test]
+fn behaviours_come_in_the_shares_asked_for() {
+    let model = crate::human::tests_support::tiny_model();
+    let (w, h) = (40.0, 40.0);
+    let grid = crate::scene::planner::tests::grid(w, h, &[], 0.25);
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let mut cfg = Config::default();
+    cfg.humans.count = [10, 10];
+    cfg.humans.spawn_radius_m = 18.0;
+    let plain = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(4), &cfg, &inp).unwrap();
+    cfg.humans.standing = 0.4;
+    cfg.humans.groups = 0.3;
+    cfg.humans.stop_and_go = 0.5;
+    let (mut still, mut turning, mut facing, mut beside, mut paused, mut total) = (0, 0, 0, 0, 0, 0);
+    for seed in 0..20 {
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+        for (i, p) in plan.humans.iter().enumerate() {
+            total += 1;
+            match &p.trajectory {
+                HumanPath::Arc(a) if a.speed_mps == 0.0 => {
+                    still += 1;
+                    turning += usize::from(a.yaw_rate_rps != 0.0);
+                    // Face to face: a companion looks at the one placed before it.
+                    if i > 0 {
+                        let other = plan.humans[i - 1].trajectory.position(0.0).truncate();
+                        let to = other - a.start_m;
+                        let off = (to.y.atan2(to.x) - a.heading0_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                        if (0.8..=1.4).contains(&to.length()) && off.abs() <= 0.36 {
+                            facing += 1;
+                        }
+                    }
+                }
+                HumanPath::Beside(..) => beside += 1,
+                HumanPath::Paused(..) => paused += 1,
+                _ => {}
+            }
+            for t in &plan.times_s {
+                let q = p.position_m(*t).truncate();
+                assert!(grid.clearance(q) >= cfg.humans.clearance_m, "seed {seed}: person {i} off the floor");
+                for g in &plan.humans[i + 1..] {
+                    assert!(g.position_m(*t).truncate().distance(q) >= cfg.humans.min_separation_m, "seed {seed}: collision");
+                }
+            }
+        }
+    }
+    let share = |n: usize| n as f64 / total as f64;
+    assert!((0.3..0.65).contains(&share(still)), "standing {still} of {total}");
+    assert!(turning > 0 && turning < still, "turning {turning} of {still}");
+    assert!(facing > 5 && beside > 5, "face to face {facing}, side by side {beside}");
+    assert!((0.15..0.45).contains(&share(paused)), "paused {paused} of {total}");
+    // Shares of 0 draw nothing: the same plan as a configuration without the keys.
+    cfg.humans.standing = 0.0;
+    cfg.humans.groups = 0.0;
+    cfg.humans.stop_and_go = 0.0;
+    assert_eq!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(4), &cfg, &inp).unwrap(), plain);
 }

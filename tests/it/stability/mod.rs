@@ -222,7 +222,7 @@ fn far_plan(origin: DVec2) -> SequencePlan {
         arm_swing: 1.0,
         stride_scale: 1.0,
     };
-    SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0 }
+    SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0, world: None }
 }
 
 /// The background box of the far test, in the world frame (f64): 5 m from the sensor at 60

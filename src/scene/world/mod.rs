@@ -1,0 +1,161 @@
+//! Built-in procedural worlds (`scene.background = "street"` or `"indoor"`): each sequence gets
+//! its own layout, drawn from the seed and the sequence's index alone, full of things of human
+//! height and width that are not people (trees, bushes, bollards, bins, cabinets, poles, parked
+//! bicycles and cars; mannequins, plants, shelves, display cases), so that "an upright thing of
+//! human size" does not give a person away. Surfaces carry their SemanticKITTI class and a
+//! near-infrared reflectance spread over the range that people's clothes and skin cover.
+//!
+//! A world is built once per sequence ([`World::build`]): its triangles (an [`Environment`],
+//! rendered like a glTF background), its walkable area (sidewalks, crossings, plazas; halls and
+//! corridors) and, in the street, the sensor's path (a vehicle in its lane).
+
+pub mod indoor;
+pub mod shapes;
+pub mod street;
+pub mod things;
+
+use crate::error::{Error, Result};
+use crate::scene::{EnvDraw, Environment, Trajectory, WalkableGrid, WALKABLE_CELL_M};
+use glam::{DVec2, DVec3};
+use rand::RngExt;
+use rand::SeedableRng;
+use std::collections::BTreeMap;
+
+pub use crate::config::WorldKind;
+
+/// What a world is built for besides its random stream.
+#[derive(Clone, Copy, Debug)]
+pub struct WorldParams {
+    /// Length of the sequence, s (the street is made long enough for the sensor to drive it).
+    pub duration_s: f64,
+    /// Sensor height above the ground it moves on, m.
+    pub sensor_height_m: f64,
+    /// Sensor speed range, m/s.
+    pub sensor_speed_mps: [f64; 2],
+    /// People's clearance from obstacles, m (the walkable area keeps room for them).
+    pub clearance_m: f64,
+}
+
+/// One sequence's world.
+pub struct World {
+    pub kind: WorldKind,
+    /// The stream it was drawn from (the run's seed, the sequence's index).
+    pub seed: u64,
+    pub index: usize,
+    pub env: Environment,
+    /// The environment's meshes as drawn.
+    pub draws: Vec<EnvDraw>,
+    pub grid: WalkableGrid,
+    /// The sensor's path when the world sets it (a vehicle in the street's lane); None: sampled
+    /// in the walkable area like in any environment.
+    pub sensor: Option<Trajectory>,
+    /// How many of each kind of thing it holds (the sequence's XML records them).
+    pub counts: BTreeMap<&'static str, usize>,
+    /// Its footprint (xy bounds), m.
+    pub bounds: (DVec2, DVec2),
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "World {{ seed {}, sequence {}: {} }}", self.seed, self.index, self.summary())
+    }
+}
+
+impl PartialEq for World {
+    /// Worlds are equal when drawn from the same stream (their content follows from it).
+    fn eq(&self, o: &World) -> bool {
+        (self.kind, self.seed, self.index) == (o.kind, o.seed, o.index)
+    }
+}
+
+/// Keys the world's random stream apart from the people's (same seed and index).
+const WORLD_STREAM_KEY: u64 = 0x5752_4c44_5f76_3031; // "WRLD_v01"
+
+/// The random stream of sequence `index`'s world: its own, so the layout does not change when
+/// anything about the people does.
+pub fn world_rng(seed: u64, index: usize) -> rand_chacha::ChaCha8Rng {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ WORLD_STREAM_KEY);
+    rng.set_stream(index as u64);
+    rng
+}
+
+impl World {
+    /// Builds sequence `index`'s world of `kind` from the run's `seed`.
+    pub fn build(kind: WorldKind, seed: u64, index: usize, p: &WorldParams) -> Result<World> {
+        let mut rng = world_rng(seed, index);
+        let mut counts = BTreeMap::new();
+        let (env, sensor) = match kind {
+            WorldKind::Street => street::build(&mut rng, p, &mut counts),
+            WorldKind::Indoor => (indoor::build(&mut rng, p, &mut counts), None),
+        };
+        let what = || format!("scene.background = \"{}\" (sequence {index})", kind.name());
+        if env.positions.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Internal(format!("{}: a vertex is not finite", what())));
+        }
+        // The walkable area's grid spans the floor only (the street's buildings and road reach
+        // far beyond it).
+        let (mut flo, mut fhi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for t in env.triangles().filter(|t| t.iter().all(|v| v.z.abs() <= 0.05)) {
+            for v in t {
+                flo = flo.min(v.truncate());
+                fhi = fhi.max(v.truncate());
+            }
+        }
+        let grid = WalkableGrid::from_environment_within(&env, WALKABLE_CELL_M, flo, fhi).map_err(|e| Error::input(what(), e.to_string()))?;
+        if grid.free_fraction(p.clearance_m) <= 0.0 {
+            return Err(Error::input(what(), format!("no walkable floor with humans.clearance_m = {}", p.clearance_m)));
+        }
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for v in &env.positions {
+            lo = lo.min(v.truncate());
+            hi = hi.max(v.truncate());
+        }
+        let draws = env.draws();
+        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, bounds: (lo, hi) })
+    }
+
+    /// One line for the sequence's XML: triangles and the things placed, by kind.
+    pub fn summary(&self) -> String {
+        let things: Vec<String> = self.counts.iter().map(|(k, n)| format!("{k} {n}")).collect();
+        format!(
+            "{} ({} triangles, {:.0} x {:.0} m): {}",
+            self.kind.name(),
+            self.env.triangle_count(),
+            self.bounds.1.x - self.bounds.0.x,
+            self.bounds.1.y - self.bounds.0.y,
+            things.join(", ")
+        )
+    }
+}
+
+/// Uniform in `[lo, hi)`.
+pub(crate) fn uni(rng: &mut impl rand::Rng, lo: f64, hi: f64) -> f64 {
+    lo + (hi - lo) * rng.random::<f64>()
+}
+
+/// True with probability `p`.
+pub(crate) fn chance(rng: &mut impl rand::Rng, p: f64) -> bool {
+    rng.random::<f64>() < p
+}
+
+/// An index drawn with the given weights.
+pub(crate) fn pick(rng: &mut impl rand::Rng, weights: &[f64]) -> usize {
+    let total: f64 = weights.iter().sum();
+    let mut u = rng.random::<f64>() * total;
+    for (i, w) in weights.iter().enumerate() {
+        if u < *w {
+            return i;
+        }
+        u -= w;
+    }
+    weights.len() - 1
+}
+
+/// A point `d` along direction `yaw` from `p` (xy), at height `z`.
+pub(crate) fn at(p: DVec2, yaw: f64, d: f64, z: f64) -> DVec3 {
+    (p + d * DVec2::new(yaw.cos(), yaw.sin())).extend(z)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,434 @@
+//! The street world: a straight street along world x. The road (z = [`ROAD_Z`], 12 cm below
+//! the curbs) with parking lanes, lane markings and raised zebra crossings; sidewalks (z = 0,
+//! where people walk) with a furniture strip by the curb (trees, lamp posts, sign posts,
+//! bollards, bins, parking meters, utility cabinets, bike racks with bicycles, benches,
+//! planters, hydrants, post boxes, ticket machines, bus shelters) and a frontage strip by the
+//! facades (A-frame signs, planters, bicycles, bins, crates, café tables). Behind the
+//! sidewalks, lot by lot: buildings (ground-floor walls with door recesses, piers, cornices,
+//! set back or not), alleys, plazas furnished like the sidewalks, and green slopes behind fences.
+//! The sensor drives in a lane, in either direction, along the whole street.
+
+use super::shapes::Builder;
+use super::things::{self, class, material};
+use super::{chance, pick, uni, WorldParams};
+use crate::scene::{Environment, Trajectory};
+use glam::{DVec2, DVec3};
+use rand::{Rng, RngExt};
+use std::collections::BTreeMap;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+/// Height of the road below the sidewalks (the curb), m.
+pub const ROAD_Z: f64 = -0.12;
+
+/// Street beyond the sensor's run on either side, m (more than an HDL-64E sees of a person).
+pub const MARGIN_M: f64 = 100.0;
+
+/// Width of a parking lane, m.
+const PARKING_M: f64 = 2.2;
+
+struct Layout {
+    x0: f64,
+    x1: f64,
+    road_w: f64,
+    /// Sidewalk width on the right (index 0, y < 0) and the left (1, y > 0).
+    sidewalk: [f64; 2],
+    parking: [bool; 2],
+    /// Crossings: centre x and width.
+    crossings: Vec<(f64, f64)>,
+}
+
+impl Layout {
+    fn curb_y(&self, side: usize) -> f64 {
+        sign(side) * self.road_w * 0.5
+    }
+    fn back_y(&self, side: usize) -> f64 {
+        sign(side) * (self.road_w * 0.5 + self.sidewalk[side])
+    }
+    /// Whether `x` is within `pad` of a crossing.
+    fn near_crossing(&self, x: f64, pad: f64) -> bool {
+        self.crossings.iter().any(|&(c, w)| (x - c).abs() < w * 0.5 + pad)
+    }
+}
+
+fn sign(side: usize) -> f64 {
+    if side == 0 { -1.0 } else { 1.0 }
+}
+
+fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
+    *counts.entry(what).or_insert(0) += 1;
+}
+
+/// Builds one street; the sensor's trajectory along it.
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>) {
+    let mut b = Builder::default();
+    let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
+    let run = speed * p.duration_s.max(0.0);
+    let half = run * 0.5 + MARGIN_M;
+    let road_w = uni(rng, 8.0, 13.0);
+    let parking = [chance(rng, 0.6), chance(rng, 0.6)];
+    let sidewalk = [uni(rng, 3.5, 6.5), uni(rng, 3.5, 6.5)];
+    let mut crossings = Vec::new();
+    let mut x = -half + uni(rng, 10.0, 40.0);
+    while x < half - 10.0 {
+        crossings.push((x, uni(rng, 3.0, 5.0)));
+        x += uni(rng, 35.0, 80.0);
+    }
+    let l = Layout { x0: -half, x1: half, road_w, sidewalk, parking, crossings };
+
+    ground(&mut b, rng, &l);
+    for side in 0..2 {
+        lots(&mut b, rng, &l, side, counts);
+        curb_strip(&mut b, rng, &l, side, counts);
+        frontage(&mut b, rng, &l, side, counts);
+        if l.parking[side] {
+            parked_cars(&mut b, rng, &l, side, counts);
+        }
+    }
+
+    // The sensor: in the right-hand lane of its direction of travel, over the whole run.
+    let dir = if chance(rng, 0.5) { 1.0 } else { -1.0 };
+    let lo = -road_w * 0.5 + if parking[0] { PARKING_M } else { 0.3 };
+    let hi = road_w * 0.5 - if parking[1] { PARKING_M } else { 0.3 };
+    let mid = 0.5 * (lo + hi);
+    let y = if dir > 0.0 { 0.5 * (lo + mid) } else { 0.5 * (mid + hi) };
+    let sensor = Trajectory {
+        start_m: DVec2::new(-dir * run * 0.5, y),
+        z_m: ROAD_Z + p.sensor_height_m,
+        heading0_rad: if dir > 0.0 { 0.0 } else { PI },
+        speed_mps: speed,
+        yaw_rate_rps: 0.0,
+    };
+    (b.finish(), Some(sensor))
+}
+
+/// Road, lane markings, curbs, sidewalks and raised crossings.
+fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
+    let (x0, x1, w) = (l.x0, l.x1, l.road_w * 0.5);
+    let road = material(rng, class::ROAD);
+    b.quad(road, [DVec3::new(x0, -w, ROAD_Z), DVec3::new(x1, -w, ROAD_Z), DVec3::new(x1, w, ROAD_Z), DVec3::new(x0, w, ROAD_Z)]);
+    let paint = material(rng, class::LANE_MARKING);
+    let z = ROAD_Z + 0.004;
+    let lo = -w + if l.parking[0] { PARKING_M } else { 0.0 };
+    let hi = w - if l.parking[1] { PARKING_M } else { 0.0 };
+    let mid = 0.5 * (lo + hi);
+    let mut x = x0;
+    while x < x1 {
+        if !l.near_crossing(x + 1.5, 2.5) {
+            b.quad(paint, [DVec3::new(x, mid - 0.06, z), DVec3::new(x + 3.0, mid - 0.06, z), DVec3::new(x + 3.0, mid + 0.06, z), DVec3::new(x, mid + 0.06, z)]);
+        }
+        x += 9.0;
+    }
+    for (side, y) in [(0, lo), (1, hi)] {
+        if l.parking[side] {
+            b.quad(paint, [DVec3::new(x0, y - 0.05, z), DVec3::new(x1, y - 0.05, z), DVec3::new(x1, y + 0.05, z), DVec3::new(x0, y + 0.05, z)]);
+        }
+    }
+    for side in 0..2 {
+        let walk = material(rng, class::SIDEWALK);
+        let (c, bk) = (l.curb_y(side), l.back_y(side));
+        b.quad(walk, [DVec3::new(x0, c, 0.0), DVec3::new(x1, c, 0.0), DVec3::new(x1, bk, 0.0), DVec3::new(x0, bk, 0.0)]);
+        b.quad(walk, [DVec3::new(x0, c, ROAD_Z), DVec3::new(x1, c, ROAD_Z), DVec3::new(x1, c, 0.0), DVec3::new(x0, c, 0.0)]);
+    }
+    for &(cx, cw) in &l.crossings {
+        let slab = material(rng, class::ROAD);
+        let (a, c) = (cx - cw * 0.5, cx + cw * 0.5);
+        b.quad(slab, [DVec3::new(a, -w, 0.0), DVec3::new(c, -w, 0.0), DVec3::new(c, w, 0.0), DVec3::new(a, w, 0.0)]);
+        for (e, out) in [(a, a - 0.9), (c, c + 0.9)] {
+            b.quad(slab, [DVec3::new(e, -w, 0.0), DVec3::new(out, -w, ROAD_Z), DVec3::new(out, w, ROAD_Z), DVec3::new(e, w, 0.0)]);
+        }
+        let mut y = -w + 0.3;
+        while y + 0.5 < w {
+            b.quad(paint, [DVec3::new(a + 0.3, y, 0.003), DVec3::new(c - 0.3, y, 0.003), DVec3::new(c - 0.3, y + 0.5, 0.003), DVec3::new(a + 0.3, y + 0.5, 0.003)]);
+            y += 1.0;
+        }
+    }
+}
+
+/// Behind one sidewalk, lot after lot.
+fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+    let s = sign(side);
+    let y0 = l.back_y(side);
+    let mut x = l.x0;
+    while x < l.x1 {
+        match pick(rng, &[0.62, 0.1, 0.16, 0.12]) {
+            0 => {
+                let w = uni(rng, 8.0, 30.0);
+                building(b, rng, x, x + w, y0, s);
+                count(counts, "building");
+                x += w;
+            }
+            1 => {
+                let w = uni(rng, 2.0, 4.0);
+                let depth = uni(rng, 6.0, 14.0);
+                let floor = material(rng, class::SIDEWALK);
+                b.quad(floor, [DVec3::new(x, y0, 0.0), DVec3::new(x + w, y0, 0.0), DVec3::new(x + w, y0 + s * depth, 0.0), DVec3::new(x, y0 + s * depth, 0.0)]);
+                let wall = material(rng, class::BUILDING);
+                b.aabb(wall, DVec3::new(x, (y0 + s * depth).min(y0 + s * (depth + 8.0)), 0.0), DVec3::new(x + w, (y0 + s * depth).max(y0 + s * (depth + 8.0)), uni(rng, 6.0, 18.0)));
+                if chance(rng, 0.6) {
+                    let q = DVec2::new(x + w * 0.5, y0 + s * uni(rng, 1.0, depth - 1.0));
+                    if chance(rng, 0.5) { things::bin(b, rng, q, 0.0, 0.0) } else { things::crates(b, rng, q, 0.0, 0.0) };
+                }
+                count(counts, "alley");
+                x += w;
+            }
+            2 => {
+                let w = uni(rng, 12.0, 30.0);
+                plaza(b, rng, x, x + w, y0, s, counts);
+                x += w;
+            }
+            _ => {
+                let w = uni(rng, 10.0, 30.0);
+                green(b, rng, x, x + w, y0, s, counts);
+                x += w;
+            }
+        }
+    }
+}
+
+/// An axis-aligned box given by x and y ranges in either order.
+fn slab(b: &mut Builder, m: super::shapes::Material, xa: f64, xb: f64, ya: f64, yb: f64, z0: f64, z1: f64) {
+    b.aabb(m, DVec3::new(xa.min(xb), ya.min(yb), z0), DVec3::new(xa.max(xb), ya.max(yb), z1));
+}
+
+/// A building from `xa` to `xb` whose facade line is `y0`, extending away from the road (`s`).
+fn building(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64) {
+    let m = material(rng, class::BUILDING);
+    let setback = [0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 2.0][(rng.random::<f64>() * 7.0) as usize % 7];
+    let front = y0 + s * setback;
+    if setback > 0.0 {
+        let floor = material(rng, class::SIDEWALK);
+        b.quad(floor, [DVec3::new(xa, y0, 0.0), DVec3::new(xb, y0, 0.0), DVec3::new(xb, front, 0.0), DVec3::new(xa, front, 0.0)]);
+    }
+    let h = uni(rng, 6.0, 24.0);
+    let recess = uni(rng, 0.4, 1.2);
+    let ground_h = uni(rng, 3.0, 4.5);
+    // The body behind the door recesses, the floors above them flush with the facade.
+    slab(b, m, xa, xb, front + s * recess, front + s * 12.0, 0.0, h);
+    slab(b, m, xa, xb, front, front + s * recess, ground_h, h);
+    // Ground floor: wall pieces with doorways between them (the body's face shows through).
+    let mut x = xa;
+    let mut door = chance(rng, 0.5);
+    while x < xb - 0.01 {
+        let w = if door { uni(rng, 1.0, 2.4) } else { uni(rng, 1.0, 5.0) }.min(xb - x);
+        if !door {
+            slab(b, m, x, x + w, front, front + s * recess, 0.0, ground_h);
+        }
+        x += w;
+        door = !door;
+    }
+    let trim = material(rng, class::BUILDING);
+    if chance(rng, 0.6) {
+        slab(b, trim, xa, xb, front - s * uni(rng, 0.15, 0.4), front, ground_h, ground_h + uni(rng, 0.2, 0.5));
+    }
+    if chance(rng, 0.5) {
+        let step = uni(rng, 3.0, 5.0);
+        let (pw, pd) = (uni(rng, 0.3, 0.6), uni(rng, 0.12, 0.3));
+        let mut x = xa + 0.5 * pw;
+        while x < xb - 0.5 * pw {
+            slab(b, trim, x - 0.5 * pw, x + 0.5 * pw, front - s * pd, front, if chance(rng, 0.5) { 0.0 } else { ground_h }, h);
+            x += step;
+        }
+    }
+    // Window sills on the floors above.
+    if chance(rng, 0.6) {
+        let mut z = ground_h + 1.0;
+        while z < h - 1.5 {
+            slab(b, trim, xa, xb, front - s * 0.1, front, z, z + 0.12);
+            z += 3.0;
+        }
+    }
+}
+
+/// A paved plaza behind the sidewalk, a building at its back, furnished.
+fn plaza(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
+    let depth = uni(rng, 8.0, 20.0);
+    let floor = material(rng, class::SIDEWALK);
+    b.quad(floor, [DVec3::new(xa, y0, 0.0), DVec3::new(xb, y0, 0.0), DVec3::new(xb, y0 + s * depth, 0.0), DVec3::new(xa, y0 + s * depth, 0.0)]);
+    building(b, rng, xa, xb, y0 + s * depth, s);
+    count(counts, "plaza");
+    let n = ((xb - xa) * depth / uni(rng, 12.0, 30.0)) as usize;
+    let mut placed: Vec<(DVec2, f64)> = Vec::new();
+    for _ in 0..n {
+        for _ in 0..20 {
+            let q = DVec2::new(uni(rng, xa + 1.0, xb - 1.0), y0 + s * uni(rng, 1.0, depth - 1.0));
+            if placed.iter().any(|(c, r)| c.distance(q) < r + 1.6) {
+                continue;
+            }
+            let yaw = uni(rng, -PI, PI);
+            let (what, r) = match pick(rng, &[0.15, 0.12, 0.1, 0.12, 0.1, 0.08, 0.1, 0.08, 0.08, 0.07]) {
+                0 => ("tree", things::tree(b, rng, q, 0.0)),
+                1 => ("bench", things::bench(b, rng, q, 0.0, yaw)),
+                2 => ("planter", things::planter(b, rng, q, 0.0, yaw)),
+                3 => ("bollard", things::bollard(b, rng, q, 0.0)),
+                4 => ("table", things::table(b, rng, q, 0.0, yaw)),
+                5 => ("kiosk", things::kiosk(b, rng, q, 0.0, yaw)),
+                6 => ("bush", things::bush(b, rng, q, 0.0)),
+                7 => ("info stand", things::info_stand(b, rng, q, 0.0, yaw)),
+                8 => ("bin", things::bin(b, rng, q, 0.0, yaw)),
+                _ => ("sculpture", sculpture(b, rng, q, yaw)),
+            };
+            count(counts, what);
+            placed.push((q, r));
+            break;
+        }
+    }
+}
+
+/// A sculpture or monument: a plinth and a figure-sized block or column, 1.2-3 m.
+fn sculpture(b: &mut Builder, rng: &mut impl Rng, q: DVec2, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let plinth = uni(rng, 0.0, 0.8);
+    if plinth > 0.2 {
+        b.cuboid(m, q.extend(0.0), DVec3::new(0.9, 0.9, plinth), yaw);
+    }
+    let h = uni(rng, 1.0, 2.2);
+    if chance(rng, 0.5) {
+        b.frustum(m, q.extend(plinth), uni(rng, 0.15, 0.35), uni(rng, 0.1, 0.3), h, 8);
+    } else {
+        b.ellipsoid(m, q.extend(plinth + h * 0.5), DVec3::new(uni(rng, 0.2, 0.4), uni(rng, 0.2, 0.4), h * 0.5), 5, 0.25, || 0.0);
+    }
+    0.5
+}
+
+/// A green slope behind the sidewalk (terrain rising away from the road), fenced or walled,
+/// with bushes and trees on it.
+fn green(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
+    let depth = uni(rng, 8.0, 20.0);
+    let slope = uni(rng, 0.1, 0.5);
+    let m = material(rng, class::TERRAIN);
+    b.quad(m, [DVec3::new(xa, y0, 0.0), DVec3::new(xb, y0, 0.0), DVec3::new(xb, y0 + s * depth, depth * slope), DVec3::new(xa, y0 + s * depth, depth * slope)]);
+    count(counts, "green slope");
+    match pick(rng, &[0.5, 0.25, 0.25]) {
+        0 => {
+            things::fence(b, rng, DVec2::new(xa, y0 + s * 0.1), DVec2::new(xb, y0 + s * 0.1), 0.0);
+            count(counts, "fence");
+        }
+        1 => {
+            let wall = material(rng, class::BUILDING);
+            slab(b, wall, xa, xb, y0, y0 + s * 0.3, 0.0, uni(rng, 0.3, 0.8));
+        }
+        _ => {}
+    }
+    let n = ((xb - xa) / uni(rng, 2.0, 5.0)) as usize;
+    for _ in 0..n {
+        let d = uni(rng, 0.8, depth - 0.5);
+        let q = DVec2::new(uni(rng, xa + 0.5, xb - 0.5), y0 + s * d);
+        let g = d * slope - 0.05;
+        if chance(rng, 0.65) {
+            things::bush(b, rng, q, g);
+            count(counts, "bush");
+        } else {
+            things::tree(b, rng, q, g);
+            count(counts, "tree");
+        }
+    }
+}
+
+/// The furniture strip by the curb.
+fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+    let s = sign(side);
+    let toward_road = -s * FRAC_PI_2;
+    let along = 0.0;
+    let mut x = l.x0 + uni(rng, 0.0, 3.0);
+    while x < l.x1 {
+        let y = l.curb_y(side) + s * uni(rng, 0.35, 0.75);
+        let q = DVec2::new(x, y);
+        let at_crossing = l.near_crossing(x, 1.0);
+        let k = if at_crossing {
+            if chance(rng, 0.5) { 3 } else { 99 }
+        } else {
+            pick(rng, &[0.12, 0.05, 0.08, 0.08, 0.1, 0.08, 0.08, 0.05, 0.04, 0.12, 0.02, 0.05, 0.05, 0.02, 0.06])
+        };
+        let (what, r) = match k {
+            0 => ("tree", things::tree(b, rng, q, 0.0)),
+            1 => ("lamp post", things::lamp_post(b, rng, q, 0.0, toward_road)),
+            2 => ("sign post", things::sign_post(b, rng, q, 0.0, toward_road + FRAC_PI_2)),
+            3 => {
+                // A row of 2-5 bollards along the curb.
+                let n = 2 + (rng.random::<f64>() * 4.0) as usize;
+                let gap = uni(rng, 1.2, 1.8);
+                for i in 0..n {
+                    things::bollard(b, rng, q + DVec2::X * (i as f64 * gap), 0.0);
+                    count(counts, "bollard");
+                }
+                x += (n - 1) as f64 * gap;
+                ("", 0.2)
+            }
+            4 => ("bin", things::bin(b, rng, q, 0.0, along)),
+            5 => ("parking meter", things::meter(b, rng, q, 0.0, toward_road)),
+            6 => ("cabinet", things::cabinet(b, rng, q, 0.0, along)),
+            7 => {
+                let mut bikes = 0;
+                let r = things::bike_rack(b, rng, q + DVec2::new(0.0, s * 0.25), 0.0, along, &mut bikes);
+                for _ in 0..bikes {
+                    count(counts, "bicycle");
+                }
+                ("bike rack", r)
+            }
+            8 => ("bench", things::bench(b, rng, q + DVec2::new(0.0, s * 0.2), 0.0, s * FRAC_PI_2)),
+            9 => {
+                if chance(rng, 0.5) { ("bush", things::bush(b, rng, q + DVec2::new(0.0, s * 0.2), 0.0)) } else { ("planter", things::planter(b, rng, q + DVec2::new(0.0, s * 0.2), 0.0, along)) }
+            }
+            10 => ("hydrant", things::hydrant(b, rng, q, 0.0)),
+            11 => ("post box", things::post_box(b, rng, q, 0.0, along)),
+            12 => ("ticket machine", things::kiosk(b, rng, q + DVec2::new(0.0, s * 0.1), 0.0, toward_road)),
+            13 if l.sidewalk[side] >= 4.0 => ("bus shelter", things::shelter(b, rng, q + DVec2::new(0.0, s * 0.5), 0.0, toward_road)),
+            14 => ("bicycle", things::bicycle(b, rng, q + DVec2::new(0.0, s * 0.2), 0.0, along)),
+            _ => ("", 0.0),
+        };
+        if !what.is_empty() {
+            count(counts, what);
+        }
+        x += r + uni(rng, 1.0, 4.0);
+    }
+}
+
+/// The frontage strip by the facades.
+fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+    let s = sign(side);
+    let mut x = l.x0 + uni(rng, 0.0, 5.0);
+    while x < l.x1 {
+        if chance(rng, 0.7) {
+            let y = l.back_y(side) - s * uni(rng, 0.35, 0.6);
+            let q = DVec2::new(x, y);
+            let facing = -s * FRAC_PI_2;
+            let (what, r) = match pick(rng, &[0.14, 0.16, 0.12, 0.1, 0.08, 0.08, 0.1, 0.06, 0.08, 0.08]) {
+                0 => ("a-frame sign", things::a_frame(b, rng, q, 0.0, facing)),
+                1 => ("planter", things::planter(b, rng, q, 0.0, 0.0)),
+                2 => ("bicycle", things::bicycle(b, rng, q, 0.0, 0.0)),
+                3 => ("bin", things::bin(b, rng, q, 0.0, 0.0)),
+                4 => ("crates", things::crates(b, rng, q, 0.0, 0.0)),
+                5 if l.sidewalk[side] >= 4.5 => ("table", things::table(b, rng, q - DVec2::new(0.0, s * 0.5), 0.0, 0.0)),
+                7 => ("mannequin", things::mannequin(b, rng, q, 0.0, facing)),
+                8 => ("info stand", things::info_stand(b, rng, q, 0.0, facing + FRAC_PI_2)),
+                9 => ("vending machine", things::kiosk(b, rng, q - DVec2::new(0.0, s * 0.1), 0.0, facing)),
+                _ => ("bush", things::bush(b, rng, q, 0.0)),
+            };
+            count(counts, what);
+            x += r;
+        }
+        x += uni(rng, 1.5, 5.0);
+    }
+}
+
+/// Cars parked along one curb, with gaps, clear of the crossings.
+fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+    let s = sign(side);
+    let y = l.curb_y(side) - s * PARKING_M * 0.48;
+    let mut x = l.x0 + uni(rng, 0.0, 6.0);
+    while x < l.x1 {
+        if chance(rng, 0.35) {
+            x += uni(rng, 4.0, 25.0);
+            continue;
+        }
+        let len_guess = 5.2;
+        if l.near_crossing(x + len_guess * 0.5, len_guess * 0.5 + 1.5) {
+            x += 2.0;
+            continue;
+        }
+        let yaw = if chance(rng, 0.5) { 0.0 } else { PI };
+        let (len, _) = things::car(b, rng, DVec2::new(x + len_guess * 0.5, y), ROAD_Z, yaw);
+        count(counts, "parked car");
+        x += len_guess.max(len) + uni(rng, 0.6, 3.0);
+    }
+}

@@ -1,0 +1,148 @@
+use super::street::ROAD_Z;
+use std::path::Path;
+use super::*;
+
+fn params() -> WorldParams {
+    WorldParams { duration_s: 3.0, sensor_height_m: 1.73, sensor_speed_mps: [2.0, 8.0], clearance_m: 0.35 }
+}
+
+/// Obstacle triangles (between 5 cm and 2 m, as the walkable area counts them) as xy triangles.
+fn obstacles(env: &Environment) -> Vec<[DVec2; 3]> {
+    env.triangles()
+        .filter(|t| {
+            let zmin = t.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+            let zmax = t.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+            let floor = zmax.abs() <= 0.05 && zmin.abs() <= 0.05;
+            !floor && zmax > 0.05 && zmin < 2.0
+        })
+        .map(|t| t.map(|p| p.truncate()))
+        .collect()
+}
+
+fn digest(env: &Environment) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for p in &env.positions {
+        p.x.to_bits().hash(&mut h);
+        p.y.to_bits().hash(&mut h);
+        p.z.to_bits().hash(&mut h);
+    }
+    for m in &env.meshes {
+        m.indices.hash(&mut h);
+        m.class.hash(&mut h);
+    }
+    h.finish()
+}
+
+#[test]
+fn layouts_differ_between_sequences_and_repeat_for_a_seed() {
+    for kind in [WorldKind::Street, WorldKind::Indoor] {
+        let a = World::build(kind, 7, 0, &params()).unwrap();
+        let again = World::build(kind, 7, 0, &params()).unwrap();
+        let other = World::build(kind, 7, 1, &params()).unwrap();
+        let seed = World::build(kind, 8, 0, &params()).unwrap();
+        assert_eq!(digest(&a.env), digest(&again.env), "{kind:?}: same seed and index");
+        assert_eq!(a.sensor, again.sensor);
+        assert_ne!(digest(&a.env), digest(&other.env), "{kind:?}: another sequence");
+        assert_ne!(digest(&a.env), digest(&seed.env), "{kind:?}: another seed");
+        assert_eq!(a, again);
+        assert_ne!(a, other);
+    }
+}
+
+#[test]
+fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
+    let human_sized = ["bollard", "bin", "bush", "cabinet", "kiosk", "parking meter", "planter", "post box", "mannequin", "plant", "coat stand", "info stand", "display case", "shelf", "sculpture", "ticket machine", "vending machine"];
+    for kind in [WorldKind::Street, WorldKind::Indoor] {
+        for index in 0..4 {
+            let w = World::build(kind, 3, index, &params()).unwrap();
+            let n: usize = w.counts.iter().filter(|(k, _)| human_sized.contains(k)).map(|(_, n)| n).sum();
+            assert!(n >= 20, "{kind:?} {index}: {n} things of human size: {}", w.summary());
+            let known = [10, 11, 40, 48, 49, 50, 51, 60, 70, 71, 72, 80, 81, 99];
+            for m in &w.env.meshes {
+                assert!(known.contains(&m.class), "{}: class {}", m.name, m.class);
+                assert!((0.04..=1.0).contains(&m.reflectance), "{}", m.name);
+            }
+            // Reflectances overlap people's (clothes 0.05-0.7): dark and bright things both.
+            let r: Vec<f32> = w.env.meshes.iter().filter(|m| m.class == 99).map(|m| m.reflectance).collect();
+            assert!(r.iter().any(|&x| x <= 0.2) && r.iter().any(|&x| x >= 0.6), "{kind:?} {index}: {r:?}");
+        }
+    }
+}
+
+#[test]
+fn people_have_room_and_the_walkable_area_is_clear_of_every_obstacle() {
+    for kind in [WorldKind::Street, WorldKind::Indoor] {
+        let w = World::build(kind, 11, 2, &params()).unwrap();
+        let obs = obstacles(&w.env);
+        assert!(w.grid.free_fraction(0.35) > 0.02, "{kind:?}: {}", w.grid.free_fraction(0.35));
+        // Every cell with clearance c is at least c - one cell from every obstacle triangle.
+        let g = &w.grid;
+        let mut checked = 0;
+        for j in (0..g.ny).step_by(7) {
+            for i in (0..g.nx).step_by(7) {
+                let c = g.clearance_m[j * g.nx + i] as f64;
+                if c < 0.35 {
+                    continue;
+                }
+                let p = g.origin + DVec2::new((i as f64 + 0.5) * g.cell_m, (j as f64 + 0.5) * g.cell_m);
+                let d = obs.iter().map(|t| crate::scene::dist_point_triangle_2d(p, t)).fold(f64::INFINITY, f64::min);
+                assert!(d >= c - g.cell_m, "{kind:?}: clearance {c} at {p} but an obstacle at {d}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 100, "{kind:?}: {checked}");
+    }
+}
+
+#[test]
+fn the_street_sensor_drives_its_lane_clear_of_parked_cars() {
+    for index in 0..6 {
+        let w = World::build(WorldKind::Street, 5, index, &params()).unwrap();
+        let s = w.sensor.expect("the street sets the sensor's path");
+        assert!((s.z_m - (ROAD_Z + 1.73)).abs() < 1e-12);
+        assert!((2.0..8.0).contains(&s.speed_mps) && s.yaw_rate_rps == 0.0);
+        // Nothing of the world higher than a raised crossing (z = 0, driven over) and lower
+        // than the sensor within 1 m of its path, over the whole run.
+        let solid: Vec<[DVec3; 3]> = w.env.triangles().filter(|t| t.iter().any(|p| p.z > 0.05)).collect();
+        for k in 0..=10 {
+            let p = s.position(3.0 * k as f64 / 10.0).truncate();
+            for t in &solid {
+                let d = crate::scene::dist_point_triangle_2d(p, &t.map(|v| v.truncate()));
+                let low = t.iter().map(|v| v.z).fold(f64::INFINITY, f64::min);
+                assert!(d > 1.0 || low > s.z_m, "sequence {index}: something at {d:.2} m of the sensor at {p}");
+            }
+        }
+        // The street runs at least MARGIN_M past both ends of the run.
+        let (a, b) = (s.position(0.0).x, s.position(3.0).x);
+        assert!(w.bounds.0.x <= a.min(b) - street::MARGIN_M + 1e-9 && w.bounds.1.x >= a.max(b) + street::MARGIN_M - 1e-9);
+    }
+}
+
+#[test]
+fn both_sidewalks_are_one_walkable_area() {
+    // The crossings join them: free cells on both sides of the road.
+    for index in 0..4 {
+        let w = World::build(WorldKind::Street, 9, index, &params()).unwrap();
+        let g = &w.grid;
+        let (mut left, mut right) = (0, 0);
+        for j in 0..g.ny {
+            for i in 0..g.nx {
+                if g.clearance_m[j * g.nx + i] >= 0.35 {
+                    let y = g.origin.y + (j as f64 + 0.5) * g.cell_m;
+                    if y > 0.0 { left += 1 } else { right += 1 }
+                }
+            }
+        }
+        assert!(left > 1000 && right > 1000, "sequence {index}: {left} free cells left, {right} right");
+    }
+}
+
+#[test]
+fn world_names_are_exact() {
+    assert_eq!(WorldKind::of_background(Path::new("street")), Some(WorldKind::Street));
+    assert_eq!(WorldKind::of_background(Path::new("indoor")), Some(WorldKind::Indoor));
+    for p in ["./street", "street.glb", "Street", "", "data/street"] {
+        assert_eq!(WorldKind::of_background(Path::new(p)), None, "{p}");
+    }
+}

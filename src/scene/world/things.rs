@@ -1,0 +1,474 @@
+//! The things the worlds are furnished with, each a few boxes, cylinders and lumpy ellipsoids at
+//! its real size (street furniture after common municipal catalogue sizes; indoor furniture
+//! after common retail and office sizes), each with its SemanticKITTI class and a reflectance
+//! drawn per thing. Every function places one thing standing on ground height `g` at `p`, facing
+//! `yaw`, and returns its footprint's radius (m) for spacing.
+
+use super::shapes::{Builder, Material};
+use super::{at, chance, uni};
+use glam::{DVec2, DVec3};
+use rand::{Rng, RngExt};
+
+/// SemanticKITTI classes (`semantic-kitti.yaml`).
+pub mod class {
+    pub const CAR: u16 = 10;
+    pub const BICYCLE: u16 = 11;
+    pub const ROAD: u16 = 40;
+    pub const SIDEWALK: u16 = 48;
+    pub const OTHER_GROUND: u16 = 49;
+    pub const BUILDING: u16 = 50;
+    pub const FENCE: u16 = 51;
+    pub const LANE_MARKING: u16 = 60;
+    pub const VEGETATION: u16 = 70;
+    pub const TRUNK: u16 = 71;
+    pub const TERRAIN: u16 = 72;
+    pub const POLE: u16 = 80;
+    pub const TRAFFIC_SIGN: u16 = 81;
+    pub const OTHER_OBJECT: u16 = 99;
+}
+
+/// A material of `class` with a reflectance drawn from the range typical of it (near
+/// infrared, 905 nm: vegetation bright, asphalt dark, paint and plastics anywhere between,
+/// retro-reflective signs brightest).
+pub fn material(rng: &mut impl Rng, class: u16) -> Material {
+    let (lo, hi) = match class {
+        class::ROAD => (0.06, 0.2),
+        class::SIDEWALK | class::OTHER_GROUND => (0.12, 0.45),
+        class::BUILDING => (0.1, 0.8),
+        class::FENCE => (0.1, 0.6),
+        class::LANE_MARKING => (0.5, 0.8),
+        class::VEGETATION => (0.35, 0.7),
+        class::TRUNK => (0.15, 0.4),
+        class::TERRAIN => (0.25, 0.6),
+        class::POLE => (0.1, 0.6),
+        class::TRAFFIC_SIGN => (0.5, 0.95),
+        class::CAR => (0.05, 0.8),
+        class::BICYCLE => (0.05, 0.6),
+        _ => (0.05, 0.8),
+    };
+    Material::new(class, uni(rng, lo, hi))
+}
+
+fn lumps(rng: &mut impl Rng) -> impl FnMut() -> f64 + '_ {
+    move || uni(rng, -1.0, 1.0)
+}
+
+/// A tree: trunk and canopy; now and then a young one whose canopy starts at head height.
+pub fn tree(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64) -> f64 {
+    let young = chance(rng, 0.3);
+    let r_trunk = if young { uni(rng, 0.05, 0.1) } else { uni(rng, 0.12, 0.28) };
+    let clear = if young { uni(rng, 1.4, 2.0) } else { uni(rng, 2.2, 3.8) };
+    let rc = if young { uni(rng, 0.6, 1.1) } else { uni(rng, 1.4, 3.0) };
+    let rz = rc * uni(rng, 0.8, 1.3);
+    let trunk = material(rng, class::TRUNK);
+    b.frustum(trunk, p.extend(g), r_trunk, r_trunk * 0.7, clear + rz, 8);
+    let leaves = material(rng, class::VEGETATION);
+    let rings = if young { 4 } else { 5 };
+    b.ellipsoid(leaves, p.extend(g + clear + rz), DVec3::new(rc, rc * uni(rng, 0.8, 1.2), rz), rings, 0.18, lumps(rng));
+    r_trunk.max(0.3)
+}
+
+/// A bush or hedge piece, 0.5-2 m tall.
+pub fn bush(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64) -> f64 {
+    let rx = uni(rng, 0.25, 0.7);
+    let ry = rx * uni(rng, 0.7, 1.3);
+    let h = uni(rng, 0.5, 2.0);
+    let m = material(rng, class::VEGETATION);
+    b.ellipsoid(m, p.extend(g + h * 0.5), DVec3::new(rx, ry, h * 0.5), 4, 0.2, lumps(rng));
+    rx.max(ry)
+}
+
+/// A planter (box or tub) with a bush in it.
+pub fn planter(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let s = uni(rng, 0.5, 1.1);
+    let h = uni(rng, 0.35, 0.7);
+    let m = material(rng, class::OTHER_OBJECT);
+    if chance(rng, 0.5) {
+        b.cuboid(m, p.extend(g), DVec3::new(s, s, h), yaw);
+    } else {
+        b.frustum(m, p.extend(g), s * 0.4, s * 0.5, h, 10);
+    }
+    let rx = s * uni(rng, 0.35, 0.6);
+    let hb = uni(rng, 0.4, 1.3);
+    let leaves = material(rng, class::VEGETATION);
+    b.ellipsoid(leaves, p.extend(g + h + hb * 0.45), DVec3::new(rx, rx, hb * 0.5), 4, 0.2, lumps(rng));
+    s * 0.75
+}
+
+/// A lamp post (4-8 m) with its arm over `yaw`.
+pub fn lamp_post(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let h = uni(rng, 4.0, 8.0);
+    let r = uni(rng, 0.06, 0.12);
+    let m = material(rng, class::POLE);
+    b.frustum(m, p.extend(g), r, r * 0.7, h, 8);
+    let arm = uni(rng, 0.6, 1.8);
+    b.rod(m, p.extend(g + h - 0.1), at(p, yaw, arm, g + h), 0.04, 5);
+    b.cuboid(m, at(p, yaw, arm, g + h - 0.25), DVec3::new(0.5, 0.25, 0.2), yaw);
+    0.3
+}
+
+/// A sign post (2-3.2 m) with a plate or two.
+pub fn sign_post(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let h = uni(rng, 2.0, 3.2);
+    let pole = material(rng, class::POLE);
+    b.cylinder(pole, p.extend(g), uni(rng, 0.03, 0.05), h, 6);
+    let sign = material(rng, class::TRAFFIC_SIGN);
+    let w = uni(rng, 0.4, 0.8);
+    let plates = if chance(rng, 0.3) { 2 } else { 1 };
+    for k in 0..plates {
+        let top = h - k as f64 * (w + 0.1);
+        b.cuboid(sign, at(p, yaw, 0.06, g + top - w), DVec3::new(0.03, w, w), yaw);
+    }
+    0.3
+}
+
+/// A bollard, 0.8-1.2 m.
+pub fn bollard(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64) -> f64 {
+    let h = uni(rng, 0.8, 1.2);
+    let r = uni(rng, 0.06, 0.15);
+    let m = material(rng, class::OTHER_OBJECT);
+    if chance(rng, 0.3) {
+        b.cuboid(m, p.extend(g), DVec3::new(2.0 * r, 2.0 * r, h), uni(rng, 0.0, 1.6));
+    } else {
+        b.cylinder(m, p.extend(g), r, h, 8);
+    }
+    r.max(0.2)
+}
+
+/// A litter bin (round or square), 0.8-1.3 m.
+pub fn bin(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let h = uni(rng, 0.8, 1.3);
+    let r = uni(rng, 0.2, 0.4);
+    let m = material(rng, class::OTHER_OBJECT);
+    if chance(rng, 0.5) {
+        b.cylinder(m, p.extend(g), r, h, 10);
+    } else {
+        b.cuboid(m, p.extend(g), DVec3::new(2.0 * r, 1.6 * r, h), yaw);
+    }
+    r
+}
+
+/// A parking meter or ticket pillar, 1.2-1.7 m.
+pub fn meter(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let h = uni(rng, 1.2, 1.7);
+    if chance(rng, 0.5) {
+        b.cylinder(m, p.extend(g), 0.05, h - 0.4, 6);
+        b.cuboid(m, p.extend(g + h - 0.45), DVec3::new(0.25, 0.3, 0.45), yaw);
+    } else {
+        b.cuboid(m, p.extend(g), DVec3::new(0.35, 0.5, h), yaw);
+    }
+    0.3
+}
+
+/// A utility cabinet, 1.0-1.7 m tall, 0.5-1.1 m wide.
+pub fn cabinet(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let (w, d, h) = (uni(rng, 0.5, 1.1), uni(rng, 0.3, 0.55), uni(rng, 1.0, 1.7));
+    let m = material(rng, class::OTHER_OBJECT);
+    b.cuboid(m, p.extend(g), DVec3::new(d, w, h), yaw);
+    0.5 * w.max(d)
+}
+
+/// A bench facing `yaw` (seat 0.45 m, back 0.85 m).
+pub fn bench(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let len = uni(rng, 1.4, 2.2);
+    let m = material(rng, class::OTHER_OBJECT);
+    b.cuboid(m, p.extend(g + 0.4), DVec3::new(0.45, len, 0.06), yaw);
+    if chance(rng, 0.7) {
+        b.cuboid(m, at(p, yaw + std::f64::consts::PI, 0.22, g + 0.45), DVec3::new(0.05, len, 0.4), yaw);
+    }
+    for s in [-0.4, 0.4] {
+        let q = p + s * len * DVec2::new(-yaw.sin(), yaw.cos());
+        b.cuboid(m, q.extend(g), DVec3::new(0.4, 0.06, 0.4), yaw);
+    }
+    0.5 * len
+}
+
+/// A bicycle standing along `yaw` (wheels 0.33-0.36 m radius, saddle and bars near 1 m).
+pub fn bicycle(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::BICYCLE);
+    let r = uni(rng, 0.31, 0.36);
+    let base = uni(rng, 1.0, 1.15);
+    let side = DVec3::new(-yaw.sin(), yaw.cos(), 0.0) * 0.02;
+    let rear = at(p, yaw, -base * 0.5, g + r);
+    let front = at(p, yaw, base * 0.5, g + r);
+    for c in [rear, front] {
+        b.rod(m, c - side, c + side, r, 10);
+    }
+    let crank = at(p, yaw, -0.05, g + 0.3);
+    let seat = at(p, yaw, -0.2, g + uni(rng, 0.85, 1.0));
+    let head = at(p, yaw, base * 0.5 - 0.1, g + uni(rng, 0.9, 1.05));
+    for (a, c) in [(rear, crank), (crank, seat), (seat, head), (crank, head), (rear, seat), (head, front)] {
+        b.rod(m, a, c, 0.02, 4);
+    }
+    let half = DVec3::new(-yaw.sin(), yaw.cos(), 0.0) * 0.3;
+    b.rod(m, head - half, head + half, 0.015, 4);
+    b.cuboid(m, seat, DVec3::new(0.25, 0.12, 0.05), yaw);
+    0.6
+}
+
+/// A bike rack of 2-5 hoops at spacing 0.8 m along `yaw`, with bicycles in some, across it.
+pub fn bike_rack(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, bikes: &mut usize) -> f64 {
+    let n = 2 + (rng.random::<f64>() * 4.0) as usize;
+    let m = material(rng, class::OTHER_OBJECT);
+    let along = DVec2::new(yaw.cos(), yaw.sin());
+    let across = yaw + std::f64::consts::FRAC_PI_2;
+    for k in 0..n {
+        let q = p + (k as f64 - (n as f64 - 1.0) * 0.5) * 0.8 * along;
+        let a = at(q, across, -0.35, g);
+        let c = at(q, across, 0.35, g);
+        b.rod(m, a, a + DVec3::Z * 0.8, 0.025, 5);
+        b.rod(m, c, c + DVec3::Z * 0.8, 0.025, 5);
+        b.rod(m, a + DVec3::Z * 0.8, c + DVec3::Z * 0.8, 0.025, 5);
+        if chance(rng, 0.6) {
+            let facing = across + if chance(rng, 0.5) { 0.0 } else { std::f64::consts::PI };
+            bicycle(b, rng, q + 0.1 * along, g, facing);
+            *bikes += 1;
+        }
+    }
+    0.4 * n as f64 + 0.4
+}
+
+/// A fire hydrant, 0.6-0.9 m.
+pub fn hydrant(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let h = uni(rng, 0.6, 0.9);
+    b.cylinder(m, p.extend(g), 0.12, h, 8);
+    b.ellipsoid(m, p.extend(g + h), DVec3::new(0.1, 0.1, 0.08), 3, 0.0, || 0.0);
+    0.2
+}
+
+/// A post box or newspaper box, 1.0-1.5 m.
+pub fn post_box(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let h = uni(rng, 1.0, 1.5);
+    if chance(rng, 0.5) {
+        b.cylinder(m, p.extend(g), uni(rng, 0.25, 0.35), h, 10);
+    } else {
+        b.cuboid(m, p.extend(g), DVec3::new(uni(rng, 0.4, 0.6), uni(rng, 0.4, 0.6), h), yaw);
+    }
+    0.35
+}
+
+/// A ticket machine, vending machine or kiosk terminal: 1.5-1.95 m, 0.5-1.0 m wide.
+pub fn kiosk(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let (w, d, h) = (uni(rng, 0.5, 1.0), uni(rng, 0.35, 0.8), uni(rng, 1.5, 1.95));
+    b.cuboid(m, p.extend(g), DVec3::new(d, w, h), yaw);
+    0.5 * w.max(d)
+}
+
+/// A folding sign board (A-frame), 0.8-1.1 m.
+pub fn a_frame(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let (w, h) = (uni(rng, 0.5, 0.7), uni(rng, 0.8, 1.1));
+    let side = DVec2::new(-yaw.sin(), yaw.cos()) * w * 0.5;
+    for s in [-1.0, 1.0] {
+        let foot = at(p, yaw, s * 0.25, g);
+        let top = p.extend(g + h);
+        b.quad(m, [foot - side.extend(0.0), foot + side.extend(0.0), top + side.extend(0.0), top - side.extend(0.0)]);
+    }
+    0.4
+}
+
+/// A bus shelter facing `yaw`: roof, back panel, one side panel.
+pub fn shelter(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let (len, d, h) = (uni(rng, 3.0, 5.0), uni(rng, 1.2, 1.6), uni(rng, 2.3, 2.6));
+    b.cuboid(m, at(p, yaw, 0.0, g + h), DVec3::new(d, len, 0.1), yaw);
+    b.cuboid(m, at(p, yaw, -d * 0.5, g + 0.1), DVec3::new(0.04, len, h - 0.1), yaw);
+    let side = DVec2::new(-yaw.sin(), yaw.cos()) * (len * 0.5);
+    b.cuboid(m, (p + side).extend(g + 0.1), DVec3::new(d, 0.04, h - 0.1), yaw);
+    for s in [-1.0, 1.0] {
+        b.cylinder(m, at(p + s * side, yaw, d * 0.45, g), 0.04, h, 6);
+    }
+    if chance(rng, 0.6) {
+        bench(b, rng, at(p, yaw, -d * 0.2, 0.0).truncate(), g, yaw);
+    }
+    0.5 * len
+}
+
+/// A fence from `a` to `c` (posts every 2-2.5 m, two or three rails, or solid panels).
+pub fn fence(b: &mut Builder, rng: &mut impl Rng, a: DVec2, c: DVec2, g: f64) {
+    let m = material(rng, class::FENCE);
+    let h = uni(rng, 0.9, 1.6);
+    let len = a.distance(c);
+    if len < 0.1 {
+        return;
+    }
+    let dir = (c - a) / len;
+    if chance(rng, 0.3) {
+        let n = DVec2::new(-dir.y, dir.x) * 0.02;
+        b.quad(m, [(a + n).extend(g), (c + n).extend(g), (c + n).extend(g + h), (a + n).extend(g + h)]);
+        return;
+    }
+    let posts = (len / uni(rng, 2.0, 2.5)).ceil() as usize;
+    for k in 0..=posts {
+        let q = a + dir * (len * k as f64 / posts as f64);
+        b.cuboid(m, q.extend(g), DVec3::new(0.06, 0.06, h), dir.y.atan2(dir.x));
+    }
+    let rails = if chance(rng, 0.5) { 2 } else { 3 };
+    for k in 0..rails {
+        let z = g + h * (0.25 + 0.7 * k as f64 / (rails - 1) as f64);
+        b.rod(m, a.extend(z), c.extend(z), 0.025, 4);
+    }
+}
+
+/// A parked car, van or small truck along `yaw` (its body's centre at `p`).
+pub fn car(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> (f64, f64) {
+    let m = material(rng, class::CAR);
+    let kind = rng.random::<f64>();
+    // (length, width, body bottom, body height, cabin height, cabin length share, cabin offset)
+    let (l, w, z0, hb, hc, share, off) = if kind < 0.45 {
+        (uni(rng, 4.0, 4.9), uni(rng, 1.7, 1.85), 0.3, uni(rng, 0.5, 0.65), uni(rng, 0.45, 0.6), uni(rng, 0.45, 0.55), uni(rng, -0.3, 0.0))
+    } else if kind < 0.7 {
+        (uni(rng, 3.6, 4.2), uni(rng, 1.65, 1.8), 0.3, uni(rng, 0.5, 0.65), uni(rng, 0.5, 0.65), uni(rng, 0.5, 0.6), uni(rng, -0.5, -0.3))
+    } else if kind < 0.88 {
+        (uni(rng, 4.4, 4.9), uni(rng, 1.8, 1.95), 0.4, uni(rng, 0.6, 0.75), uni(rng, 0.55, 0.7), uni(rng, 0.55, 0.65), uni(rng, -0.3, -0.1))
+    } else {
+        (uni(rng, 4.8, 6.0), uni(rng, 1.9, 2.1), 0.4, uni(rng, 1.2, 1.7), 0.0, 0.0, 0.0)
+    };
+    b.cuboid(m, p.extend(g + z0), DVec3::new(l, w, hb), yaw);
+    if hc > 0.0 {
+        b.cuboid(m, at(p, yaw, off, g + z0 + hb), DVec3::new(l * share, w * 0.88, hc), yaw);
+    }
+    let tyre = material(rng, class::CAR);
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    for fx in [-0.33, 0.33] {
+        for s in [-1.0, 1.0] {
+            let c = (p + DVec2::new(yaw.cos(), yaw.sin()) * (fx * l) + side * (s * (w * 0.5 - 0.12))).extend(g + 0.32);
+            b.rod(tyre, c - (side * 0.11).extend(0.0), c + (side * 0.11).extend(0.0), 0.32, 10);
+        }
+    }
+    (l, w)
+}
+
+/// A mannequin (1.65-1.9 m): legs, hips, torso, arms, neck and head, on a stand now and then.
+pub fn mannequin(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let s = uni(rng, 0.93, 1.07);
+    let g = if chance(rng, 0.3) {
+        b.cylinder(m, p.extend(g), 0.25, 0.05, 10);
+        g + 0.05
+    } else {
+        g
+    };
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    for k in [-1.0, 1.0] {
+        let hip = (p + side * 0.1 * k * s).extend(g + 0.88 * s);
+        let foot = (p + side * 0.12 * k * s).extend(g + 0.05);
+        b.rod(m, foot, hip, 0.065 * s, 6);
+        let shoulder = (p + side * 0.2 * k * s).extend(g + 1.4 * s);
+        let hand = (p + side * 0.24 * k * s).extend(g + 0.78 * s);
+        b.rod(m, shoulder, hand, 0.04 * s, 6);
+    }
+    b.ellipsoid(m, p.extend(g + 0.95 * s), DVec3::new(0.13, 0.18, 0.12) * s, 4, 0.0, || 0.0);
+    b.ellipsoid(m, p.extend(g + 1.2 * s), DVec3::new(0.12, 0.2, 0.24) * s, 5, 0.0, || 0.0);
+    b.ellipsoid(m, p.extend(g + 1.62 * s), DVec3::new(0.09, 0.08, 0.12) * s, 4, 0.0, || 0.0);
+    0.35
+}
+
+/// A shelf unit along `yaw`: sides, back and 4-6 boards; 1.4-2.2 m tall.
+pub fn shelf(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let (len, d, h) = (uni(rng, 0.8, 2.4), uni(rng, 0.35, 0.6), uni(rng, 1.4, 2.2));
+    let along = DVec2::new(yaw.cos(), yaw.sin());
+    let across = yaw + std::f64::consts::FRAC_PI_2;
+    b.cuboid(m, at(p, across, -d * 0.5 + 0.01, g), DVec3::new(len, 0.02, h), yaw);
+    for s in [-0.5, 0.5] {
+        b.cuboid(m, (p + along * (s * len)).extend(g), DVec3::new(0.03, d, h), yaw);
+    }
+    let boards = 4 + (rng.random::<f64>() * 3.0) as usize;
+    for k in 0..boards {
+        let z = g + 0.1 + (h - 0.15) * k as f64 / (boards - 1) as f64;
+        b.cuboid(m, p.extend(z), DVec3::new(len, d, 0.025), yaw);
+        if chance(rng, 0.6) && k + 1 < boards {
+            let goods = material(rng, class::OTHER_OBJECT);
+            let gh = (h - 0.15) / (boards - 1) as f64 * uni(rng, 0.4, 0.85);
+            b.cuboid(goods, p.extend(z + 0.025), DVec3::new(len * uni(rng, 0.5, 0.95), d * 0.8, gh), yaw);
+        }
+    }
+    0.5 * len
+}
+
+/// A display case: a cabinet with a box of goods on it, 0.9-1.9 m.
+pub fn display_case(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let (w, d) = (uni(rng, 0.5, 1.6), uni(rng, 0.5, 0.9));
+    let base = uni(rng, 0.7, 1.0);
+    b.cuboid(m, p.extend(g), DVec3::new(w, d, base), yaw);
+    if chance(rng, 0.6) {
+        let top = material(rng, class::OTHER_OBJECT);
+        b.cuboid(top, p.extend(g + base), DVec3::new(w * 0.9, d * 0.9, uni(rng, 0.2, 0.9)), yaw);
+    }
+    0.5 * w.max(d)
+}
+
+/// A table (0.72-0.76 m, or a standing table 1.05-1.15 m) with 0-4 chairs.
+pub fn table(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let standing = chance(rng, 0.3);
+    let h = if standing { uni(rng, 1.05, 1.15) } else { uni(rng, 0.72, 0.76) };
+    let r = if standing { uni(rng, 0.3, 0.4) } else { uni(rng, 0.4, 0.6) };
+    b.cylinder(m, p.extend(g + h - 0.04), r, 0.04, 10);
+    b.cylinder(m, p.extend(g), 0.04, h - 0.04, 6);
+    b.cylinder(m, p.extend(g), 0.25, 0.03, 8);
+    if !standing {
+        let chairs = (rng.random::<f64>() * 5.0) as usize;
+        let cm = material(rng, class::OTHER_OBJECT);
+        for k in 0..chairs {
+            let a = yaw + k as f64 * std::f64::consts::FRAC_PI_2;
+            let q = at(p, a, r + 0.3, 0.0).truncate();
+            b.cuboid(cm, q.extend(g + 0.43), DVec3::new(0.42, 0.42, 0.04), a);
+            b.cuboid(cm, at(q, a, 0.2, g + 0.47), DVec3::new(0.03, 0.42, 0.42), a);
+            for (dx, dy) in [(-0.18, -0.18), (0.18, -0.18), (0.18, 0.18), (-0.18, 0.18)] {
+                let (s, c) = a.sin_cos();
+                b.cylinder(cm, (q + DVec2::new(c * dx - s * dy, s * dx + c * dy)).extend(g), 0.015, 0.43, 4);
+            }
+        }
+        return r + 0.55;
+    }
+    r
+}
+
+/// A coat stand or standing lamp, 1.6-1.9 m: a pole on a foot with a head.
+pub fn coat_stand(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let h = uni(rng, 1.6, 1.9);
+    b.cylinder(m, p.extend(g), 0.22, 0.03, 8);
+    b.cylinder(m, p.extend(g), 0.025, h, 6);
+    if chance(rng, 0.5) {
+        b.frustum(m, p.extend(g + h - 0.25), 0.2, 0.08, 0.25, 8);
+    } else {
+        let coat = material(rng, class::OTHER_OBJECT);
+        b.ellipsoid(coat, p.extend(g + h - 0.45), DVec3::new(0.2, 0.25, 0.4), 4, 0.15, lumps(rng));
+    }
+    0.25
+}
+
+/// A sign or information stand: a panel on legs, 1.4-2.1 m.
+pub fn info_stand(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let (w, h) = (uni(rng, 0.5, 1.0), uni(rng, 1.4, 2.1));
+    let ph = uni(rng, 0.6, 1.0);
+    b.cuboid(m, p.extend(g + h - ph), DVec3::new(0.04, w, ph), yaw);
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    for s in [-0.4, 0.4] {
+        b.cylinder(m, (p + side * (s * w)).extend(g), 0.02, h - ph, 4);
+    }
+    0.5 * w
+}
+
+/// A stack of 1-4 crates or boxes, 0.3-1.6 m.
+pub fn crates(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let mut z = g;
+    let s = uni(rng, 0.4, 0.8);
+    let n = 1 + (rng.random::<f64>() * 4.0) as usize;
+    for _ in 0..n {
+        let m = material(rng, class::OTHER_OBJECT);
+        let h = uni(rng, 0.3, 0.45);
+        b.cuboid(m, (p + DVec2::new(uni(rng, -0.05, 0.05), uni(rng, -0.05, 0.05))).extend(z), DVec3::new(s, s * uni(rng, 0.7, 1.0), h), yaw + uni(rng, -0.2, 0.2));
+        z += h;
+    }
+    s * 0.7
+}

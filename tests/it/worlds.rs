@@ -1,0 +1,90 @@
+//! The built-in worlds end to end: `scene.background = "street"` / `"indoor"` in a config file
+//! (a name, not a path beside it), each sequence its own recorded layout, `/class` agreeing with
+//! `/label` and with the SemanticKITTI export, people who stand and walk in company, and the
+//! same bytes at any thread count.
+
+use crate::common::{expect_input_error, ok, pedscan, pedscan_with_env};
+use std::path::Path;
+
+fn u32s(path: &Path) -> Vec<u32> {
+    std::fs::read(path).unwrap().chunks(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect()
+}
+
+fn world_of(xml: &Path) -> String {
+    let text = std::fs::read_to_string(xml).unwrap();
+    let at = text.find("world=\"").unwrap_or_else(|| panic!("{} records no world:\n{text}", xml.display()));
+    text[at + 7..].split('"').next().unwrap().to_string()
+}
+
+#[test]
+fn a_street_per_sequence_with_classes_that_agree_with_the_labels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::create_dir(dir.join("cfg")).unwrap();
+    std::fs::write(dir.join("cfg/s.toml"), "elevation_deg = [6.0, 2.0, 0.0, -2.0, -4.0, -7.0, -10.0, -15.0]\ncolumns = 512\n").unwrap();
+    std::fs::write(
+        dir.join("cfg/c.toml"),
+        "sensor = \"s.toml\"\n[humans]\ncount = [6, 6]\nstanding = 0.5\ngroups = 0.5\nspawn_radius_m = 20.0\n[scene]\nbackground = \"street\"\nsensor_height_m = 1.73\nsensor_speed_mps = [2.0, 6.0]\n",
+    )
+    .unwrap();
+    let args = |out: &str| -> Vec<String> {
+        ["generate", "--config", "cfg/c.toml", "--backend", "raycast", "--sequences", "2", "--frames", "3", "--formats", "h5,semantickitti", "--out", out]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    };
+    let a: Vec<String> = args("a");
+    ok(&pedscan_with_env(&a.iter().map(String::as_str).collect::<Vec<_>>(), dir, &[("RAYON_NUM_THREADS", "1")]));
+    let b: Vec<String> = args("b");
+    ok(&pedscan_with_env(&b.iter().map(String::as_str).collect::<Vec<_>>(), dir, &[("RAYON_NUM_THREADS", "2")]));
+    let (w0, w1) = (world_of(&dir.join("a/seq_000000.xml")), world_of(&dir.join("a/seq_000001.xml")));
+    assert!(w0.starts_with("street (") && w0.contains("parked car") || w0.contains("tree"), "{w0}");
+    assert_ne!(w0, w1, "each sequence its own layout");
+    for f in ["seq_000000.h5", "seq_000001.h5", "seq_000000.xml"] {
+        assert!(std::fs::read(dir.join("a").join(f)).unwrap() == std::fs::read(dir.join("b").join(f)).unwrap(), "{f} differs between 1 and 2 threads");
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    let beams = 8 * 512;
+    for seq in 0..2 {
+        let f = hdf5::File::open(dir.join(format!("a/seq_{seq:06}.h5"))).unwrap();
+        let range: Vec<f32> = f.dataset("range").unwrap().read_raw().unwrap();
+        let label: Vec<u8> = f.dataset("label").unwrap().read_raw().unwrap();
+        let class: Vec<u16> = f.dataset("class").unwrap().read_raw().unwrap();
+        let instance: Vec<u16> = f.dataset("instance").unwrap().read_raw().unwrap();
+        for g in 0..range.len() {
+            let person = class[g] == 30 || class[g] == 254;
+            assert_eq!(label[g] == 1, person, "seq {seq} beam {g}: label {} class {}", label[g], class[g]);
+            assert_eq!(range[g] == 0.0, class[g] == 0, "seq {seq} beam {g}: range {} class {}", range[g], class[g]);
+            assert_eq!(instance[g] > 0, person);
+            seen.insert(class[g]);
+        }
+        for t in 0..3 {
+            let labels = u32s(&dir.join(format!("a/semantickitti/sequences/{seq:02}/labels/{t:06}.label")));
+            let returned: Vec<u16> = (0..beams).filter(|&b| range[t * beams + b] > 0.0).map(|b| class[t * beams + b]).collect();
+            assert_eq!(labels.iter().map(|l| (l & 0xffff) as u16).collect::<Vec<_>>(), returned, "seq {seq} frame {t}");
+        }
+    }
+    for c in [40, 48, 50] {
+        assert!(seen.contains(&c), "class {c} among {seen:?}");
+    }
+    assert!(seen.contains(&30) || seen.contains(&254), "people seen: {seen:?}");
+    let yaml = std::fs::read_to_string(dir.join("a/semantickitti/pedscan.yaml")).unwrap();
+    assert!(yaml.contains("40: \"road\"") && yaml.contains("  40: 1\n"), "{yaml}");
+    ok(&pedscan(&["verify", "a"], dir));
+}
+
+#[test]
+fn indoor_runs_and_bad_behaviour_shares_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let o = pedscan(&["generate", "--background", "indoor", "--sensor", "vlp16", "--backend", "raycast", "--sequences", "1", "--frames", "2", "--humans", "4", "--outputs", "range,label,instance,class", "--out", "o"], dir);
+    ok(&o);
+    assert!(world_of(&dir.join("o/seq_000000.xml")).starts_with("indoor ("));
+    let f = hdf5::File::open(dir.join("o/seq_000000.h5")).unwrap();
+    let class: Vec<u16> = f.dataset("class").unwrap().read_raw().unwrap();
+    assert!(class.contains(&49) && class.contains(&50), "floor and walls");
+    assert!(f.dataset("xyz").is_err(), "--outputs leaves xyz out");
+    std::fs::write(dir.join("bad.toml"), "[humans]\nstanding = 1.5\n").unwrap();
+    expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.standing");
+    assert!(!dir.join("x").exists(), "nothing written");
+}
