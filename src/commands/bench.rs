@@ -858,6 +858,7 @@ pub fn bench(exe: &Path, req: &BenchRequest) -> Result<String> {
     table += &bench_terms(&base, req.quick);
     table += &bench_shares(&base, req.quick);
     table += &bench_stages(&base, req.quick);
+    table += &bench_worlds(&base, req.quick);
     write_file(&req.markdown, &table)?;
     plot(&points).save(&req.plot)?;
     Ok(table)
@@ -883,6 +884,15 @@ fn bench_shares(base: &Config, quick: bool) -> String {
     match host_share_costs(base, frames, repeats) {
         Ok((device, rows)) => shares_markdown(&device, &rows, frames, repeats),
         Err(e) => format!("\nWhere the raster background's work runs: not measured ({e})\n"),
+    }
+}
+
+/// The worlds table, or a line saying why there is none.
+fn bench_worlds(base: &Config, quick: bool) -> String {
+    let (frames, repeats) = if quick { (4, 3) } else { (16, 5) };
+    match crate::commands::bench_worlds::world_costs(base, frames, repeats) {
+        Ok(rows) => crate::commands::bench_worlds::worlds_markdown(&rows, frames, repeats),
+        Err(e) => format!("\nFrames/s per world: not measured ({e})\n"),
     }
 }
 

@@ -4,6 +4,7 @@
 //! posing per column), `realism` (a recording against a pedscan output).
 
 pub mod bench;
+pub mod bench_worlds;
 pub mod crosscheck;
 pub mod project;
 pub mod realism;
