@@ -3,7 +3,7 @@ resumable command.
 
     python -m pedscan_data.experiments paper --work DIR [--scale small|full]
         [--pedscan BIN] [--recorded FILE] [--device auto|cpu|cuda] [--only STAGE,...]
-        [--jobs J] [--max-minutes M]
+        [--jobs J] [--max-minutes M] [--world hall|street|indoor[,...]]
 
 Stages, each skipped when done (so the table survives interruptions and several sittings;
 run the same command again):
@@ -47,6 +47,18 @@ sitting's training (counted from when training begins; data generation is not co
 run gets what is left of M (``train --max-minutes``), and when it is spent the command stops
 training, tests what is complete and writes the results so far; the same command continues.
 ``--pedscan-flag`` passes a flag to every ``pedscan generate`` (``--pedscan-flag=--sensor=vlp16``).
+
+Worlds (``--world``, default ``hall``; several, comma separated, run one after another):
+``hall`` is the bundled environment, everything above, in ``DIR`` itself as before worlds
+existed; ``street`` and ``indoor`` are pedscan's built-in worlds (``generate --background
+NAME``, a new layout per sequence), each in ``DIR/worlds/NAME/`` (its ``data/``, ``runs/`` and
+``scores/``) with Table 4 only: its training, validation and test sets are the hall's
+commands (sensor, frames, people, seeds, ``--pedscan-flag``) plus ``--background NAME``, so
+the rows compare, and its networks N = 16, 1, 2, 4, 8. Table 5's ablations, the range-change
+network and ``--recorded`` belong to the hall. ``results.json`` keeps the hall's runs and
+scores at its top level and puts each other world's under ``worlds.NAME``; ``results.md``
+labels every Table 4 row with its world and shows a block for each world with scores (from
+any command on ``DIR``, not only this one's ``--world``).
 """
 
 from __future__ import annotations
@@ -57,6 +69,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -101,6 +114,9 @@ SCALES = {
 }
 TABLE4_FRAMES = (16, 1, 2, 4, 8)
 ABLATIONS = ("static", "sliding", "in-place")
+#: The worlds Table 4 runs in (``--world``): the bundled environment and pedscan's built-in
+#: procedural ones (``generate --background NAME``); the report's order.
+WORLDS = ("hall", "street", "indoor")
 
 
 def find_pedscan(given: Path | None) -> Path:
@@ -115,13 +131,33 @@ def find_pedscan(given: Path | None) -> Path:
     raise PedscanError("no pedscan binary found: build it (cargo build --release) or give --pedscan BIN")
 
 
+@dataclass
+class Sitting:
+    """This command's training time, shared by the worlds it trains one after another:
+    ``--max-minutes`` counts from the first world's training, and only the sitting's first run
+    always starts."""
+
+    max_minutes: float | None
+    deadline: float | None = None
+    started: bool = False
+
+
 class Experiment:
-    def __init__(self, args: argparse.Namespace) -> None:
-        self.work: Path = args.work
+    """The experiment in one world (``world``): its data sets, runs and scores in ``work``."""
+
+    def __init__(self, args: argparse.Namespace, world: str = "hall") -> None:
+        if world not in WORLDS:
+            raise PedscanError(f"world {world}: not one of {', '.join(WORLDS)}")
+        self.world = world
+        #: The folder of the whole command (``--work``): the state and the results.
+        self.root: Path = args.work
+        # The hall keeps the layout from before worlds existed, so old work folders continue.
+        self.work: Path = self.root if world == "hall" else self.root / "worlds" / world
         self.scale_name: str = args.scale
         self.scale = SCALES[args.scale]
         self.pedscan = find_pedscan(args.pedscan)
-        self.recorded: Path | None = args.recorded
+        # A recording is the hall's experiment (its networks tested on it, N = 16 and 1 trained on it).
+        self.recorded: Path | None = args.recorded if world == "hall" else None
         self.device: str = args.device
         self.workers: int = args.workers
         self.python = sys.executable
@@ -134,7 +170,8 @@ class Experiment:
         self.max_minutes: float | None = args.max_minutes
         if self.recorded is not None and not self.recorded.exists():
             raise PedscanError(f"--recorded {self.recorded}: no such file or folder")
-        self.state_path = self.work / "state.json"
+        # One state for all worlds: one scale per work folder, and the time of every stage.
+        self.state_path = self.root / "state.json"
 
     # ---- bookkeeping -------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
@@ -143,6 +180,8 @@ class Experiment:
         return {"scale": self.scale_name, "seconds": {}}
 
     def add_time(self, key: str, seconds: float) -> None:
+        if self.world != "hall":
+            key = f"{self.world} {key}"
         s = self.state()
         s["seconds"][key] = s["seconds"].get(key, 0.0) + seconds
         atomic_write_text(self.state_path, json.dumps(s, indent=2) + "\n")
@@ -151,7 +190,7 @@ class Experiment:
         self.work.mkdir(parents=True, exist_ok=True)
         s = self.state()
         if s.get("scale") != self.scale_name:
-            raise PedscanError(f"{self.work}: holds the {s.get('scale')} scale; give --scale {s.get('scale')} or another --work")
+            raise PedscanError(f"{self.root}: holds the {s.get('scale')} scale; give --scale {s.get('scale')} or another --work")
         if not self.state_path.is_file():
             self.add_time("data", 0.0)
 
@@ -182,11 +221,15 @@ class Experiment:
     # ---- stage 1: data -----------------------------------------------------------------
     def datasets(self) -> dict[str, dict[str, Any]]:
         sc = self.scale
+        # Another world: the hall's sets but for the background, so that their rows compare.
+        world = [] if self.world == "hall" else ["--background", self.world]
         sets: dict[str, dict[str, Any]] = {
-            "train": {"sequences": sc.train, "seed": SEEDS["train"], "flags": []},
-            "val": {"sequences": sc.val, "seed": SEEDS["val"], "flags": []},
-            "test": {"sequences": sc.test, "seed": SEEDS["test"], "flags": []},
+            "train": {"sequences": sc.train, "seed": SEEDS["train"], "flags": list(world)},
+            "val": {"sequences": sc.val, "seed": SEEDS["val"], "flags": list(world)},
+            "test": {"sequences": sc.test, "seed": SEEDS["test"], "flags": list(world)},
         }
+        if self.world != "hall":
+            return sets
         for m in ABLATIONS:
             sets[f"train-{m}"] = {"sequences": sc.train, "seed": SEEDS["train"], "flags": ["--motion", m]}
         if self.recorded is not None:
@@ -198,39 +241,49 @@ class Experiment:
 
     def needed_sets(self, only: set[str] | None) -> set[str]:
         """The data sets that the runs in ``only`` (all when None) train, validate and are
-        tested on."""
+        tested on; none in a world that has none of those runs."""
         runs = self.runs()
         chosen = [r for name, r in runs.items() if only is None or name in only]
+        if not chosen:
+            return set()
         return {r["data"] for r in chosen} | {r["val"] for r in chosen} | set(self.test_sets())
+
+    def generate_command(self, name: str) -> list[str]:
+        """The ``pedscan generate`` command that makes the data set ``name`` (of :meth:`datasets`)."""
+        d = self.datasets()[name]
+        return [
+            str(self.pedscan), "generate", "--out", str(self.work / "data" / name), "--sequences", str(d["sequences"]),
+            "--seed", str(d["seed"]), "--outputs", "range,label,instance,velocity", "--resume",
+            *(["--frames", str(self.scale.frames)] if "--frames" not in d["flags"] else []), *d["flags"], *self.extra,
+        ]
 
     def data(self, only: set[str] | None = None) -> None:
         needed = self.needed_sets(only)
-        for name, d in self.datasets().items():
+        for name in self.datasets():
             if name not in needed:
                 continue
             out = self.work / "data" / name
             marker = out / ".complete"
-            cmd = [
-                str(self.pedscan), "generate", "--out", str(out), "--sequences", str(d["sequences"]),
-                "--seed", str(d["seed"]), "--outputs", "range,label,instance,velocity", "--resume",
-                *(["--frames", str(self.scale.frames)] if "--frames" not in d["flags"] else []), *d["flags"], *self.extra,
-            ]
+            cmd = self.generate_command(name)
             if marker.is_file():
                 if marker.read_text() != " ".join(cmd[1:]) + "\n":
                     raise PedscanError(f"{out}: made by another command ({marker.read_text().strip()}); "
                                        "remove the folder to make it again, or give another --work")
                 continue
             t0 = time.perf_counter()
+            what = f"data {name}" if self.world == "hall" else f"data {self.world}/{name}"
             if self.jobs == 1:
-                self.run(cmd, f"data {name}")
+                self.run(cmd, what)
             else:
-                self.run_shards(cmd, f"data {name}")
+                self.run_shards(cmd, what)
             marker.write_text(" ".join(cmd[1:]) + "\n")
             self.add_time("data", time.perf_counter() - t0)
 
     # ---- stage 2: training -------------------------------------------------------------
     def runs(self) -> dict[str, dict[str, Any]]:
         r: dict[str, dict[str, Any]] = {f"frames{n}": {"frames": n, "data": "train", "val": "val"} for n in TABLE4_FRAMES}
+        if self.world != "hall":
+            return r  # Table 4 only: the rest is about the hall's data and the recording
         for m in ABLATIONS:
             r[f"motion-{m}"] = {"frames": 16, "data": f"train-{m}", "val": "val"}
         # Beyond the paper: the range-change channels (`train --range-change`) on Table 4's data.
@@ -252,42 +305,51 @@ class Experiment:
         ck = run / "checkpoint.pt"
         return int(load_file(ck)["step"]) if ck.is_file() else 0
 
-    def train(self, only: set[str] | None = None) -> bool:
+    def train_command(self, name: str) -> list[str]:
+        """The ``pedscan_data.train`` command of the run ``name`` (of :meth:`runs`), resuming
+        it if it has begun."""
+        r, run = self.runs()[name], self.work / "runs" / name
+        cmd = [
+            self.python, "-m", "pedscan_data.train", str(self.work / "data" / r["data"]),
+            "--frames", str(r["frames"]), "--out", str(run), "--steps", str(self.scale.steps),
+            "--val", str(self.work / "data" / r["val"]), "--score-from", str(SCORE_FROM),
+            "--val-every", str(self.scale.val_every), "--device", self.device, "--workers", str(self.workers),
+            *r.get("flags", []),
+        ]
+        if (run / "run.json").is_file():
+            cmd.append("--resume")
+        return cmd
+
+    def train(self, only: set[str] | None = None, sitting: Sitting | None = None) -> bool:
         """Trains every run not yet done; False when ``--max-minutes`` ran out first (counted
-        from here: the first run to train always starts)."""
-        deadline = None if self.max_minutes is None else time.monotonic() + 60.0 * self.max_minutes
-        started = False
-        for name, r in self.runs().items():
+        from the sitting's first call here: the first run to train always starts)."""
+        sitting = sitting or Sitting(self.max_minutes)
+        if sitting.max_minutes is not None and sitting.deadline is None:
+            sitting.deadline = time.monotonic() + 60.0 * sitting.max_minutes
+        where = "" if self.world == "hall" else f"{self.world}/"
+        for name in self.runs():
             if only and name not in only:
                 continue
             run = self.work / "runs" / name
             if self.trained_step(run) >= self.scale.steps:
                 continue
             budget: list[str] = []
-            if deadline is not None:
-                left = (deadline - time.monotonic()) / 60.0
-                if started and left <= 0:
-                    print(f"[train] the --max-minutes budget is spent before {name}; run the same command to continue",
-                          file=sys.stderr, flush=True)
+            if sitting.deadline is not None:
+                left = (sitting.deadline - time.monotonic()) / 60.0
+                if sitting.started and left <= 0:
+                    print(f"[train] the --max-minutes budget is spent before {where}{name}; run the same command "
+                          "to continue", file=sys.stderr, flush=True)
                     return False
                 budget = ["--max-minutes", f"{max(left, 1e-9):.6g}"]
-            started = True
+            sitting.started = True
             t0 = time.perf_counter()
-            cmd = [
-                self.python, "-m", "pedscan_data.train", str(self.work / "data" / r["data"]),
-                "--frames", str(r["frames"]), "--out", str(run), "--steps", str(self.scale.steps),
-                "--val", str(self.work / "data" / r["val"]), "--score-from", str(SCORE_FROM),
-                "--val-every", str(self.scale.val_every), "--device", self.device, "--workers", str(self.workers),
-                *r.get("flags", []),
-            ]
-            if (run / "run.json").is_file():
-                cmd.append("--resume")
+            cmd = self.train_command(name)
             try:
-                self.run([*cmd, *budget], f"train {name}")
+                self.run([*cmd, *budget], f"train {where}{name}")
             finally:
                 self.add_time(f"train {name}", time.perf_counter() - t0)
             if self.trained_step(run) < self.scale.steps:
-                print(f"[train] {name} stopped at step {self.trained_step(run)} of {self.scale.steps} "
+                print(f"[train] {where}{name} stopped at step {self.trained_step(run)} of {self.scale.steps} "
                       "(--max-minutes); run the same command to continue", file=sys.stderr, flush=True)
                 return False
         return True
@@ -340,7 +402,8 @@ class Experiment:
                     if (done.get("model_step"), done.get("human_threshold")) == (self.scale.steps, obj["human_threshold"]):
                         continue
                 t0 = time.perf_counter()
-                print(f"[test {name} on {ts}]", file=sys.stderr, flush=True)
+                where = "" if self.world == "hall" else f"{self.world}/"
+                print(f"[test {where}{name} on {ts}]", file=sys.stderr, flush=True)
                 cal, arg = validate(net, open_sequences(self.work / "data" / ts), dev, SCORE_FROM,
                                     (human_margin(obj), 0.0))
                 rep = {**cal, "from_frame": SCORE_FROM, "human_threshold": obj["human_threshold"],
@@ -351,7 +414,8 @@ class Experiment:
                 self.add_time("test", time.perf_counter() - t0)
 
     # ---- stage 4: results --------------------------------------------------------------
-    def results(self) -> dict[str, Any]:
+    def world_results(self) -> dict[str, Any]:
+        """This world's data sets, its runs begun (the step each reached) and its scores."""
         scores: dict[str, Any] = {}
         for p in sorted((self.work / "scores").glob("*--*.json")) if (self.work / "scores").is_dir() else []:
             if not p.stem.startswith("zero--"):
@@ -364,21 +428,36 @@ class Experiment:
                 runs_info[name] = {"step": self.trained_step(self.work / "runs" / name),
                                    "environment": info.get("environment"), "parameters": info.get("parameters"),
                                    "network": info.get("network")}
+        return {"datasets": {k: {**v, "flags": v["flags"]} for k, v in self.datasets().items()},
+                "runs": runs_info, "scores": scores}
+
+    def results(self, others: Sequence[Experiment] = ()) -> dict[str, Any]:
+        """Writes ``DIR/results.*``. ``self`` is the hall, whose runs and scores stay at the top
+        level of ``results.json`` (as before worlds existed); each world of ``others`` that
+        has begun a run or has a score comes under ``worlds``, whichever command made it."""
         res = {
             "scale": self.scale_name, "steps": self.scale.steps, "score_from_frame": SCORE_FROM,
-            "datasets": {k: {**v, "flags": v["flags"]} for k, v in self.datasets().items()},
-            "runs": runs_info, "scores": scores, "seconds": self.state()["seconds"],
+            **self.world_results(), "seconds": self.state()["seconds"],
             "paper": {"table4": {str(k): v for k, v in PAPER_TABLE4.items()}, "table5": PAPER_TABLE5},
+            "worlds": {},
         }
-        atomic_write_text(self.work / "results.json", json.dumps(res, indent=2) + "\n")
-        atomic_write_text(self.work / "results.md", render_markdown(res))
-        plot_results(res, self.work / "results.png")
-        self.example_png(self.work / "results-example.png")
+        for ex in others:
+            got = ex.world_results()
+            if got["runs"] or got["scores"]:
+                res["worlds"][ex.world] = {"folder": ex.work.relative_to(self.root).as_posix(), **got}
+        atomic_write_text(self.root / "results.json", json.dumps(res, indent=2) + "\n")
+        atomic_write_text(self.root / "results.md", render_markdown(res))
+        plot_results(res, self.root / "results.png")
+        # The hall's example frame, or the first other world's when the hall has no network yet.
+        for ex in (self, *others):
+            if ex.example_png(self.root / "results-example.png"):
+                break
         return res
 
-    def example_png(self, path: Path, sequence: int = 0) -> None:
+    def example_png(self, path: Path, sequence: int = 0) -> bool:
         """One test frame (the last of a sequence): range, truth, and the 1- and 16-frame
-        networks' masks (green hit, red false alarm, blue miss)."""
+        networks' masks (green hit, red false alarm, blue miss); False, and nothing written,
+        when neither network is trained."""
         import matplotlib
 
         matplotlib.use("Agg")
@@ -391,7 +470,7 @@ class Experiment:
 
         nets = [n for n in (1, 16) if self.trained_step(self.work / "runs" / f"frames{n}") >= self.scale.steps]
         if not nets:
-            return
+            return False
         seq = open_sequences(self.work / "data" / "test")[sequence]
         t = seq.frames - 1
         r = seq.read("range", t)
@@ -403,7 +482,7 @@ class Experiment:
             rows.append((f"N={n}", margin[t] > human_margin(obj)))
         fig, axes = plt.subplots(len(rows) + 1, 1, figsize=(16, 1.3 * (len(rows) + 1)))
         axes[0].imshow(np.log1p(r), cmap="gray", aspect="auto", interpolation="nearest")
-        axes[0].set_title(f"{seq.path.name}, frame {t}: range (log)", fontsize=9, loc="left")
+        axes[0].set_title(f"{self.world}, {seq.path.name}, frame {t}: range (log)", fontsize=9, loc="left")
         rgb = np.zeros(r.shape + (3,))
         rgb[truth] = (1, 1, 1)
         axes[1].imshow(rgb, aspect="auto", interpolation="nearest")
@@ -422,6 +501,7 @@ class Experiment:
             ax.set_yticks([])
         fig.tight_layout()
         save_figure(fig, path)
+        return True
 
 
 def _iou(scores: dict[str, Any], key: str, argmax: bool = False) -> list[float | None]:
@@ -437,8 +517,17 @@ def _f(x: float | None, d: int = 4) -> str:
     return "—" if x is None else f"{x:.{d}f}"
 
 
+def table4_worlds(res: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """(world, scores) of each world with a Table 4 network scored, the hall (``results.json``'s
+    top level) first; the hall alone when none has, so the table still shows the paper's row."""
+    every = [("hall", res["scores"])] + [(w, v["scores"]) for w, v in res.get("worlds", {}).items()]
+    scored = [(w, sc) for w, sc in every if any(f"frames{n}--test" in sc for n in TABLE4_FRAMES)]
+    return scored or every[:1]
+
+
 def render_markdown(res: dict[str, Any]) -> str:
     sc = res["scores"]
+    worlds = table4_worlds(res)
     lines = [
         f"# The paper's experiments on pedscan data ({res['scale']} scale)",
         "",
@@ -448,39 +537,46 @@ def render_markdown(res: dict[str, Any]) -> str:
         "",
         "## Table 4: IoU of the human class by distance",
         "",
-        "| range | " + " | ".join(f"N={n} (ours / paper)" for n in (1, 2, 4, 8, 16)) + " |",
-        "|---|" + "---|" * 5,
     ]
+    if any(w != "hall" for w, _ in worlds):
+        lines += ["One block of rows per world: `hall` the bundled environment; `street` and `indoor` "
+                  "pedscan's built-in worlds (`--background`, a new layout per sequence), with the hall's "
+                  "sensor, frames, people and seeds.", ""]
+    head = ["| world | range | " + " | ".join(f"N={n} (ours / paper)" for n in (1, 2, 4, 8, 16)) + " |",
+            "|---|---|" + "---|" * 5]
+    lines += head
+
     def table4(argmax: bool) -> None:
-        for k, name in enumerate(("0-inf m", "0-4 m", "4-8 m", "8+ m")):
-            row = []
-            for n in (1, 2, 4, 8, 16):
-                ours = _iou(sc, f"frames{n}--test", argmax)[k]
-                row.append(f"{_f(ours)} / {PAPER_TABLE4[n][k]:.4f}")
-            lines.append(f"| {name} | " + " | ".join(row) + " |")
+        for world, wsc in worlds:
+            for k, name in enumerate(("0-inf m", "0-4 m", "4-8 m", "8+ m")):
+                row = []
+                for n in (1, 2, 4, 8, 16):
+                    ours = _iou(wsc, f"frames{n}--test", argmax)[k]
+                    row.append(f"{_f(ours)} / {PAPER_TABLE4[n][k]:.4f}")
+                lines.append(f"| {world} | {name} | " + " | ".join(row) + " |")
 
     table4(False)
     lines += ["", "A beam is human above each network's threshold, calibrated on the validation set "
               "(`human_threshold` in its model file). At the softmax's argmax instead (what the "
-              "paper's class weight makes a recall-first mask):", "",
-              "| range | " + " | ".join(f"N={n} (ours / paper)" for n in (1, 2, 4, 8, 16)) + " |",
-              "|---|" + "---|" * 5]
+              "paper's class weight makes a recall-first mask):", "", *head]
     table4(True)
-    lines += ["", "| N | human threshold | precision | recall | precision at argmax | recall at argmax |",
-              "|---|---|---|---|---|---|"]
-    for n in (1, 2, 4, 8, 16):
-        s = sc.get(f"frames{n}--test")
-        if s is not None:
-            o, a = s["overall"], s["argmax"]["overall"]
-            lines.append(f"| {n} | {s['human_threshold']:.3f} | {_f(o['precision'])} | {_f(o['recall'])} | "
-                         f"{_f(a['precision'])} | {_f(a['recall'])} |")
+    lines += ["", "| world | N | human threshold | precision | recall | precision at argmax | recall at argmax |",
+              "|---|---|---|---|---|---|---|"]
+    for world, wsc in worlds:
+        for n in (1, 2, 4, 8, 16):
+            s = wsc.get(f"frames{n}--test")
+            if s is not None:
+                o, a = s["overall"], s["argmax"]["overall"]
+                lines.append(f"| {world} | {n} | {s['human_threshold']:.3f} | {_f(o['precision'])} | "
+                             f"{_f(o['recall'])} | {_f(a['precision'])} | {_f(a['recall'])} |")
     lines += ["", "Velocity end-point error on human beams (m/s), and predicting zero:", "",
-              "| N | EPE | zero | ms per frame (streaming) |", "|---|---|---|---|"]
-    for n in (1, 2, 4, 8, 16):
-        s = sc.get(f"frames{n}--test")
-        if s is not None:
-            lines.append(f"| {n} | {_f(s['overall'].get('epe_mps'), 3)} | {_f(s.get('zero_epe_mps'), 3)} | "
-                         f"{_f(s.get('ms_per_frame'), 1)} |")
+              "| world | N | EPE | zero | ms per frame (streaming) |", "|---|---|---|---|---|"]
+    for world, wsc in worlds:
+        for n in (1, 2, 4, 8, 16):
+            s = wsc.get(f"frames{n}--test")
+            if s is not None:
+                lines.append(f"| {world} | {n} | {_f(s['overall'].get('epe_mps'), 3)} | "
+                             f"{_f(s.get('zero_epe_mps'), 3)} | {_f(s.get('ms_per_frame'), 1)} |")
     if "frames16-change--test" in sc:
         lines += ["", "## Beyond the paper: range-change channels (N = 16)", "",
                   "`train --range-change`: the decoder also sees each beam's range change against the "
@@ -492,6 +588,7 @@ def render_markdown(res: dict[str, Any]) -> str:
             if s is not None:
                 lines.append(f"| {run} | " + " | ".join(_f(v) for v in _iou(sc, f"{run}--test"))
                              + f" | {_f(s['overall'].get('epe_mps'), 3)} | {_f(s.get('zero_epe_mps'), 3)} |")
+    # The rest is the hall's (Table 5's ablations, range change and the recording are its own).
     lines += ["", "## Table 5: what the data's motion teaches (N = 16)", "",
               "| training data | IoU ours (generated test set) | paper (its real data) |", "|---|---|---|"]
     for m, label in (("static", "human model only (static)"), ("sliding", "+ trajectory (sliding)"),
@@ -535,15 +632,19 @@ def plot_results(res: dict[str, Any], path: Path) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    sc = res["scores"]
+    worlds = table4_worlds(res)
     names = ("all", "0-4 m", "4-8 m", "8+ m")
     ns = (1, 2, 4, 8, 16)
+    colors = ("#2a7", "#27a", "#a72")
+    width = 0.8 / (1 + len(worlds))
     fig, axes = plt.subplots(1, 4, figsize=(15, 3.6), sharey=True)
     for k, ax in enumerate(axes):
-        ours = [_iou(sc, f"frames{n}--test")[k] for n in ns]
         x = np.arange(len(ns))
-        ax.bar(x - 0.2, [PAPER_TABLE4[n][k] for n in ns], 0.4, label="paper", color="#bbb")
-        ax.bar(x + 0.2, [v if v is not None else 0 for v in ours], 0.4, label="pedscan", color="#2a7")
+        ax.bar(x - 0.4 + width / 2, [PAPER_TABLE4[n][k] for n in ns], width, label="paper", color="#bbb")
+        for i, (world, wsc) in enumerate(worlds):
+            ours = [_iou(wsc, f"frames{n}--test")[k] for n in ns]
+            ax.bar(x - 0.4 + width * (i + 1.5), [v if v is not None else 0 for v in ours], width,
+                   label=f"pedscan {world}", color=colors[i % len(colors)])
         ax.set_xticks(x, [f"N={n}" for n in ns])
         ax.set_title(f"IoU, {names[k]}")
         ax.set_ylim(0, 1)
@@ -556,7 +657,16 @@ def plot_results(res: dict[str, Any], path: Path) -> None:
 STAGES = ("data", "train", "test", "results")
 
 
-def main(argv: list[str] | None = None) -> int:
+def world_list(text: str) -> list[str]:
+    """``--world``'s value: world names, comma separated, each once, in the order given."""
+    names = [w.strip() for w in text.split(",") if w.strip()]
+    bad = [w for w in names if w not in WORLDS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"unknown world {', '.join(bad) or repr(text)} (of {', '.join(WORLDS)})")
+    return list(dict.fromkeys(names))
+
+
+def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m pedscan_data.experiments", description=__doc__.split("\n\n")[0])
     p.add_argument("experiment", choices=("paper",))
     p.add_argument("--work", type=Path, required=True, help="folder for data, runs and results")
@@ -571,26 +681,48 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=1, help="pedscan generate processes per data set (--shard I/J)")
     p.add_argument("--max-minutes", type=float, metavar="M", help="end this sitting's training after M minutes")
     p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
-    args = p.parse_args(argv)
+    p.add_argument("--world", type=world_list, default=["hall"], metavar="NAME[,NAME...]",
+                   help=f"run Table 4 in these worlds, one after another (of {', '.join(WORLDS)}; default hall): "
+                   "hall in --work itself, the others in --work/worlds/NAME")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
     stages = [s.strip() for s in args.only.split(",") if s.strip()]
     bad = [s for s in stages if s not in STAGES]
     try:
         if bad:
             raise PedscanError(f"--only: unknown stage {', '.join(bad)} (of {', '.join(STAGES)})")
-        ex = Experiment(args)
+        if args.recorded is not None and "hall" not in args.world:
+            raise PedscanError("--recorded: a recording is the hall's experiment; add hall to --world")
+        backgrounds = [f for f in args.pedscan_flag or [] if f.split("=")[0] in ("--background", "--environment")]
+        if backgrounds and args.world != ["hall"]:
+            raise PedscanError(f"--pedscan-flag {backgrounds[0]}: --world {','.join(args.world)} gives the background")
+        # Every world, for the results (which show whatever any command left in --work).
+        every = {w: Experiment(args, w) for w in WORLDS}
+        chosen = [every[w] for w in args.world]
         only = {r.strip() for r in args.runs.split(",") if r.strip()} if args.runs else None
-        unknown = sorted(only - set(ex.runs())) if only else []
+        known = list(dict.fromkeys(name for ex in chosen for name in ex.runs()))
+        unknown = sorted(only - set(known)) if only else []
         if unknown:
-            raise PedscanError(f"--runs: unknown run {', '.join(unknown)} (of {', '.join(ex.runs())})")
-        ex.check_scale()
+            raise PedscanError(f"--runs: unknown run {', '.join(unknown)} (of {', '.join(known)})")
+        for ex in chosen:
+            ex.check_scale()
         if "data" in stages:
-            ex.data(only)
-        trained = "train" not in stages or ex.train(only)
+            for ex in chosen:
+                ex.data(only)
+        trained = True
+        if "train" in stages:
+            sitting = Sitting(chosen[0].max_minutes)
+            trained = all(ex.train(only, sitting) for ex in chosen)  # all() stops at the first spent budget
         if "test" in stages:
-            ex.test()
+            for ex in chosen:
+                ex.test()
         if "results" in stages:
-            ex.results()
-            print(f"wrote {ex.work / 'results.md'}" + ("" if trained else " (training not complete: the same command continues)"))
+            hall = every["hall"]
+            hall.results([every[w] for w in WORLDS if w != "hall"])
+            print(f"wrote {hall.root / 'results.md'}" + ("" if trained else " (training not complete: the same command continues)"))
     except KeyboardInterrupt:
         print("stopped; run the same command again to continue", file=sys.stderr)
         return 130

@@ -1,0 +1,197 @@
+"""``experiments paper --world``: Table 4 in the bundled hall and in pedscan's built-in worlds,
+each in its own folder of ``--work``, and one row block per world in the results."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pytest
+
+from pedscan_data import experiments as exp
+
+from conftest import SENSOR_TOML
+
+
+def experiments(tmp_path: Path, *flags: str) -> dict[str, exp.Experiment]:
+    """Every world's experiment for ``paper --work tmp/work --scale smoke FLAGS``, on a stand-in
+    pedscan binary (nothing is run: only the commands are built)."""
+    fake = tmp_path / "pedscan"
+    fake.write_text("")
+    args = exp.parser().parse_args(["paper", "--work", str(tmp_path / "work"), "--scale", "smoke",
+                                    "--pedscan", str(fake), *flags])
+    return {w: exp.Experiment(args, w) for w in exp.WORLDS}
+
+
+def test_experiments_hall_keeps_the_layout_and_commands_from_before_worlds(tmp_path: Path) -> None:
+    """The hall's data, runs, state and generate commands are those of work folders made
+    before ``--world`` existed (their ``.complete`` markers must still match)."""
+    hall = experiments(tmp_path, "--pedscan-flag=--humans=1..2")["hall"]
+    work = tmp_path / "work"
+    assert hall.work == work and hall.state_path == work / "state.json"
+    assert hall.generate_command("train") == [
+        str(tmp_path / "pedscan"), "generate", "--out", str(work / "data" / "train"), "--sequences", "2",
+        "--seed", "101", "--outputs", "range,label,instance,velocity", "--resume", "--frames", "17", "--humans=1..2",
+    ]
+    assert hall.generate_command("train-sliding")[-4:] == ["17", "--motion", "sliding", "--humans=1..2"]
+    assert "--background" not in hall.generate_command("test")
+    cmd = hall.train_command("frames16")
+    assert cmd[1:5] == ["-m", "pedscan_data.train", str(work / "data" / "train"), "--frames"]
+    assert cmd[cmd.index("--out") + 1] == str(work / "runs" / "frames16")
+    assert cmd[cmd.index("--val") + 1] == str(work / "data" / "val")
+    assert {"motion-static", "frames16-change"} <= set(hall.runs())
+
+
+@pytest.mark.parametrize("world", ["street", "indoor"])
+def test_experiments_another_world_is_the_halls_table4_with_its_background(tmp_path: Path, world: str) -> None:
+    """A world's sets are the hall's commands plus ``--background NAME`` (same sensor, frames,
+    people and seeds), in ``work/worlds/NAME``; its runs are Table 4's networks only."""
+    every = experiments(tmp_path, "--world", f"hall,{world}", "--pedscan-flag=--sensor=vlp16")
+    hall, other = every["hall"], every[world]
+    root = tmp_path / "work" / "worlds" / world
+    assert other.work == root and other.state_path == tmp_path / "work" / "state.json"
+    assert set(other.datasets()) == {"train", "val", "test"}
+    assert set(other.runs()) == {f"frames{n}" for n in (1, 2, 4, 8, 16)}
+    assert other.test_sets() == ["test"]
+    for name in ("train", "val", "test"):
+        got, base = other.generate_command(name), hall.generate_command(name)
+        i = got.index("--background")
+        assert got[i + 1] == world
+        assert got[got.index("--out") + 1] == str(root / "data" / name)
+        # Nothing else differs from the hall's command: the rows compare.
+        rest = got[:i] + got[i + 2:]
+        rest[rest.index("--out") + 1] = base[base.index("--out") + 1]
+        assert rest == base, name
+        assert got[-1] == "--sensor=vlp16"  # the user's flags still come last
+    cmd = other.train_command("frames4")
+    assert cmd[3] == str(root / "data" / "train") and cmd[cmd.index("--out") + 1] == str(root / "runs" / "frames4")
+    assert cmd[cmd.index("--val") + 1] == str(root / "data" / "val")
+    # `--runs` of the hall's own runs leaves another world nothing to make.
+    assert other.needed_sets({"motion-static"}) == set()
+    assert other.needed_sets({"frames1"}) == {"train", "val", "test"}
+
+
+def test_experiments_refuse_an_unknown_world_naming_the_known_ones(tmp_path: Path, capsys) -> None:
+    fake = tmp_path / "pedscan"
+    fake.write_text("")
+    base = ["paper", "--work", str(tmp_path / "work"), "--scale", "smoke", "--pedscan", str(fake), "--only", "data"]
+    for bad, named in (("hall,mars", "mars"), ("Street", "Street"), (",", "','")):
+        with pytest.raises(SystemExit) as e:
+            exp.main([*base, "--world", bad])
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert f"argument --world: unknown world {named} (of hall, street, indoor)" in err, err
+    assert exp.world_list("street, hall,street") == ["street", "hall"]
+    # The recording and a background of one's own are the hall's; refused before anything is made.
+    assert exp.main([*base, "--world", "street", "--recorded", str(fake)]) == 2
+    assert "add hall to --world" in capsys.readouterr().err
+    assert exp.main([*base, "--world", "hall,street", "--pedscan-flag=--background=x.glb"]) == 2
+    assert "--world hall,street gives the background" in capsys.readouterr().err
+    assert not (tmp_path / "work").exists()
+
+
+def test_experiments_training_budget_is_shared_by_the_worlds(tmp_path: Path, monkeypatch) -> None:
+    """``--max-minutes`` spent in one world stops the next before it starts a run; a fresh
+    sitting always starts its first run."""
+    every = experiments(tmp_path, "--world", "hall,street", "--max-minutes", "1")
+    ran: list[str] = []
+    monkeypatch.setattr(exp.Experiment, "run", lambda self, cmd, what: ran.append(what))
+    monkeypatch.setattr(exp.Experiment, "add_time", lambda self, key, seconds: None)
+    spent = exp.Sitting(1.0, deadline=time.monotonic() - 1.0, started=True)
+    assert not every["street"].train(None, spent) and ran == []
+    fresh = exp.Sitting(1e-9)
+    time.sleep(0.01)
+    assert not every["street"].train(None, fresh)  # stopped short of its steps (nothing trained)
+    assert ran == ["train street/frames16"] and fresh.started
+
+
+def score(iou: float) -> dict:
+    """A score file's content with every figure the report reads, all from ``iou``."""
+    o = {"iou": iou, "precision": iou, "recall": iou, "epe_mps": 1.0}
+    bins = [{"iou": iou + 0.01 * (k + 1)} for k in range(3)]
+    return {"overall": o, "bins": bins, "argmax": {"overall": o, "bins": bins}, "human_threshold": 0.9,
+            "zero_epe_mps": 1.3}
+
+
+def table4_rows(md: str) -> list[str]:
+    """The first Table 4's body rows."""
+    part = md.split("## Table 4")[1].split("A beam is human")[0]
+    return [ln for ln in part.splitlines() if ln.startswith("| ") and not ln.startswith("| world")]
+
+
+def test_experiments_report_a_table4_row_block_per_world_with_scores(tmp_path: Path) -> None:
+    """Scores in the hall's and the street's folders (as any commands left them): results.json
+    keeps the hall's at its top level and the street's under worlds; results.md has four rows
+    for each, labeled; the indoor world, with nothing, has none."""
+    every = experiments(tmp_path)
+    work = tmp_path / "work"
+    for folder, iou in ((work, 0.5), (work / "worlds" / "street", 0.25)):
+        (folder / "scores").mkdir(parents=True)
+        for n in (1, 16):
+            (folder / "scores" / f"frames{n}--test.json").write_text(json.dumps(score(iou + n / 1000)))
+    every["hall"].check_scale()
+    res = every["hall"].results([every["street"], every["indoor"]])
+    assert set(res["scores"]) == {"frames1--test", "frames16--test"}
+    assert list(res["worlds"]) == ["street"] and res["worlds"]["street"]["folder"] == "worlds/street"
+    assert res["worlds"]["street"]["scores"]["frames16--test"]["overall"]["iou"] == 0.266
+    assert res["worlds"]["street"]["datasets"]["test"]["flags"] == ["--background", "street"]
+    assert json.loads((work / "results.json").read_text()) == json.loads(json.dumps(res))
+    md = (work / "results.md").read_text()
+    rows = table4_rows(md)
+    assert [r.split(" | ")[:2] for r in rows] == [
+        ["| hall", "0-inf m"], ["| hall", "0-4 m"], ["| hall", "4-8 m"], ["| hall", "8+ m"],
+        ["| street", "0-inf m"], ["| street", "0-4 m"], ["| street", "4-8 m"], ["| street", "8+ m"]]
+    assert rows[0] == ("| hall | 0-inf m | 0.5010 / 0.4358 | — / 0.5869 | — / 0.5461 | — / 0.5523 | "
+                       "0.5160 / 0.6443 |")
+    assert rows[7].startswith("| street | 8+ m | 0.2810 / 0.0725 |")
+    assert "| street | 16 | 0.900 | 0.2660 |" in md and "| hall | 1 | 1.000 | 1.300 |" in md
+    assert "indoor |" not in md
+    assert (work / "results.png").stat().st_size > 1000
+
+
+def test_experiments_report_only_the_worlds_that_have_scores() -> None:
+    """The street alone when the hall has no score; the hall alone (the paper's row beside
+    empty cells) when nothing is scored or the results predate worlds."""
+    base = {"scale": "smoke", "steps": 3, "score_from_frame": 15, "seconds": {}}
+    street = {"worlds": {"street": {"scores": {"frames2--test": score(0.3)}}, "indoor": {"scores": {}}}}
+    rows = table4_rows(exp.render_markdown({**base, "scores": {}, **street}))
+    assert [r.split(" | ")[0] for r in rows] == ["| street"] * 4
+    assert rows[0] == "| street | 0-inf m | — / 0.4358 | 0.3000 / 0.5869 | — / 0.5461 | — / 0.5523 | — / 0.6443 |"
+    for res in ({**base, "scores": {}}, {**base, "scores": {}, "worlds": {"indoor": {"scores": {}}}}):
+        rows = table4_rows(exp.render_markdown(res))
+        assert [r.split(" | ")[0] for r in rows] == ["| hall"] * 4
+
+
+def test_the_paper_experiments_run_in_a_world_beside_the_hall(tmp_path: Path) -> None:
+    """The real pipeline, smoke scale, N = 1 only: the street's sets are made with
+    ``--background street`` in its own folder and its network trained and scored there; after
+    a run in the hall of the same folder the report shows both worlds."""
+    from conftest import find_pedscan
+
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    # People start close to the sensor: a street's parked cars and trees hide a far one, and
+    # the one validation sequence must show a human beam to calibrate on.
+    (tmp_path / "near.toml").write_text("[humans]\nspawn_radius_m = 9.0\n")
+    work = tmp_path / "work"
+    common = ["paper", "--work", str(work), "--scale", "smoke", "--pedscan", str(find_pedscan()),
+              "--device", "cpu", "--workers", "0", "--runs", "frames1",
+              f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}", "--pedscan-flag=--humans=2..2",
+              f"--pedscan-flag=--config={tmp_path / 'near.toml'}"]
+    assert exp.main([*common, "--world", "street"]) == 0
+    street = work / "worlds" / "street"
+    for name in ("train", "val", "test"):
+        marker = (street / "data" / name / ".complete").read_text()
+        assert "--background street" in marker and f"--out {street / 'data' / name} " in marker, marker
+        assert list((street / "data" / name).glob("seq_*.h5"))
+    assert not (work / "data").exists() and not (work / "runs").exists()
+    assert json.loads((street / "scores" / "frames1--test.json").read_text())["model_step"] == 3
+    res = json.loads((work / "results.json").read_text())
+    assert res["scores"] == {} and set(res["worlds"]) == {"street"}
+    assert "street data" in res["seconds"] and "street train frames1" in res["seconds"]
+    assert {r.split(" | ")[0] for r in table4_rows((work / "results.md").read_text())} == {"| street"}
+    assert exp.main(common) == 0  # the hall, default world, in the same folder
+    assert "--background" not in (work / "data" / "test" / ".complete").read_text()
+    rows = table4_rows((work / "results.md").read_text())
+    assert [r.split(" | ")[0] for r in rows] == ["| hall"] * 4 + ["| street"] * 4
+    assert all(r.split(" | ")[2] != "— / 0.4358" for r in rows if r.split(" | ")[1] == "0-inf m")
