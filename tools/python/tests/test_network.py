@@ -357,7 +357,7 @@ def test_the_ego_motion_pools_over_beams_that_returned_in_the_last_frame_and_an_
 
 def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matches_its_onnx(tmp_path: Path) -> None:
     """data/models/hdl64e.pt: trained for the HDL-64E on pedscan data alone, it says so (its
-    grid, its backgrounds and their licence); its ONNX twin gives the same outputs on that grid;
+    grid, its generated backgrounds and their licence); its ONNX twin gives the same outputs on that grid;
     predict takes real-layout scans with it out of the box (no --sensor)."""
     from pedscan_data.netio import load_net
     from pedscan_data.predict import main as predict_main
@@ -367,8 +367,10 @@ def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matche
     sensor = obj["training"]["sensor"]
     assert sensor["name"] == "hdl64e" and len(sensor["elevation_deg"]) == 64 and sensor["columns"] == 2048
     assert 0 < obj["human_threshold"] < 1
-    assert "CC BY-NC-SA" in obj["licence"] and obj["provenance"]["backgrounds"]
-    assert not any("semantickitti" in b for b in obj["provenance"]["backgrounds"])
+    # Generated data alone: the built-in street world and the bundled people, so CC0.
+    assert obj["licence"].startswith("CC0") and obj["provenance"]["backgrounds"]
+    assert all("street world" in b for b in obj["provenance"]["backgrounds"])
+    assert obj["provenance"]["labeled_real_scans_used"].startswith("none")
     onnx_matches(net, obj, models / "hdl64e.onnx", 64, 2048, 60.0)
     # A scan folder in SemanticKITTI's layout: one label per point back.
     (tmp_path / "seq" / "velodyne").mkdir(parents=True)
