@@ -615,7 +615,12 @@ fn companion(rng: &mut impl rand::Rng, leader: &HumanPlan, model: usize, m: &Hum
     };
     HumanPlan {
         model,
-        stride_m: if still { m.gait_stride_m(0.0) } else { m.gait_stride_m(leader.trajectory.velocity(0.0).length()) },
+        // The leader's walking speed, also when it starts the sequence stopped.
+        stride_m: match &leader.trajectory {
+            _ if still => m.gait_stride_m(0.0),
+            HumanPath::Paused(p, _) => m.gait_stride_m(p.velocity(0.0).length()),
+            t => m.gait_stride_m(t.velocity(0.0).length()),
+        },
         trajectory,
         phase0: rng.random::<f64>(),
         motion: leader.motion,
