@@ -97,9 +97,10 @@ impl Stats {
                 if r > 0.0 {
                     returns += 1;
                 }
-                if k > 0 && r > 0.0 {
+                // Instances above the people's are movers (cars, cyclists).
+                if k > 0 && k as usize <= n && r > 0.0 {
                     humans += 1;
-                    seen[(k as usize).min(n)] = true;
+                    seen[k as usize] = true;
                     let bin = DISTANCE_BINS_M.iter().take_while(|&&b| r as f64 >= b).count();
                     self.human_beams_by_distance[bin] += 1;
                 }

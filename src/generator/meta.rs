@@ -1,7 +1,7 @@
 //! A sequence's metadata: who walks in it, where its background and people come from.
 
 use super::Generator;
-use crate::output::{HumanMeta, SequenceMeta};
+use crate::output::{HumanMeta, MoverMeta, SequenceMeta};
 use crate::scene::sequence::SequencePlan;
 use std::path::Path;
 
@@ -23,6 +23,12 @@ impl Generator {
                     HumanMeta { height_m: m.nominal_height_m(), weight_kg: m.weight_kg.unwrap_or(0.0), model: m.name.clone() }
                 })
                 .collect(),
+            movers: plan.world.as_ref().map_or_else(Vec::new, |w| {
+                w.movers
+                    .iter()
+                    .map(|m| MoverMeta { kind: m.kind.name().into(), length_m: (2.0 * m.half.x) as f32, width_m: (2.0 * m.half.y) as f32 })
+                    .collect()
+            }),
             outputs: self.outputs(),
             provenance: self.provenance(plan),
         }

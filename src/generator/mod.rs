@@ -184,8 +184,8 @@ impl Generator {
             }
             _ => (self.inputs.grid.as_ref(), self.cfg.scene.floor_z_m.unwrap_or(0.0)),
         };
-        let world = match self.inputs.world {
-            Some(kind) => Some(Arc::new(World::build(kind, self.cfg.seed, index, &self.world_params())?)),
+        let mut world = match self.inputs.world {
+            Some(kind) => Some(World::build(kind, self.cfg.seed, index, &self.world_params())?),
             None => None,
         };
         let (grid, sensor_arc) = match &world {
@@ -196,7 +196,15 @@ impl Generator {
         let mut plan = sample_plan(&mut rng, &self.cfg, &inputs)?;
         plan.recording_start = if self.inputs.recording.is_some() { start } else { None };
         plan.floor_z_m = floor_z_m;
-        plan.world = world;
+        if let Some(w) = &mut world {
+            let humans = &plan.humans;
+            let duration = plan.times_s.last().copied().unwrap_or(0.0);
+            w.add_movers(duration, |t, out| {
+                out.clear();
+                out.extend(humans.iter().map(|h| h.position_m(t).truncate()));
+            });
+        }
+        plan.world = world.map(Arc::new);
         Ok(plan)
     }
 
@@ -255,7 +263,7 @@ impl Generator {
         }
         let t0 = std::time::Instant::now();
         if let Some(env) = &self.inputs.environment {
-            let world = EnvWorld { positions: &env.positions, meshes: &self.inputs.env_meshes, column_pose: &p.column_pose };
+            let world = EnvWorld { positions: p.env_positions(env), meshes: &self.inputs.env_meshes, column_pose: &p.column_pose };
             refine_rolling_background(&world, &p.background, &self.inputs.dirs, self.inputs.sensor.columns, &mut s.bg_hits);
         }
         self.timings.background_s += t0.elapsed().as_secs_f64();
@@ -314,6 +322,15 @@ impl Generator {
         out.sensor_velocity_mps = state.sensor_velocity_mps.to_array();
         out.sensor_yaw_rate_rps = state.sensor_yaw_rate_rps;
         out.humans.clone_from(&state.humans);
+        out.movers.clear();
+        if let Some(w) = &self.world {
+            out.movers.extend(w.movers.iter().map(|m| crate::output::MoverState {
+                position_m: m.position(state.t_s).to_array(),
+                heading_rad: m.heading_rad() as f32,
+                velocity_mps: m.velocity(state.t_s).as_vec3().to_array(),
+            }));
+        }
+        self.movers(state.humans.len(), out);
         if self.cfg.output.class {
             self.classes(out);
         }

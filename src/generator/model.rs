@@ -43,7 +43,7 @@ impl Generator {
             env_meshes: &self.inputs.env_meshes,
             env_world: match &self.inputs.environment {
                 Some(env) if !p.column_pose.is_empty() => {
-                    Some(EnvWorld { positions: &env.positions, meshes: &self.inputs.env_meshes, column_pose: &p.column_pose })
+                    Some(EnvWorld { positions: p.env_positions(env), meshes: &self.inputs.env_meshes, column_pose: &p.column_pose })
                 }
                 _ => None,
             },

@@ -3,6 +3,12 @@
 
 use super::Generator;
 use crate::output::semantickitti::{BACKGROUND, MOVING_PERSON, MOVING_SPEED_MPS, PERSON};
+use crate::scene::world::things::class::{BICYCLIST, CAR};
+use crate::scene::world::NO_MOVER;
+
+/// SemanticKITTI's moving car and moving bicyclist.
+const MOVING_CAR: u16 = 252;
+const MOVING_BICYCLIST: u16 = 253;
 use crate::output::{FrameOutput, NOT_SCORED};
 use crate::scene::sequence::SequencePlan;
 use crate::scene::world::WorldParams;
@@ -45,11 +51,25 @@ impl Generator {
     pub(super) fn classes(&self, out: &mut FrameOutput) {
         let n = out.range.len();
         let (bg, tri, meshes) = (&self.posed.background, &self.scratch.bg_hits.triangle, &self.inputs.env_meshes);
-        let moving: Vec<bool> = out.humans.iter().map(|h| (h.velocity_mps[0] as f64).hypot(h.velocity_mps[1] as f64) > MOVING_SPEED_MPS).collect();
+        let fast = |v: [f64; 3]| v[0].hypot(v[1]) > MOVING_SPEED_MPS;
+        let moving: Vec<bool> = out.humans.iter().map(|h| fast(h.velocity_mps.map(f64::from))).collect();
+        let people = out.humans.len();
+        let movers_moving: Vec<bool> = self.posed.mover_velocity.iter().map(|v| fast(v.to_array())).collect();
         out.class.clear();
         out.class.extend((0..n).map(|b| {
             let k = out.instance[b] as usize;
-            if out.range[b] <= 0.0 || out.label[b] == NOT_SCORED {
+            if out.range[b] <= 0.0 {
+                0
+            } else if k > people {
+                // A mover: its mesh's class, a car or a rider moving when it goes faster than a
+                // person walking.
+                let c = tri.get(b).map_or(0, |&t| meshes.get(bg.mesh_index_of_triangle(t)).map_or(0, |m| m.class));
+                match (c, movers_moving.get(k - people - 1).copied().unwrap_or(false)) {
+                    (CAR, true) => MOVING_CAR,
+                    (BICYCLIST, true) => MOVING_BICYCLIST,
+                    (c, _) => c,
+                }
+            } else if out.label[b] == NOT_SCORED {
                 0
             } else if k > 0 {
                 if moving.get(k - 1).copied().unwrap_or(false) { MOVING_PERSON as u16 } else { PERSON as u16 }
@@ -65,5 +85,57 @@ impl Generator {
                 }
             }
         }));
+    }
+
+    /// The beams whose return is a mover's (the background's return, on a mover's mesh): the
+    /// mover's instance, after the people's (people + 1 + its index); its world velocity added
+    /// to the background's velocity (`R^T V`, in the sensor frame of the beam's column); and a
+    /// rider's beams not scored (`/label` 255), as SemanticKITTI's riders are neither a hit
+    /// nor a false alarm for a pedestrian network. `/clean/instance` and `/clean/label` the
+    /// same on the clean returns.
+    pub(super) fn movers(&self, people: usize, out: &mut FrameOutput) {
+        let Some(w) = self.world.as_ref().filter(|w| !w.movers.is_empty()) else { return };
+        let (bg, tri, meshes) = (&self.posed.background, &self.scratch.bg_hits.triangle, &self.inputs.env_meshes);
+        let p = &self.posed;
+        let columns = self.inputs.sensor.columns;
+        let mover_of = |b: usize| -> Option<(usize, u16)> {
+            let t = *tri.get(b)?;
+            if t == crate::backend::NO_TRIANGLE || t >= bg.triangle_count() {
+                return None;
+            }
+            let d = bg.mesh_index_of_triangle(t);
+            let k = *w.mover_of_draw.get(d)?;
+            (k != NO_MOVER).then(|| (k as usize, meshes.get(d).map_or(0, |m| m.class)))
+        };
+        let velocity = out.velocity.len() == out.range.len();
+        for b in 0..out.range.len() {
+            if out.range[b] <= 0.0 || out.instance[b] != 0 || out.label[b] != 0 {
+                continue;
+            }
+            let Some((k, class)) = mover_of(b) else { continue };
+            out.instance[b] = (people + 1 + k) as u16;
+            if velocity {
+                let m = &p.column_motion[if p.column_motion.len() == 1 { 0 } else { b % columns }];
+                let v = m.rot.transpose() * p.mover_velocity[k];
+                for (o, dv) in out.velocity[b].iter_mut().zip(v.to_array()) {
+                    *o += dv as f32;
+                }
+            }
+            if class == BICYCLIST {
+                out.label[b] = NOT_SCORED;
+            }
+        }
+        if out.clean_range.len() == out.range.len() {
+            for b in 0..out.range.len() {
+                if out.clean_range[b] <= 0.0 || out.clean_instance[b] != 0 || out.clean_label[b] != 0 {
+                    continue;
+                }
+                let Some((k, class)) = mover_of(b) else { continue };
+                out.clean_instance[b] = (people + 1 + k) as u16;
+                if class == BICYCLIST {
+                    out.clean_label[b] = NOT_SCORED;
+                }
+            }
+        }
     }
 }

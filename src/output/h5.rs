@@ -11,6 +11,9 @@
 //! /humans/height_m f32[N]  /humans/weight_kg f32[N]  /humans/model str[N]
 //! /humans/position_m f64[T,N,3]  /humans/heading_rad f32[T,N]
 //! /humans/velocity_mps f32[T,N,3]  /humans/gait_phase f32[T,N]
+//! /movers/kind str[M]  /movers/length_m f32[M]  /movers/width_m f32[M]  (M movers, when any:
+//! /movers/position_m f64[T,M,3]  /movers/heading_rad f32[T,M]    instance N + 1 + j is mover j)
+//! /movers/velocity_mps f32[T,M,3]
 //! ```
 //!
 //! Per-beam datasets are chunked one frame per chunk. Each frame's chunks are shuffled and
@@ -92,6 +95,10 @@ pub(crate) struct H5Writer {
     heading_rad: Vec<f32>,
     velocity_mps: Vec<f32>,
     gait_phase: Vec<f32>,
+    /// The movers' states, frame after frame.
+    mover_position_m: Vec<f64>,
+    mover_heading_rad: Vec<f32>,
+    mover_velocity_mps: Vec<f32>,
 }
 
 fn h5err(name: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
@@ -207,7 +214,7 @@ impl H5Writer {
             ));
         }
         specs.push((Grid::Label, "label", 0, "1", "0 = background or no return, 1 = human, 255 = not scored (a recorded background's own person or other return that scene.ignore_moving or scene.ignore_labels marks: losses and evaluation skip it)"));
-        specs.push((Grid::Instance, "instance", 0, "1", "0 = none, k = k-th human of /humans"));
+        specs.push((Grid::Instance, "instance", 0, "1", "0 = none, k <= N = k-th human of /humans, k > N = mover k - N of /movers"));
         if meta.outputs.class {
             specs.push((Grid::Class, "class", 0, "1", "SemanticKITTI class: 30 person, 254 moving person, else the class of the background surface hit (50 where the background does not say: a glTF without extras.class, a recording); 0 = no return or not scored"));
         }
@@ -318,6 +325,9 @@ impl H5Writer {
             heading_rad: Vec::with_capacity(t * n),
             velocity_mps: Vec::with_capacity(t * n * 3),
             gait_phase: Vec::with_capacity(t * n),
+            mover_position_m: Vec::with_capacity(t * meta.movers.len() * 3),
+            mover_heading_rad: Vec::with_capacity(t * meta.movers.len()),
+            mover_velocity_mps: Vec::with_capacity(t * meta.movers.len() * 3),
         })
     }
 
@@ -370,6 +380,11 @@ impl H5Writer {
             self.heading_rad.push(hs.heading_rad);
             self.velocity_mps.extend_from_slice(&hs.velocity_mps);
             self.gait_phase.push(hs.gait_phase);
+        }
+        for ms in &f.movers {
+            self.mover_position_m.extend_from_slice(&ms.position_m);
+            self.mover_heading_rad.push(ms.heading_rad);
+            self.mover_velocity_mps.extend_from_slice(&ms.velocity_mps);
         }
         Ok(())
     }
@@ -464,6 +479,27 @@ impl H5Writer {
                     attr_str(ds, "units", units, &name)?;
                 }
                 attr_str(ds, "description", desc, &name)?;
+            }
+            let m = meta.movers.len();
+            if m > 0 {
+                let mg = group(&file, "movers").map_err(&e)?;
+                let kind = meta.movers.iter().map(|v| vlu(&name, &v.kind)).collect::<Result<Vec<_>>>()?;
+                let length: Vec<f32> = meta.movers.iter().map(|v| v.length_m).collect();
+                let width: Vec<f32> = meta.movers.iter().map(|v| v.width_m).collect();
+                let recs: [(&str, &str, Dataset); 6] = [
+                    ("", "What it is (car, cyclist); its instance is the number of people + 1 + its index", small(&mg, "kind", &[m], &kind).map_err(&e)?),
+                    ("m", "Length of its footprint", small(&mg, "length_m", &[m], &length).map_err(&e)?),
+                    ("m", "Width of its footprint", small(&mg, "width_m", &[m], &width).map_err(&e)?),
+                    ("m", "Centre of its footprint on the ground, world frame", small(&mg, "position_m", &[t, m, 3], &self.mover_position_m).map_err(&e)?),
+                    ("rad", "Heading in the world frame", small(&mg, "heading_rad", &[t, m], &self.mover_heading_rad).map_err(&e)?),
+                    ("m/s", "Velocity in the world frame", small(&mg, "velocity_mps", &[t, m, 3], &self.mover_velocity_mps).map_err(&e)?),
+                ];
+                for (units, desc, ds) in &recs {
+                    if !units.is_empty() {
+                        attr_str(ds, "units", units, &name)?;
+                    }
+                    attr_str(ds, "description", desc, &name)?;
+                }
             }
         }
         // Every handle into the file must be gone before the close, or libhdf5 defers it.

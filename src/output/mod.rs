@@ -42,6 +42,9 @@ pub struct SequenceMeta {
     pub frames: usize,
     /// The people of the sequence; instance k (1-based) is `humans[k - 1]`.
     pub humans: Vec<HumanMeta>,
+    /// The other movers (a built-in street's cars and cyclists); instance `N + 1 + j` is
+    /// `movers[j]`, N people.
+    pub movers: Vec<MoverMeta>,
     /// Which optional per-beam outputs are present in every frame.
     pub outputs: OutputSet,
     /// `/velocity` follows the `rigid` model (the sensor's yaw rate subtracted as well).
@@ -59,6 +62,24 @@ pub struct HumanMeta {
     pub weight_kg: f32,
     /// Model name (file stem of the glTF, e.g. `h1700_w60`).
     pub model: String,
+}
+
+/// One mover of a sequence (a car, a cyclist).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MoverMeta {
+    /// What it is: `car`, `cyclist`.
+    pub kind: String,
+    /// Its footprint's length and width, m.
+    pub length_m: f32,
+    pub width_m: f32,
+}
+
+/// State of one mover at one frame (world frame): the centre of its footprint on the ground.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MoverState {
+    pub position_m: [f64; 3],
+    pub heading_rad: f32,
+    pub velocity_mps: [f32; 3],
 }
 
 /// The `/label` of a beam that is not scored: its return is a recorded background's that
@@ -102,7 +123,7 @@ pub struct FrameOutput {
     /// 0 background / no return, 1 human, [`NOT_SCORED`] a recorded background's own
     /// person (or other return) that is not scored.
     pub label: Vec<u8>,
-    /// 0 none, k = k-th human.
+    /// 0 none, k <= N: the k-th person, k > N: mover k - N (N people).
     pub instance: Vec<u16>,
     /// Sensor frame xyz, metres (present iff `OutputSet::xyz`).
     pub xyz: Vec<[f32; 3]>,
@@ -132,6 +153,8 @@ pub struct FrameOutput {
     pub sensor_yaw_rate_rps: f64,
     /// One entry per person of the sequence (same order as `SequenceMeta::humans`).
     pub humans: Vec<HumanState>,
+    /// One entry per mover (same order as `SequenceMeta::movers`).
+    pub movers: Vec<MoverState>,
 }
 
 impl FrameOutput {

@@ -230,8 +230,8 @@ pub fn intensity_png(intensity: &[f32], range: &[f32], rows: usize, columns: usi
     })
 }
 
-/// Label image: returns in grey (bright = near, dark = far, log scale), each human instance in its own
-/// saturated colour ([`instance_colour`]), black = no return.
+/// Label image: returns in grey (bright = near, dark = far, log scale), each instance (a person,
+/// a mover) in its own saturated colour ([`instance_colour`]), black = no return.
 ///
 /// Panics if a grid's length is not `rows * columns`.
 pub fn label_png(
@@ -313,8 +313,8 @@ pub fn ego_velocity(world_from_sensor: &[[f64; 4]; 4], sensor_velocity_mps: [f64
 }
 
 /// Bird's-eye view of a frame, sensor frame, +x up, +y left, [`BEV_HALF_WIDTH_M`] around the
-/// sensor: background returns grey, each person's returns in their instance colour, each
-/// person's ground velocity as an arrow from their position (1 s of walking), the sensor as a
+/// sensor: background returns grey, each person's (and mover's) returns in their instance
+/// colour, each person's ground velocity as an arrow from their position (1 s of walking), the sensor as a
 /// white triangle with its own velocity arrow. `people` holds per person (sensor frame) the
 /// position and the velocity over the ground.
 pub fn bev_png(xyz: &[[f32; 3]], range: &[f32], instance: &[u16], people: &[([f64; 3], [f64; 3])], sensor_velocity: [f64; 3]) -> RgbImage {

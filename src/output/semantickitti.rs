@@ -173,13 +173,16 @@ impl SemanticKittiWriter {
                 self.points.extend_from_slice(&c.to_le_bytes());
             }
             let k = f.instance[b] as usize;
-            let class = if f.label.get(b) == Some(&NOT_SCORED) {
+            let class_of = f.class.get(b).copied().filter(|&c| c != 0);
+            let class = if f.label.get(b) == Some(&NOT_SCORED) && class_of.is_none() {
                 self.counts.unlabeled += 1;
                 UNLABELED
-            } else if k == 0 {
+            } else if f.label.get(b) != Some(&1) {
+                // The background, a mover (its instance above the people's), or a rider (not
+                // scored, but of its own class).
                 self.counts.background += 1;
-                match f.class.get(b) {
-                    Some(&c) if c != 0 => {
+                match class_of {
+                    Some(c) => {
                         *self.counts.background_classes.entry(c).or_insert(0) += 1;
                         c as u32
                     }

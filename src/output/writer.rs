@@ -214,6 +214,14 @@ impl SequenceWriter {
                 m.sensor.columns
             )));
         }
+        if f.movers.len() != m.movers.len() {
+            return Err(Error::Internal(format!(
+                "sequence {} frame {index}: {} mover states for {} movers",
+                m.index,
+                f.movers.len(),
+                m.movers.len()
+            )));
+        }
         if f.humans.len() != m.humans.len() {
             return Err(Error::Internal(format!(
                 "sequence {} frame {index}: {} human states for {} humans",
@@ -235,9 +243,10 @@ impl SequenceWriter {
                 counts[k as usize] += 1;
             }
         }
-        if max as usize > n {
+        let movers = self.meta.movers.len();
+        if max as usize > n + movers {
             return Err(Error::Internal(format!(
-                "sequence {} frame {index}: instance {max} but only {n} humans",
+                "sequence {} frame {index}: instance {max} but only {n} humans and {movers} movers",
                 self.meta.index
             )));
         }

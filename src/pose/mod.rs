@@ -164,9 +164,21 @@ pub struct PoseStage {
     /// Per drawn person: joint matrices, placed joints and bounding sphere (in-place poses).
     person_scratch: Vec<PersonScratch>,
     env_sensor: Vec<[f32; 3]>,
+    /// With movers in the world: the environment's world positions this frame (the still
+    /// part as built, each mover where it is at its own time); empty without movers.
+    pub env_world: Vec<DVec3>,
+    /// Per mover of the world: the time it was placed at, and its world velocity then.
+    pub mover_time: Vec<f64>,
+    pub mover_velocity: Vec<DVec3>,
 }
 
 impl PoseStage {
+    /// The world positions of `env` as this frame placed them: with movers, where they are
+    /// now; else `env`'s own.
+    pub fn env_positions<'a>(&'a self, env: &'a Environment) -> &'a [DVec3] {
+        if self.env_world.len() == env.positions.len() { &self.env_world } else { &env.positions }
+    }
+
     /// Poses the background and the people of a frame into the sensor frame (f64 -> f32),
     /// skipping people no beam can reach, and loads the recorded background frame, if any.
     /// With `rolling`, every vertex is placed at the time its column is fired.
@@ -209,18 +221,44 @@ impl PoseStage {
             }
         }
         s.background.clear();
+        s.env_world.clear();
+        s.mover_time.clear();
+        s.mover_velocity.clear();
         if let Some(env) = inp.environment {
+            // Movers: each placed whole at its own time (under a rolling sweep, when the
+            // column of its centre is fired), into this frame's copy of the environment.
+            let movers = plan.world.as_deref().map_or(&[][..], |w| &w.movers[..]);
+            if !movers.is_empty() {
+                s.env_world.extend_from_slice(&env.positions);
+                for m in movers {
+                    let mut t = state.t_s;
+                    if rolling {
+                        // Two fixed-point steps from the frame's start, as for a person.
+                        let c0 = sensor_from_world.transform_point3(m.position(t));
+                        let u0 = sweep.u_of(c0.x, c0.y);
+                        t = sweep.time_at(u0);
+                        for _ in 0..2 {
+                            let c = plan.sensor.pose(t).inverse().transform_point3(m.position(t));
+                            t = sweep.time_at(sweep.unwrap_near(sweep.u_of(c.x, c.y), u0));
+                        }
+                    }
+                    m.place(t, &mut s.env_world[m.first_vertex..m.first_vertex + m.local.len()]);
+                    s.mover_time.push(t);
+                    s.mover_velocity.push(m.velocity(t));
+                }
+            }
+            let positions = if s.env_world.is_empty() { &env.positions } else { &s.env_world };
             // A sensor that moves during the sweep sees each vertex from where it is when the
             // vertex's column is fired; a still one from one place.
             let end = plan.sensor.pose(sweep.time_at(sweep.columns as f64));
             let moves = rolling && end != state.world_from_sensor;
             s.column_pose.clear();
             if moves {
-                sweep.place_static(&env.positions, |t| plan.sensor.pose(t).inverse(), &mut s.env_sensor);
+                sweep.place_static(positions, |t| plan.sensor.pose(t).inverse(), &mut s.env_sensor);
                 s.column_pose.extend((0..sweep.columns).map(|c| plan.sensor.pose(sweep.column_time(c))));
             } else {
                 s.env_sensor.clear();
-                s.env_sensor.extend(env.positions.iter().map(|p| sensor_from_world.transform_point3(*p).as_vec3().to_array()));
+                s.env_sensor.extend(positions.iter().map(|p| sensor_from_world.transform_point3(*p).as_vec3().to_array()));
             }
             for m in inp.env_meshes {
                 let verts = &s.env_sensor[m.first_vertex..m.first_vertex + m.vertex_count];

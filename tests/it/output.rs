@@ -33,6 +33,7 @@ fn meta(index: usize, frames: usize, humans: usize, outputs: OutputSet) -> Seque
                 model: if k == 0 { "h1700_w60".into() } else { format!("odd<&\"'>{k}") },
             })
             .collect(),
+        movers: Vec::new(),
         outputs,
         rigid_velocity: false,
         provenance: vec![("background".into(), "recording <a&b>.pcap".into()), ("first_frame".into(), "7".into())],

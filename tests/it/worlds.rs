@@ -1,7 +1,8 @@
 //! The built-in worlds end to end: `scene.background = "street"` / `"indoor"` in a config file
 //! (a name, not a path beside it), each sequence its own recorded layout, `/class` agreeing with
-//! `/label` and with the SemanticKITTI export, people who stand and walk in company, and the
-//! same bytes at any thread count.
+//! `/label` and with the SemanticKITTI export, cars and cyclists driving with their own
+//! instances and velocities, people who stand and walk in company, and the same bytes at any
+//! thread count.
 
 use crate::common::{expect_input_error, ok, pedscan, pedscan_with_env};
 use std::path::Path;
@@ -51,13 +52,47 @@ fn a_street_per_sequence_with_classes_that_agree_with_the_labels() {
         let label: Vec<u8> = f.dataset("label").unwrap().read_raw().unwrap();
         let class: Vec<u16> = f.dataset("class").unwrap().read_raw().unwrap();
         let instance: Vec<u16> = f.dataset("instance").unwrap().read_raw().unwrap();
+        let velocity: Vec<f32> = f.dataset("velocity").unwrap().read_raw().unwrap();
+        let people = f.dataset("humans/height_m").unwrap().shape()[0];
+        let kinds: Vec<hdf5::types::VarLenUnicode> = f.dataset("movers/kind").unwrap().read_raw().unwrap();
+        let mover_velocity: Vec<f32> = f.dataset("movers/velocity_mps").unwrap().read_raw().unwrap();
+        let sensor_velocity: Vec<f64> = f.dataset("sensor/velocity_mps").unwrap().read_raw().unwrap();
+        let pose: Vec<f64> = f.dataset("sensor/world_from_sensor").unwrap().read_raw().unwrap();
+        let movers = kinds.len();
+        let mut mover_classes = std::collections::BTreeSet::new();
         for g in 0..range.len() {
             let person = class[g] == 30 || class[g] == 254;
             assert_eq!(label[g] == 1, person, "seq {seq} beam {g}: label {} class {}", label[g], class[g]);
             assert_eq!(range[g] == 0.0, class[g] == 0, "seq {seq} beam {g}: range {} class {}", range[g], class[g]);
-            assert_eq!(instance[g] > 0, person);
+            let k = instance[g] as usize;
+            assert_eq!(person, (1..=people).contains(&k), "seq {seq} beam {g}: instance {k} of {people} people, class {}", class[g]);
+            if k > people {
+                // A mover's beam: a car or a cyclist (the rider not scored), moving with it.
+                assert!(k <= people + movers, "instance {k}: {people} people, {movers} movers");
+                let rider = class[g] == 31 || class[g] == 253;
+                assert!(rider || [10, 252, 11].contains(&class[g]), "mover {k}: class {}", class[g]);
+                assert_eq!(label[g] == 255, rider, "mover {k}: label {} class {}", label[g], class[g]);
+                mover_classes.insert(class[g]);
+                // Its velocity relative to the sensor: R^T (V_m - V_s), the street straight
+                // (no yaw rate); within what the mover's braking changes over a sweep, and
+                // upward within a crossing ramp's slope (0.12 m over 0.9 m: the beam sees the
+                // mover when its column fires, the frame's record is at the frame's start).
+                let (t, j) = (g / beams, k - people - 1);
+                let v_m: Vec<f64> = (0..3).map(|a| mover_velocity[(t * movers + j) * 3 + a] as f64).collect();
+                let rel: Vec<f64> = (0..3).map(|a| v_m[a] - sensor_velocity[t * 3 + a]).collect();
+                for a in 0..3 {
+                    let expect: f64 = (0..3).map(|r| pose[t * 16 + r * 4 + a] * rel[r]).sum();
+                    let tolerance = if a == 2 { 0.5 + 0.14 * v_m[0].hypot(v_m[1]) } else { 0.5 };
+                    assert!((velocity[g * 3 + a] as f64 - expect).abs() < tolerance, "mover {k} frame {t}: velocity[{a}] {} vs {expect}", velocity[g * 3 + a]);
+                }
+            } else if k == 0 {
+                assert_eq!(label[g], 0, "seq {seq} beam {g}");
+            }
             seen.insert(class[g]);
         }
+        // Every street shows a car and a cyclist (its bicycle or its rider) driving.
+        assert!(mover_classes.contains(&252) || mover_classes.contains(&10), "seq {seq}: mover classes {mover_classes:?}");
+        assert!(mover_classes.iter().any(|c| [11, 31, 253].contains(c)), "seq {seq}: mover classes {mover_classes:?}");
         for t in 0..3 {
             let labels = u32s(&dir.join(format!("a/semantickitti/sequences/{seq:02}/labels/{t:06}.label")));
             let returned: Vec<u16> = (0..beams).filter(|&b| range[t * beams + b] > 0.0).map(|b| class[t * beams + b]).collect();

@@ -7,9 +7,12 @@
 //!
 //! A world is built once per sequence ([`World::build`]): its triangles (an [`Environment`],
 //! rendered like a glTF background), its walkable area (sidewalks, crossings, plazas; halls and
-//! corridors) and, in the street, the sensor's path (a vehicle in its lane).
+//! corridors) and, in the street, the sensor's path (a vehicle in its lane). Once the
+//! sequence's people are planned, the street's traffic drives around them
+//! ([`World::add_movers`]).
 
 pub mod indoor;
+pub mod movers;
 pub mod shapes;
 pub mod street;
 pub mod things;
@@ -22,6 +25,7 @@ use rand::SeedableRng;
 use std::collections::BTreeMap;
 
 pub use crate::config::WorldKind;
+pub use movers::{Mover, MoverKind};
 
 /// What a world is built for besides its random stream.
 #[derive(Clone, Copy, Debug)]
@@ -53,7 +57,17 @@ pub struct World {
     pub counts: BTreeMap<&'static str, usize>,
     /// Its footprint (xy bounds), m.
     pub bounds: (DVec2, DVec2),
+    /// The movers driving through it ([`World::add_movers`]); their meshes are the last of
+    /// `env` and `draws`.
+    pub movers: Vec<Mover>,
+    /// Per draw: the mover it belongs to, or [`NO_MOVER`].
+    pub mover_of_draw: Vec<u32>,
+    /// The traffic drawn with the layout, until it drives.
+    traffic: Option<street::Traffic>,
 }
+
+/// [`World::mover_of_draw`] of a draw of the still world.
+pub const NO_MOVER: u32 = u32::MAX;
 
 impl std::fmt::Debug for World {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -70,6 +84,8 @@ impl PartialEq for World {
 
 /// Keys the world's random stream apart from the people's (same seed and index).
 const WORLD_STREAM_KEY: u64 = 0x5752_4c44_5f76_3031; // "WRLD_v01"
+/// Keys the traffic's placing apart from both.
+const MOVERS_STREAM_KEY: u64 = 0x4d4f_5652_5f76_3031; // "MOVR_v01"
 
 /// The random stream of sequence `index`'s world: its own, so the layout does not change when
 /// anything about the people does.
@@ -84,9 +100,12 @@ impl World {
     pub fn build(kind: WorldKind, seed: u64, index: usize, p: &WorldParams) -> Result<World> {
         let mut rng = world_rng(seed, index);
         let mut counts = BTreeMap::new();
-        let (env, sensor) = match kind {
-            WorldKind::Street => street::build(&mut rng, p, &mut counts),
-            WorldKind::Indoor => (indoor::build(&mut rng, p, &mut counts), None),
+        let (env, sensor, traffic) = match kind {
+            WorldKind::Street => {
+                let (env, sensor, traffic) = street::build(&mut rng, p, &mut counts);
+                (env, sensor, Some(traffic))
+            }
+            WorldKind::Indoor => (indoor::build(&mut rng, p, &mut counts), None, None),
         };
         let what = || format!("scene.background = \"{}\" (sequence {index})", kind.name());
         if env.positions.iter().any(|v| !v.is_finite()) {
@@ -112,7 +131,43 @@ impl World {
             hi = hi.max(v.truncate());
         }
         let draws = env.draws();
-        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, bounds: (lo, hi) })
+        let mover_of_draw = vec![NO_MOVER; draws.len()];
+        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
+    }
+
+    /// Drives the world's traffic over `duration_s` around the people at their floor
+    /// positions (`people(t, out)`), on a random stream of its own (the run's seed and the
+    /// sequence's index), and adds the movers kept to the environment. Does nothing in a world
+    /// without traffic or a second time.
+    pub fn add_movers(&mut self, duration_s: f64, people: impl Fn(f64, &mut Vec<DVec2>)) {
+        let Some(traffic) = self.traffic.take() else { return };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed ^ MOVERS_STREAM_KEY);
+        rng.set_stream(self.index as u64);
+        let sensor = self.sensor;
+        let sensor_x = |t: f64| sensor.map_or(0.0, |s| s.position(t).x);
+        let kept = movers::drive(&mut rng, &traffic.movers, &traffic.lane, duration_s, sensor_x, people);
+        let mut added = Environment::default();
+        for (i, u0, table) in kept {
+            let spec = &traffic.movers[i];
+            let first = self.env.positions.len();
+            let m = movers::mover(spec, &traffic.lane, u0, table, first);
+            let mut placed = vec![DVec3::ZERO; m.local.len()];
+            m.place(0.0, &mut placed);
+            self.env.positions.extend_from_slice(&placed);
+            for mesh in &spec.mesh.meshes {
+                let mut mesh = mesh.clone();
+                mesh.indices.iter_mut().for_each(|k| *k += first as u32);
+                mesh.name = format!("mover {} {} {}", self.movers.len(), m.kind.name(), mesh.name);
+                added.meshes.push(mesh.clone());
+                self.env.meshes.push(mesh);
+            }
+            let draws = added.draws();
+            self.mover_of_draw.extend(std::iter::repeat_n(self.movers.len() as u32, draws.len()));
+            self.draws.extend(draws);
+            added.meshes.clear();
+            *self.counts.entry(if m.kind == MoverKind::Car { "car driving" } else { "cyclist riding" }).or_insert(0) += 1;
+            self.movers.push(m);
+        }
     }
 
     /// One line for the sequence's XML: triangles and the things placed, by kind.

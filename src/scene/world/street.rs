@@ -6,8 +6,10 @@
 //! facades (A-frame signs, planters, bicycles, bins, crates, café tables). Behind the
 //! sidewalks, lot by lot: buildings (ground-floor walls with door recesses, piers, cornices,
 //! set back or not), alleys, plazas furnished like the sidewalks, and green slopes behind fences.
-//! The sensor drives in a lane, in either direction, along the whole street.
+//! The sensor drives in a lane, in either direction, along the whole street; cars and cyclists
+//! come the other way ([`super::movers`]).
 
+use super::movers::{self, Lane, MoverSpec};
 use super::shapes::Builder;
 use super::things::{self, class, material};
 use super::{chance, pick, uni, WorldParams};
@@ -15,6 +17,7 @@ use crate::scene::{Environment, Trajectory};
 use glam::{DVec2, DVec3};
 use rand::{Rng, RngExt};
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Height of the road below the sidewalks (the curb), m.
@@ -58,8 +61,16 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
     *counts.entry(what).or_insert(0) += 1;
 }
 
-/// Builds one street; the sensor's trajectory along it.
-pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>) {
+/// What the street's traffic is drawn from: the oncoming lane and the movers for it.
+pub struct Traffic {
+    pub lane: Arc<Lane>,
+    pub movers: Vec<MoverSpec>,
+}
+
+/// Builds one street; the sensor's trajectory along it, and its traffic: 2-6 cars and 1-3
+/// cyclists for the oncoming lane (drawn after everything else, so the layout of a seed is
+/// the same with or without them).
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
     let run = speed * p.duration_s.max(0.0);
@@ -98,8 +109,33 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         speed_mps: speed,
         yaw_rate_rps: 0.0,
     };
-    (b.finish(), Some(sensor))
+    // Oncoming traffic in the other half of the road, cyclists by its curb.
+    let (oy, half_lane, curb_side) = if dir > 0.0 { (0.5 * (mid + hi), 0.5 * (hi - mid), 1.0) } else { (0.5 * (lo + mid), 0.5 * (mid - lo), -1.0) };
+    let lane = Arc::new(Lane {
+        y: oy,
+        dir: -dir,
+        x0: l.x0,
+        x1: l.x1,
+        road_z: ROAD_Z,
+        crossings: l.crossings.clone(),
+        ramp_m: RAMP_M,
+        rise_m: -ROAD_Z,
+        half_road_m: road_w * 0.5,
+        bike_offset_m: curb_side * (half_lane - 0.6).max(0.0),
+    });
+    let cars = 2 + (rng.random::<f64>() * 5.0) as usize;
+    let cyclists = 1 + (rng.random::<f64>() * 3.0) as usize;
+    let mut movers = vec![movers::car(rng), movers::cyclist(rng)];
+    let mut rest: Vec<bool> = std::iter::repeat_n(true, cars - 1).chain(std::iter::repeat_n(false, cyclists - 1)).collect();
+    while !rest.is_empty() {
+        let k = ((rng.random::<f64>() * rest.len() as f64) as usize).min(rest.len() - 1);
+        movers.push(if rest.swap_remove(k) { movers::car(rng) } else { movers::cyclist(rng) });
+    }
+    (b.finish(), Some(sensor), Traffic { lane, movers })
 }
+
+/// Length of a raised crossing's ramps, m.
+const RAMP_M: f64 = 0.9;
 
 /// Road, lane markings, curbs, sidewalks and raised crossings.
 fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
@@ -133,7 +169,7 @@ fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
         let slab = material(rng, class::ROAD);
         let (a, c) = (cx - cw * 0.5, cx + cw * 0.5);
         b.quad(slab, [DVec3::new(a, -w, 0.0), DVec3::new(c, -w, 0.0), DVec3::new(c, w, 0.0), DVec3::new(a, w, 0.0)]);
-        for (e, out) in [(a, a - 0.9), (c, c + 0.9)] {
+        for (e, out) in [(a, a - RAMP_M), (c, c + RAMP_M)] {
             b.quad(slab, [DVec3::new(e, -w, 0.0), DVec3::new(out, -w, ROAD_Z), DVec3::new(out, w, ROAD_Z), DVec3::new(e, w, 0.0)]);
         }
         let mut y = -w + 0.3;

@@ -146,3 +146,106 @@ fn world_names_are_exact() {
         assert_eq!(WorldKind::of_background(Path::new(p)), None, "{p}");
     }
 }
+
+/// A street's lane and a person standing in the middle of its first crossing ahead of the
+/// oncoming traffic, for the whole of `duration` s, and the world with its movers driven.
+fn street_with_a_person_on_a_crossing(seed: u64, index: usize, duration: f64) -> (World, DVec2) {
+    let p = WorldParams { duration_s: duration, ..params() };
+    let mut w = World::build(WorldKind::Street, seed, index, &p).unwrap();
+    let lane = w.traffic.as_ref().unwrap().lane.clone();
+    let s = w.sensor.unwrap().position(0.5 * duration).x;
+    // The crossing nearest the sensor halfway through.
+    let c = lane.crossings.iter().min_by(|a, b| (a.0 - s).abs().total_cmp(&(b.0 - s).abs())).unwrap();
+    let person = DVec2::new(c.0, lane.y);
+    w.add_movers(duration, |_, out| {
+        out.clear();
+        out.push(person);
+    });
+    (w, person)
+}
+
+#[test]
+fn movers_velocities_are_the_derivatives_of_their_positions() {
+    let (w, _) = street_with_a_person_on_a_crossing(4, 1, 30.0);
+    assert!(w.movers.len() >= 2, "{}", w.summary());
+    let h = 1e-4;
+    let mut checked = 0;
+    for m in &w.movers {
+        for k in 0..600 {
+            let t = 0.05 * k as f64 + 0.0123;
+            let (a, b) = (m.position(t - h), m.position(t + h));
+            // Not across the lane's wrap or a ramp's edge (where the slope, and so the
+            // vertical speed, changes).
+            if (b - a).length() > 1.0 || m.lane.ground(a.x).1 != m.lane.ground(b.x).1 {
+                continue;
+            }
+            let fd = (b - a) / (2.0 * h);
+            let v = m.velocity(t);
+            assert!((fd - v).length() < 1e-4 * (1.0 + v.length()), "{:?} at {t}: {fd} vs {v}", m.kind);
+            // Level, along the lane, and on the ground under it.
+            assert!(v.y == 0.0 && (m.position(t).z - m.lane.ground(m.position(t).x).0).abs() < 1e-12);
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+}
+
+#[test]
+fn movers_stop_for_a_person_on_a_crossing_and_keep_their_distance() {
+    let mut stopped = 0;
+    for index in 0..4 {
+        let (w, person) = street_with_a_person_on_a_crossing(6, index, 40.0);
+        assert!(w.movers.iter().any(|m| m.kind == MoverKind::Car) && w.movers.iter().any(|m| m.kind == MoverKind::Cyclist), "{}", w.summary());
+        let lane = &w.movers[0].lane;
+        for k in 0..=800 {
+            let t = 0.05 * k as f64;
+            for (i, m) in w.movers.iter().enumerate() {
+                let c = m.position(t).truncate();
+                // Never over the person (a footprint grown by the person's radius).
+                let d = (person - c).abs();
+                assert!(d.x >= m.half.x + movers::PERSON_RADIUS_M || d.y >= m.half.y + movers::PERSON_RADIUS_M, "sequence {index}: {:?} {i} on the person at {t} s", m.kind);
+                // Never into the one ahead: footprints apart along the lane.
+                for o in &w.movers[i + 1..] {
+                    let gap = (lane.u_of(o.position(t).x) - lane.u_of(c.x)).rem_euclid(lane.length());
+                    let gap = gap.min(lane.length() - gap);
+                    assert!(gap > m.half.x + o.half.x, "sequence {index}: movers {gap:.2} m apart at {t} s");
+                }
+            }
+        }
+        // Traffic queues before the blocked crossing: somebody stands still there at the end.
+        if w.movers.iter().any(|m| m.velocity(40.0).length() == 0.0) {
+            stopped += 1;
+        }
+    }
+    assert!(stopped >= 3, "movers that stopped for the person: {stopped} of 4 streets");
+}
+
+#[test]
+fn a_car_and_a_cyclist_pass_the_sensor_in_every_street() {
+    for index in 0..8 {
+        let mut w = World::build(WorldKind::Street, 13, index, &params()).unwrap();
+        w.add_movers(3.0, |_, out| out.clear());
+        let s = w.sensor.unwrap().position(1.5).truncate();
+        for kind in [MoverKind::Car, MoverKind::Cyclist] {
+            let near = w.movers.iter().filter(|m| m.kind == kind).map(|m| m.position(1.5).truncate().distance(s)).fold(f64::INFINITY, f64::min);
+            assert!(near < 45.0, "sequence {index}: the nearest {kind:?} {near:.1} m from the sensor");
+        }
+        // Their meshes are the environment's last, each draw naming its mover.
+        let movers: Vec<u32> = w.mover_of_draw.iter().copied().filter(|&k| k != NO_MOVER).collect();
+        assert_eq!(movers.first(), Some(&0));
+        assert_eq!(*movers.last().unwrap() as usize + 1, w.movers.len());
+        assert!(movers.windows(2).all(|p| p[1] == p[0] || p[1] == p[0] + 1));
+        for (d, &k) in w.draws.iter().zip(&w.mover_of_draw) {
+            if k != NO_MOVER {
+                let m = &w.movers[k as usize];
+                assert!(d.first_vertex >= m.first_vertex && d.first_vertex + d.vertex_count <= m.first_vertex + m.local.len());
+                let classes: &[u16] = if m.kind == MoverKind::Car { &[10] } else { &[11, 31] };
+                assert!(classes.contains(&d.class), "{:?}: class {}", m.kind, d.class);
+            }
+        }
+        // A second call adds nothing.
+        let n = w.movers.len();
+        w.add_movers(3.0, |_, out| out.clear());
+        assert_eq!(w.movers.len(), n);
+    }
+}

@@ -13,6 +13,8 @@ use rand::{Rng, RngExt};
 pub mod class {
     pub const CAR: u16 = 10;
     pub const BICYCLE: u16 = 11;
+    /// A person riding a bicycle (the bicycle itself is [`BICYCLE`]).
+    pub const BICYCLIST: u16 = 31;
     pub const ROAD: u16 = 40;
     pub const SIDEWALK: u16 = 48;
     pub const OTHER_GROUND: u16 = 49;

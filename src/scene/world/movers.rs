@@ -1,0 +1,366 @@
+//! Other movers: cars driving and cyclists riding the street's oncoming lane, one after the
+//! other. Each is a rigid mesh of its own (a cyclist's rider and bicycle together), held level
+//! and following the ground under it (the raised crossings' ramps), with its own instance id
+//! and per-beam velocity in the frames.
+//!
+//! A lane's movers drive by the Intelligent Driver Model (Treiber, Hennecke and Helbing 2000):
+//! each keeps a time gap to the one ahead and stops at a crossing while somebody is on it or
+//! about to step on it; the people's plans are known before the movers drive. Speeds and
+//! positions come from one table per mover of constant-acceleration steps, so a position and
+//! its velocity are exact derivatives of each other. A mover that would still touch a person
+//! (somebody stepping out under its bumper) is left out of the sequence. The lane wraps: a
+//! mover driving off one end of the street comes back in at the other, farther from the sensor
+//! than it sees (`street::MARGIN_M`), so a long sequence keeps its traffic.
+
+use super::shapes::Builder;
+use super::things::{self, class, material};
+use super::uni;
+use crate::scene::Environment;
+use glam::{DVec2, DVec3};
+use rand::{Rng, RngExt};
+use std::sync::Arc;
+
+/// What a mover is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum MoverKind {
+    Car,
+    Cyclist,
+}
+
+impl MoverKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            MoverKind::Car => "car",
+            MoverKind::Cyclist => "cyclist",
+        }
+    }
+}
+
+/// A lane the movers follow one another along: world x from `x0` to `x1` at `y`, toward +x
+/// (`dir` 1) or -x (-1); leaving one end a mover comes back in at the other.
+#[derive(Clone, Debug)]
+pub struct Lane {
+    pub y: f64,
+    pub dir: f64,
+    pub x0: f64,
+    pub x1: f64,
+    /// Height of the road, m.
+    pub road_z: f64,
+    /// Raised crossings across the road: centre x and width; their ramps' length and the
+    /// height they rise to above the road.
+    pub crossings: Vec<(f64, f64)>,
+    pub ramp_m: f64,
+    pub rise_m: f64,
+    /// Half the road's width: somebody within it (or [`WAITING_M`] of its curbs) by a
+    /// crossing is on it.
+    pub half_road_m: f64,
+    /// Where cyclists ride: this far beside the lane's centre (toward its curb), m.
+    pub bike_offset_m: f64,
+}
+
+/// How far beside a crossing or its curbs a person counts as about to step on it, m.
+pub const WAITING_M: f64 = 1.0;
+
+/// Where a mover stops before a crossing it yields at: its front this far from the crossing, m.
+const STOP_LINE_M: f64 = 1.5;
+
+/// A person's radius in the movers' check, m (a mover's footprint grown by it never holds a
+/// person's position).
+pub const PERSON_RADIUS_M: f64 = 0.35;
+
+/// The drive table's step, s.
+const STEP_S: f64 = 0.05;
+
+impl Lane {
+    pub fn length(&self) -> f64 {
+        self.x1 - self.x0
+    }
+    /// World x of lane position `u` (m along the direction of travel from the lane's start).
+    pub fn x_of(&self, u: f64) -> f64 {
+        let w = u.rem_euclid(self.length());
+        if self.dir > 0.0 { self.x0 + w } else { self.x1 - w }
+    }
+    /// Lane position of world x.
+    pub fn u_of(&self, x: f64) -> f64 {
+        if self.dir > 0.0 { x - self.x0 } else { self.x1 - x }
+    }
+    /// Height of the ground at world x, and its slope dz/dx.
+    pub fn ground(&self, x: f64) -> (f64, f64) {
+        for &(c, w) in &self.crossings {
+            let d = (x - c).abs() - w * 0.5;
+            if d <= 0.0 {
+                return (self.road_z + self.rise_m, 0.0);
+            }
+            if d < self.ramp_m {
+                let slope = self.rise_m / self.ramp_m;
+                return (self.road_z + self.rise_m - slope * d, -slope * (x - c).signum());
+            }
+        }
+        (self.road_z, 0.0)
+    }
+    /// Whether somebody at `p` is on crossing `c` (or waiting at its curbs).
+    fn on_crossing(&self, c: (f64, f64), p: DVec2) -> bool {
+        (p.x - c.0).abs() < c.1 * 0.5 + WAITING_M && p.y.abs() < self.half_road_m + WAITING_M
+    }
+}
+
+/// How a mover drives (the Intelligent Driver Model's parameters).
+#[derive(Clone, Copy, Debug)]
+pub struct Driver {
+    /// Desired speed, m/s.
+    pub speed_mps: f64,
+    /// Comfortable acceleration and deceleration, m/s^2.
+    pub accel: f64,
+    pub decel: f64,
+    /// Time gap to the one ahead, s, and the gap kept when stopped, m.
+    pub headway_s: f64,
+    pub min_gap_m: f64,
+}
+
+/// A mover not yet in a sequence: its mesh (body frame: x forward, z up from the ground under
+/// it) and how it drives.
+#[derive(Clone, Debug)]
+pub struct MoverSpec {
+    pub kind: MoverKind,
+    pub mesh: Environment,
+    /// Half its length and half its width, m.
+    pub half: DVec2,
+    pub driver: Driver,
+}
+
+/// A mover of a sequence.
+#[derive(Clone, Debug)]
+pub struct Mover {
+    pub kind: MoverKind,
+    /// Body-frame vertices, and where they start in the world's environment.
+    pub local: Vec<DVec3>,
+    pub first_vertex: usize,
+    pub half: DVec2,
+    pub lane: Arc<Lane>,
+    /// World y of its centre line (cyclists ride by the curb), m.
+    pub y: f64,
+    /// Lane position of its centre at time 0, m.
+    pub u0: f64,
+    /// The drive: per step of [`STEP_S`] from time 0, distance since time 0, speed and the
+    /// step's constant acceleration.
+    table: Vec<[f64; 3]>,
+}
+
+impl Mover {
+    /// Distance driven since time 0 and speed at `t_s` (at the table's end speeds held
+    /// before 0 and after its last step).
+    pub fn travel(&self, t_s: f64) -> (f64, f64) {
+        let Some(first) = self.table.first() else { return (0.0, 0.0) };
+        if t_s <= 0.0 {
+            return (first[1] * t_s, first[1]);
+        }
+        let k = ((t_s / STEP_S) as usize).min(self.table.len() - 1);
+        let [s, v, a] = self.table[k];
+        let tau = t_s - k as f64 * STEP_S;
+        if k + 1 == self.table.len() && tau > STEP_S {
+            // Past the table: its last step, then the speed it ends with.
+            let (s1, v1) = (s + v * STEP_S + 0.5 * a * STEP_S * STEP_S, (v + a * STEP_S).max(0.0));
+            return (s1 + v1 * (tau - STEP_S), v1);
+        }
+        (s + v * tau + 0.5 * a * tau * tau, v + a * tau)
+    }
+    /// Centre of its footprint on the ground at `t_s`, world frame.
+    pub fn position(&self, t_s: f64) -> DVec3 {
+        let x = self.lane.x_of(self.u0 + self.travel(t_s).0);
+        DVec3::new(x, self.y, self.lane.ground(x).0)
+    }
+    /// Velocity at `t_s`, world frame, m/s (up and down the crossings' ramps included).
+    pub fn velocity(&self, t_s: f64) -> DVec3 {
+        let (s, v) = self.travel(t_s);
+        let x = self.lane.x_of(self.u0 + s);
+        let vx = self.lane.dir * v;
+        DVec3::new(vx, 0.0, self.lane.ground(x).1 * vx)
+    }
+    /// Heading, radians counter-clockwise from +x.
+    pub fn heading_rad(&self) -> f64 {
+        if self.lane.dir > 0.0 { 0.0 } else { std::f64::consts::PI }
+    }
+    /// Its vertices in the world at `t_s`, into `out` (as many as `local`).
+    pub fn place(&self, t_s: f64, out: &mut [DVec3]) {
+        let p = self.position(t_s);
+        let (s, c) = self.heading_rad().sin_cos();
+        for (o, l) in out.iter_mut().zip(&self.local) {
+            *o = p + DVec3::new(c * l.x - s * l.y, s * l.x + c * l.y, l.z);
+        }
+    }
+    /// Whether a person at `p` (floor plane) touches its footprint at `t_s`.
+    pub fn touches(&self, t_s: f64, p: DVec2) -> bool {
+        let c = self.position(t_s).truncate();
+        let d = (p - c).abs();
+        d.x < self.half.x + PERSON_RADIUS_M && d.y < self.half.y + PERSON_RADIUS_M
+    }
+}
+
+/// A car of [`things::car`]'s shapes and a driver for it.
+pub fn car(rng: &mut impl Rng) -> MoverSpec {
+    let mut b = Builder::default();
+    let (l, w) = things::car(&mut b, rng, DVec2::ZERO, 0.0, 0.0);
+    let driver = Driver { speed_mps: uni(rng, 7.0, 14.0), accel: 1.5, decel: 2.5, headway_s: uni(rng, 1.0, 1.8), min_gap_m: 2.0 };
+    MoverSpec { kind: MoverKind::Car, mesh: b.finish(), half: DVec2::new(l * 0.5, w * 0.5), driver }
+}
+
+/// A cyclist: a bicycle ([`things::bicycle`]) and its rider (SemanticKITTI's bicyclist, 31),
+/// seated, hands on the bar, one foot down; and a rider's pace.
+pub fn cyclist(rng: &mut impl Rng) -> MoverSpec {
+    let mut b = Builder::default();
+    things::bicycle(&mut b, rng, DVec2::ZERO, 0.0, 0.0);
+    let m = material(rng, class::BICYCLIST);
+    let s = uni(rng, 0.92, 1.08);
+    let seat = DVec3::new(-0.2, 0.0, 0.95 * s);
+    let shoulder_x = uni(rng, 0.05, 0.2);
+    let shoulder = DVec3::new(shoulder_x, 0.0, seat.z + 0.55 * s);
+    for k in [-1.0, 1.0] {
+        let hip = seat + DVec3::new(0.0, 0.1 * k, 0.05);
+        // One pedal forward and up, the other back and down.
+        let foot = DVec3::new(-0.05 + 0.15 * k, 0.12 * k, 0.3 - 0.15 * k);
+        let knee = DVec3::new(0.25 + 0.05 * k, 0.12 * k, 0.55 * s - 0.1 * k);
+        b.rod(m, hip, knee, 0.07 * s, 6);
+        b.rod(m, knee, foot, 0.055 * s, 6);
+        let sh = shoulder + DVec3::new(0.0, 0.2 * k * s, 0.0);
+        let hand = DVec3::new(0.42, 0.28 * k, 0.98);
+        b.rod(m, sh, hand, 0.04 * s, 6);
+    }
+    b.rod(m, seat + DVec3::new(0.0, 0.0, 0.05), shoulder, 0.17 * s, 8);
+    b.ellipsoid(m, shoulder + DVec3::new(0.05, 0.0, 0.2 * s), DVec3::new(0.11, 0.09, 0.13) * s, 4, 0.0, || 0.0);
+    let driver = Driver { speed_mps: uni(rng, 3.5, 7.0), accel: 1.0, decel: 2.0, headway_s: 1.0, min_gap_m: 1.5 };
+    MoverSpec { kind: MoverKind::Cyclist, mesh: b.finish(), half: DVec2::new(0.95, 0.35), driver }
+}
+
+/// Places the movers in their lane and drives them over `duration_s`. The first car and the
+/// first cyclist pass the sensor (at `sensor_x(t)`) 8-40 m from it halfway through the
+/// sequence; the others start anywhere along the lane, clear of each other. People (their
+/// floor positions at a time, from `people`) make the movers stop before the crossings they
+/// are on; a mover that still touches somebody is left out, and the others drive again
+/// without it. Returns the movers kept, with their index in `specs`.
+pub fn drive(
+    rng: &mut impl Rng,
+    specs: &[MoverSpec],
+    lane: &Arc<Lane>,
+    duration_s: f64,
+    sensor_x: impl Fn(f64) -> f64,
+    people: impl Fn(f64, &mut Vec<DVec2>),
+) -> Vec<(usize, f64, Vec<[f64; 3]>)> {
+    let len = lane.length();
+    let mid = 0.5 * duration_s.max(0.0);
+    // Lane positions at time 0.
+    let mut placed: Vec<(usize, f64)> = Vec::new();
+    let clear = |placed: &[(usize, f64)], i: usize, u: f64| {
+        placed.iter().all(|&(j, v)| {
+            let d = (u - v).rem_euclid(len);
+            d.min(len - d) > specs[i].half.x + specs[j].half.x + specs[i].driver.min_gap_m.max(specs[j].driver.min_gap_m) + 2.0
+        })
+    };
+    let mut firsts = [false; 2];
+    for (i, sp) in specs.iter().enumerate() {
+        let kind = sp.kind as usize;
+        for _ in 0..40 {
+            let u = if !firsts[kind] {
+                let side = if rng.random::<f64>() < 0.5 { -1.0 } else { 1.0 };
+                let x = sensor_x(mid) + side * uni(rng, 8.0, 40.0);
+                lane.u_of(x) - sp.driver.speed_mps * mid
+            } else {
+                uni(rng, 0.0, len)
+            };
+            if clear(&placed, i, u) {
+                placed.push((i, u));
+                firsts[kind] = true;
+                break;
+            }
+        }
+    }
+    let mut who = Vec::new();
+    let steps = (duration_s.max(0.0) / STEP_S).ceil() as usize + 1;
+    loop {
+        let tables = simulate(specs, &placed, lane, steps, &people);
+        // The first mover (in placing order) that touches somebody is left out; the rest drive again.
+        let mut hit = None;
+        'check: for (n, &(i, u0)) in placed.iter().enumerate() {
+            let m = mover(&specs[i], lane, u0, tables[n].clone(), 0);
+            for k in 0..=steps {
+                let t = k as f64 * STEP_S;
+                people(t, &mut who);
+                if who.iter().any(|&p| m.touches(t, p)) {
+                    hit = Some(n);
+                    break 'check;
+                }
+            }
+        }
+        match hit {
+            Some(n) => {
+                placed.remove(n);
+            }
+            None => return placed.iter().zip(tables).map(|(&(i, u0), t)| (i, u0, t)).collect(),
+        }
+    }
+}
+
+/// The lane's movers driven together, step by step; one table per placed mover.
+fn simulate(specs: &[MoverSpec], placed: &[(usize, f64)], lane: &Lane, steps: usize, people: &impl Fn(f64, &mut Vec<DVec2>)) -> Vec<Vec<[f64; 3]>> {
+    let len = lane.length();
+    let n = placed.len();
+    let mut s = vec![0.0; n];
+    let mut v: Vec<f64> = placed.iter().map(|&(i, _)| specs[i].driver.speed_mps).collect();
+    let mut tables = vec![Vec::with_capacity(steps); n];
+    let mut who = Vec::new();
+    // Crossings where somebody is, by step.
+    let mut blocked = vec![false; lane.crossings.len()];
+    for k in 0..steps {
+        let t = k as f64 * STEP_S;
+        people(t, &mut who);
+        for (c, b) in lane.crossings.iter().zip(blocked.iter_mut()) {
+            *b = who.iter().any(|&p| lane.on_crossing(*c, p));
+        }
+        let front: Vec<f64> = (0..n).map(|a| placed[a].1 + s[a] + specs[placed[a].0].half.x).collect();
+        let back: Vec<f64> = (0..n).map(|a| placed[a].1 + s[a] - specs[placed[a].0].half.x).collect();
+        let mut acc = vec![0.0; n];
+        for a in 0..n {
+            let d = &specs[placed[a].0].driver;
+            // The nearest obstacle ahead: the mover ahead, or a crossing somebody is on.
+            let mut gap = f64::INFINITY;
+            let mut lead_v = 0.0;
+            for b in (0..n).filter(|&b| b != a) {
+                let g = (back[b] - front[a]).rem_euclid(len);
+                if g < gap {
+                    (gap, lead_v) = (g, v[b]);
+                }
+            }
+            for (c, _) in lane.crossings.iter().zip(&blocked).filter(|(_, &b)| b) {
+                let near = if lane.dir > 0.0 { c.0 - c.1 * 0.5 } else { c.0 + c.1 * 0.5 };
+                let g = (lane.u_of(near) - STOP_LINE_M - front[a]).rem_euclid(len);
+                // A stop line already crossed (more than a lap away) is not ahead.
+                if g < len * 0.5 && g < gap {
+                    (gap, lead_v) = (g, 0.0);
+                }
+            }
+            let free = 1.0 - (v[a] / d.speed_mps).powi(4);
+            let a_idm = if gap.is_finite() {
+                let want = d.min_gap_m + (v[a] * d.headway_s + v[a] * (v[a] - lead_v) / (2.0 * (d.accel * d.decel).sqrt())).max(0.0);
+                d.accel * (free - (want / gap.max(0.01)).powi(2))
+            } else {
+                d.accel * free
+            };
+            acc[a] = a_idm.clamp(-9.0, d.accel);
+        }
+        for a in 0..n {
+            // A stop within the step stops exactly (no backing up).
+            if v[a] + acc[a] * STEP_S < 0.0 {
+                acc[a] = -v[a] / STEP_S;
+            }
+            tables[a].push([s[a], v[a], acc[a]]);
+            s[a] += v[a] * STEP_S + 0.5 * acc[a] * STEP_S * STEP_S;
+            v[a] = (v[a] + acc[a] * STEP_S).max(0.0);
+        }
+    }
+    tables
+}
+
+/// A mover of a sequence from its spec, placement and drive.
+pub fn mover(spec: &MoverSpec, lane: &Arc<Lane>, u0: f64, table: Vec<[f64; 3]>, first_vertex: usize) -> Mover {
+    let y = lane.y + if spec.kind == MoverKind::Cyclist { lane.bike_offset_m } else { 0.0 };
+    Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex, half: spec.half, lane: lane.clone(), y, u0, table }
+}
