@@ -12,6 +12,10 @@ use glam::{DMat4, DQuat, DVec2, DVec3};
 use rand::RngExt;
 use std::sync::Arc;
 
+use long::{long_walk, walk_the_sensor, Crowd, LONG_TRIES};
+pub use long::{LEAVE_M, LONG_SEQUENCE_S};
+pub use pauses::Pauses;
+
 /// How a person moves through the world (floor plane, world frame).
 #[derive(Clone, Debug, PartialEq)]
 pub enum HumanPath {
@@ -26,6 +30,24 @@ pub enum HumanPath {
     /// Beside another path, `lateral_m` to its left (negative: right) of it, at its pace: a
     /// companion walking side by side. Its distance (the gait's) is the other path's.
     Beside(Box<HumanPath>, f64),
+    /// Paths one after another (a long sequence's walks to goal after goal, waits between
+    /// them, leaving and coming back near the sensor): each holds from its start time to the
+    /// next one's, in its own time from there; the distances add up, so the gait goes on.
+    Legs(Arc<Vec<Leg>>),
+}
+
+/// One of [`HumanPath::Legs`]: `path` from sequence time `t0_s` on (its own time 0 there),
+/// having walked `d0_m` before it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Leg {
+    pub t0_s: f64,
+    pub d0_m: f64,
+    pub path: HumanPath,
+}
+
+/// The leg that holds at `t_s` (the first before the first leg starts).
+fn leg_at(legs: &[Leg], t_s: f64) -> &Leg {
+    &legs[legs.partition_point(|l| l.t0_s <= t_s).max(1) - 1]
 }
 
 impl From<Trajectory> for HumanPath {
@@ -46,6 +68,10 @@ impl HumanPath {
                 let h = p.heading_rad(t_s);
                 p.position(t_s) + *lateral * DVec3::new(-h.sin(), h.cos(), 0.0)
             }
+            HumanPath::Legs(l) => {
+                let leg = leg_at(l, t_s);
+                leg.path.position(t_s - leg.t0_s)
+            }
         }
     }
     pub fn velocity(&self, t_s: f64) -> DVec3 {
@@ -58,6 +84,10 @@ impl HumanPath {
                 let h = p.heading_rad(t_s);
                 p.velocity(t_s) - *lateral * p.heading_rate(t_s) * DVec3::new(h.cos(), h.sin(), 0.0)
             }
+            HumanPath::Legs(l) => {
+                let leg = leg_at(l, t_s);
+                leg.path.velocity(t_s - leg.t0_s)
+            }
         }
     }
     /// Facing direction, radians counter-clockwise from +x.
@@ -68,6 +98,10 @@ impl HumanPath {
             HumanPath::Track(k) => k.state(t_s).2,
             HumanPath::Paused(p, s) => p.heading_rad(s.walked_time(t_s)),
             HumanPath::Beside(p, _) => p.heading_rad(t_s),
+            HumanPath::Legs(l) => {
+                let leg = leg_at(l, t_s);
+                leg.path.heading_rad(t_s - leg.t0_s)
+            }
         }
     }
     /// Rate of turn of the heading, rad/s: exact on arcs, a central difference over 1 ms
@@ -77,6 +111,10 @@ impl HumanPath {
             HumanPath::Arc(a) => a.yaw_rate_rps,
             HumanPath::Paused(p, s) => p.heading_rate(s.walked_time(t_s)) * s.pace(t_s),
             HumanPath::Beside(p, _) => p.heading_rate(t_s),
+            HumanPath::Legs(l) => {
+                let leg = leg_at(l, t_s);
+                leg.path.heading_rate(t_s - leg.t0_s)
+            }
             _ => {
                 let h = 5e-4;
                 (self.heading_rad(t_s + h) - self.heading_rad(t_s - h)) / (2.0 * h)
@@ -91,6 +129,10 @@ impl HumanPath {
             HumanPath::Track(k) => k.distance(t_s),
             HumanPath::Paused(p, s) => p.distance(s.walked_time(t_s)),
             HumanPath::Beside(p, _) => p.distance(t_s),
+            HumanPath::Legs(l) => {
+                let leg = leg_at(l, t_s);
+                leg.d0_m + leg.path.distance(t_s - leg.t0_s)
+            }
         }
     }
     /// The first time at which the distance walked is `d_m` (before 0 or past a track's
@@ -100,6 +142,12 @@ impl HumanPath {
         match self {
             HumanPath::Paused(p, s) => p.time_at_distance(d_m).map(|u| s.time_walked(u)),
             HumanPath::Beside(p, _) => p.time_at_distance(d_m),
+            HumanPath::Legs(l) => {
+                // The last leg that starts short of the distance, or an earlier one where
+                // that one stands.
+                let i = l.partition_point(|g| g.d0_m < d_m).max(1) - 1;
+                l[..=i].iter().rev().find_map(|g| g.path.time_at_distance(d_m - g.d0_m).map(|u| g.t0_s + u))
+            }
             HumanPath::Arc(a) => at_speed(0.0, 0.0, a.speed_mps),
             HumanPath::Walk(w, _) => at_speed(0.0, 0.0, w.speed_mps()),
             HumanPath::Track(k) => {
@@ -117,94 +165,6 @@ impl HumanPath {
                 Some((i as f64 - 1.0 + f) * TRACK_DISTANCE_STEP_S)
             }
         }
-    }
-}
-
-/// When a person who walks a path stops: stops `[start, end)` in sequence time, each entered
-/// and left over [`Pauses::RAMP_S`] at a pace falling (rising) linearly between 1 and 0, so
-/// the speed, and with it the blend to the standing pose, change smoothly.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Pauses {
-    /// Sorted, each at least two ramps after the one before.
-    stops: Vec<(f64, f64)>,
-}
-
-impl Pauses {
-    /// Time to slow down from the walk to a stop, and to get going again, s.
-    pub const RAMP_S: f64 = 0.6;
-
-    /// Stops `[start, end)`, kept in order and apart (a stop that would begin within two
-    /// ramps of the previous one's end is dropped).
-    pub fn new(mut stops: Vec<(f64, f64)>) -> Pauses {
-        stops.retain(|(a, b)| a.is_finite() && b.is_finite() && b > a);
-        stops.sort_by(|p, q| p.0.total_cmp(&q.0));
-        let mut kept: Vec<(f64, f64)> = Vec::new();
-        for s in stops {
-            if kept.last().is_none_or(|k| s.0 - Pauses::RAMP_S >= k.1 + Pauses::RAMP_S) {
-                kept.push(s);
-            }
-        }
-        Pauses { stops: kept }
-    }
-
-    /// The pace at `t_s`: 1 walking, 0 stopped, linear over the ramps.
-    pub fn pace(&self, t_s: f64) -> f64 {
-        let r = Pauses::RAMP_S;
-        for &(a, b) in &self.stops {
-            if t_s >= a - r && t_s < a {
-                return (a - t_s) / r;
-            }
-            if t_s >= a && t_s < b {
-                return 0.0;
-            }
-            if t_s >= b && t_s < b + r {
-                return (t_s - b) / r;
-            }
-        }
-        1.0
-    }
-
-    /// The time along the walked path at sequence time `t_s`: `t_s` less what the stops have
-    /// held back so far (the integral of 1 - pace from the first ramp).
-    pub fn walked_time(&self, t_s: f64) -> f64 {
-        let r = Pauses::RAMP_S;
-        let mut lost = 0.0;
-        for &(a, b) in &self.stops {
-            if t_s <= a - r {
-                break;
-            }
-            // Slowing: 1 - pace = (s - a + r) / r over [a - r, a].
-            let x = t_s.min(a) - (a - r);
-            lost += x * x / (2.0 * r);
-            if t_s > a {
-                lost += t_s.min(b) - a;
-            }
-            if t_s > b {
-                // Getting going: 1 - pace = 1 - (s - b) / r over [b, b + r].
-                let y = t_s.min(b + r) - b;
-                lost += y - y * y / (2.0 * r);
-            }
-        }
-        t_s - lost
-    }
-
-    /// The first sequence time at which the walked time is `u` (the inverse of
-    /// [`Pauses::walked_time`], which never decreases), by bisection to 1 us.
-    pub fn time_walked(&self, u: f64) -> f64 {
-        let total: f64 = self.stops.iter().map(|(a, b)| b - a + Pauses::RAMP_S).sum();
-        let (mut lo, mut hi) = (u, u + total + 1e-9);
-        if self.walked_time(lo) >= u {
-            return lo;
-        }
-        while hi - lo > 1e-6 {
-            let mid = 0.5 * (lo + hi);
-            if self.walked_time(mid) < u { lo = mid } else { hi = mid }
-        }
-        hi
-    }
-
-    pub fn stops(&self) -> &[(f64, f64)] {
-        &self.stops
     }
 }
 
@@ -284,6 +244,9 @@ impl TrackPath {
 pub enum SensorPath {
     Arc(Trajectory),
     Poses(PoseTrack),
+    /// Walked through the walkable area like a person (a long sequence's goal after goal,
+    /// turning on the spot between walks), at height `z` above its floor, facing its way.
+    Walk(Box<HumanPath>, f64),
 }
 
 impl From<Trajectory> for SensorPath {
@@ -298,6 +261,7 @@ impl SensorPath {
         match self {
             SensorPath::Arc(a) => a.pose(t_s),
             SensorPath::Poses(p) => p.pose(t_s),
+            SensorPath::Walk(w, z) => DMat4::from_translation(w.position(t_s) + DVec3::Z * *z) * DMat4::from_rotation_z(w.heading_rad(t_s)),
         }
     }
     pub fn position(&self, t_s: f64) -> DVec3 {
@@ -308,6 +272,7 @@ impl SensorPath {
         match self {
             SensorPath::Arc(a) => a.velocity(t_s),
             SensorPath::Poses(p) => p.sample(t_s).1,
+            SensorPath::Walk(w, _) => w.velocity(t_s),
         }
     }
     /// Yaw rate about the world z axis, rad/s.
@@ -315,12 +280,14 @@ impl SensorPath {
         match self {
             SensorPath::Arc(a) => a.yaw_rate_rps,
             SensorPath::Poses(p) => p.sample(t_s).2,
+            SensorPath::Walk(w, _) => w.heading_rate(t_s),
         }
     }
     /// Heading of the sensor's x axis, radians counter-clockwise from world +x.
     pub fn heading_rad(&self, t_s: f64) -> f64 {
         match self {
             SensorPath::Arc(a) => a.heading_rad(t_s),
+            SensorPath::Walk(w, _) => w.heading_rad(t_s),
             SensorPath::Poses(p) => {
                 let x = p.pose(t_s).x_axis;
                 x.y.atan2(x.x)
@@ -662,7 +629,12 @@ pub fn sample_plan(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> 
         let model = &inp.models[h.model];
         let (k_lo, k_hi) = model.stride_scale_range();
         if let (Some(own), true) = (model.stride_length_m, k_lo < k_hi && h.motion.animates()) {
-            let speed = if duration > 0.0 { h.trajectory.distance(duration) / duration } else { 0.0 };
+            let speed = match &h.trajectory {
+                // A long sequence's walker waits between walks: its walking speed.
+                HumanPath::Legs(l) => l.iter().map(|g| g.path.velocity(0.0).length()).fold(0.0, f64::max),
+                _ if duration > 0.0 => h.trajectory.distance(duration) / duration,
+                _ => 0.0,
+            };
             let natural = stride_length_m(model.height_m as f64, speed.max(0.1)) * personal;
             h.stride_scale = (natural / own as f64).clamp(k_lo as f64, k_hi as f64);
             h.stride_m = h.stride_scale * own as f64;
@@ -685,7 +657,14 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
         let sensor = match (&inp.sensor, inp.sensor_arc) {
             (Some(p), _) => SensorPath::Poses(p.clone()),
             (None, Some(a)) => SensorPath::Arc(a),
-            (None, None) => sample_sensor_arc(rng, cfg, inp.grid, &times_s, None)?,
+            (None, None) => match sample_sensor_arc(rng, cfg, inp.grid, &times_s, None) {
+                // A long sequence where no arc fits: the sensor walks, goal after goal.
+                Err(e) => match (duration > LONG_SEQUENCE_S, inp.grid) {
+                    (true, Some(grid)) => walk_the_sensor(rng, cfg, grid, &times_s).ok_or(e)?,
+                    _ => return Err(e),
+                },
+                ok => ok?,
+            },
         };
         let humans = sample_synthetic_people(rng, cfg, inp, &sensor, &times_s, count)?;
         return Ok(SequencePlan { sensor, humans, times_s, recording_start: None, floor_z_m: inp.floor_z_m, world: None });
@@ -847,12 +826,9 @@ fn sample_synthetic_people(
             )
         })
     };
-    if let Some(m) = walk_length(hc.speed_mps[0]).filter(|_| hc.speed_mps[0] > 0.0) {
-        return Err(Error::input(
-            "config key `frames`",
-            format!("{m}, so nobody can walk for the whole sequence; lower --frames or humans.speed_mps"),
-        ));
-    }
+    // Long sequences, and those one walk to one goal cannot last in the free area, walk goal
+    // after goal (`long_walk`).
+    let long = free_span.is_some_and(|span| duration > LONG_SEQUENCE_S || hc.speed_mps[1] * duration > span);
     let s0 = sensor.start_xy();
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     for k in 0..count {
@@ -889,11 +865,30 @@ fn sample_synthetic_people(
                 tries += 1;
                 continue;
             }
-            if stands {
-                speed = 0.0;
-            }
             if inp.grid.is_some_and(|g| g.clearance(start) < hc.clearance_m) {
                 continue;
+            }
+            if long {
+                if tries >= LONG_TRIES {
+                    break;
+                }
+                tries += 1;
+                let (Some(grid), Some(planner)) = (inp.grid, planner.as_mut()) else { unreachable!("long sequences have a walkable area") };
+                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s };
+                let Some(path) = long_walk(rng, planner, &crowd, start, speed.max(0.1), stands, hc.spawn_radius_m, inp.floor_z_m, duration) else { continue };
+                placed = Some(HumanPlan {
+                    model,
+                    trajectory: path,
+                    phase0: rng.random::<f64>(),
+                    stride_m: inp.models[model].gait_stride_m(speed),
+                    motion: hc.motion,
+                    arm_swing: 1.0,
+                    stride_scale: 1.0,
+                });
+                break;
+            }
+            if stands {
+                speed = 0.0;
             }
             let path: HumanPath = match (hc.walk, inp.grid, planner.as_mut()) {
                 // A person who does not walk (speed 0) stands: no path to plan.
@@ -959,6 +954,9 @@ fn sample_synthetic_people(
     }
     Ok(humans)
 }
+
+mod long;
+mod pauses;
 
 #[cfg(test)]
 mod tests;

@@ -356,12 +356,122 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
         let (a, b) = (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max));
         assert!(lo <= a && b <= hi && b - a > 0.7 * (hi - lo), "sensor {what} drawn within {a}..{b}");
     }
+    // Longer than one walk can last in the free area: goal after goal.
     cfg.frames = 600;
-    let e = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap_err().to_string();
-    assert!(e.contains("`frames`") && e.contains("free walkable area is at most") && e.contains("nobody can walk"), "{e}");
-    // Nobody asked for: nobody has to walk that far.
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap();
+    assert!(plan.humans.iter().all(|p| matches!(p.trajectory, HumanPath::Legs(..))), "{:?}", plan.humans[0].trajectory);
     cfg.humans.count = [0, 0];
     assert!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), &cfg, &inp).unwrap().humans.is_empty());
+}
+
+/// The checks of a long sequence's people: clear of the walls, of each other and of the
+/// sensor at every frame; within a leg the velocity is the positions' derivative; the gait's
+/// distance never jumps or goes back; and the people walk to the end.
+fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Config) {
+    let hc = &cfg.humans;
+    let times = &plan.times_s;
+    let duration = *times.last().unwrap();
+    let mut late_walk = 0.0;
+    for (i, p) in plan.humans.iter().enumerate() {
+        let HumanPath::Legs(legs) = &p.trajectory else { panic!("person {i}: {:?}", p.trajectory) };
+        assert!(legs.len() >= 4, "person {i}: {} legs", legs.len());
+        assert!(legs.windows(2).all(|w| w[1].t0_s > w[0].t0_s && w[1].d0_m >= w[0].d0_m));
+        let speed = legs.iter().map(|g| g.path.velocity(0.0).length()).fold(0.0, f64::max);
+        for (k, &t) in times.iter().enumerate() {
+            let q = p.position_m(t).truncate();
+            assert!(grid.clearance(q) >= hc.clearance_m, "person {i} off the floor at {t} s");
+            assert!(q.distance(plan.sensor.position(t).truncate()) >= hc.min_separation_m, "person {i} on the sensor at {t} s");
+            for g in &plan.humans[i + 1..] {
+                assert!(g.position_m(t).truncate().distance(q) >= hc.min_separation_m, "person {i}: collision at {t} s");
+            }
+            if k > 0 {
+                let step = p.trajectory.distance(t) - p.trajectory.distance(times[k - 1]);
+                assert!((-1e-9..=speed * 0.1 + 1e-9).contains(&step), "person {i}: the gait's distance steps {step} m at {t} s");
+            }
+            // Not within 10 ms of a leg's start (where the speed steps).
+            let h = 1e-4;
+            if legs.iter().all(|g| (g.t0_s - t).abs() > 0.01) {
+                let fd = (p.trajectory.position(t + h) - p.trajectory.position(t - h)) / (2.0 * h);
+                assert!((fd - p.trajectory.velocity(t)).length() < 1e-3, "person {i} at {t} s: {fd} vs {}", p.trajectory.velocity(t));
+            }
+        }
+        late_walk += p.trajectory.distance(duration) - p.trajectory.distance(duration - 30.0);
+    }
+    // Over the last 30 s they walk on: 5 m or more each, on average.
+    assert!(late_walk / plan.humans.len() as f64 > 5.0, "walked {late_walk:.1} m in all in the last 30 s");
+}
+
+/// Long sequences walk goal after goal: in a room more than one walk can last, people keep
+/// walking to the end, waiting at their goals while turning toward the next.
+#[test]
+fn long_sequences_keep_their_people_walking_to_the_end() {
+    let model = crate::human::tests_support::tiny_model();
+    let grid = crate::scene::planner::tests::grid(30.0, 20.0, &[], 0.25);
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let mut cfg = Config::default();
+    cfg.frames = 1201;
+    cfg.humans.count = [6, 6];
+    cfg.humans.speed_mps = [1.0, 1.5];
+    cfg.humans.standing = 0.3;
+    cfg.scene.sensor_speed_mps = [0.0, 0.0];
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(5), &cfg, &inp).unwrap();
+    check_long(&plan, &grid, &cfg);
+    // Waits turn at a constant rate from one walk's end heading to the next's start.
+    let HumanPath::Legs(legs) = &plan.humans[0].trajectory else { unreachable!() };
+    for w in legs.windows(3) {
+        if let (HumanPath::Walk(a, _), HumanPath::Arc(turn), HumanPath::Walk(b, _)) = (&w[0].path, &w[1].path, &w[2].path) {
+            let span = w[2].t0_s - w[1].t0_s;
+            let end = turn.heading_rad(span);
+            let gap = |x: f64, y: f64| ((x - y + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI).abs();
+            assert!(gap(turn.heading0_rad, a.heading_rad(a.duration_s())) < 1e-9 && gap(end, b.heading_rad(0.0)) < 1e-9);
+        }
+    }
+}
+
+/// Where no arc of the sensor fits a long sequence, the sensor walks too, clear of the walls,
+/// its velocity and yaw rate the derivatives of its pose; and people a sensor drives away
+/// from come back near it, never farther than [`LEAVE_M`] (plus a frame's motion).
+#[test]
+fn a_long_sequences_sensor_walks_and_a_driving_one_keeps_its_people() {
+    let model = crate::human::tests_support::tiny_model();
+    let grid = crate::scene::planner::tests::grid(30.0, 20.0, &[], 0.25);
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let mut cfg = Config::default();
+    cfg.frames = 601;
+    cfg.humans.count = [3, 3];
+    cfg.scene.sensor_speed_mps = [0.8, 1.2];
+    cfg.scene.sensor_yaw_rate_rps = [0.0, 0.0];
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(2), &cfg, &inp).unwrap();
+    assert!(matches!(plan.sensor, SensorPath::Walk(..)), "{:?}", plan.sensor);
+    for &t in &plan.times_s {
+        let p = plan.sensor.position(t);
+        assert!(grid.clearance(p.truncate()) >= cfg.scene.sensor_clearance_m && (p.z - cfg.scene.sensor_height_m).abs() < 1e-12);
+        let h = 1e-4;
+        let fd = (plan.sensor.position(t + h) - plan.sensor.position(t - h)) / (2.0 * h);
+        let yaw = (plan.sensor.heading_rad(t + h) - plan.sensor.heading_rad(t - h)) / (2.0 * h);
+        if (fd - plan.sensor.velocity(t)).length() > 1e-3 || (yaw - plan.sensor.yaw_rate_rps(t)).abs() > 1e-3 {
+            // Only where one leg hands over to the next (the speed steps there).
+            let SensorPath::Walk(w, _) = &plan.sensor else { unreachable!() };
+            let HumanPath::Legs(legs) = &**w else { panic!("{w:?}") };
+            assert!(legs.iter().any(|g| (g.t0_s - t).abs() < 2.0 * h), "sensor at {t} s: {fd} vs {}", plan.sensor.velocity(t));
+        }
+    }
+    check_long(&plan, &grid, &cfg);
+
+    // A vehicle driving 8 m/s down a 600 m street for 60 s.
+    let street = crate::scene::planner::tests::grid(600.0, 12.0, &[], 0.25);
+    let arc = Trajectory { start_m: DVec2::new(20.0, 6.0), z_m: 1.7, heading0_rad: 0.0, speed_mps: 8.0, yaw_rate_rps: 0.0 };
+    let inp = PlanInputs { grid: Some(&street), sensor_arc: Some(arc), ..inp };
+    cfg.humans.count = [4, 4];
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &inp).unwrap();
+    let mut came_back = 0;
+    for p in &plan.humans {
+        let far = plan.times_s.iter().map(|&t| p.position_m(t).truncate().distance(plan.sensor.position(t).truncate())).fold(0.0, f64::max);
+        assert!(far <= LEAVE_M + 1.0, "a person {far:.1} m from the sensor");
+        let HumanPath::Legs(legs) = &p.trajectory else { panic!() };
+        came_back += legs.windows(2).filter(|w| w[0].path.position(w[1].t0_s - w[0].t0_s).truncate().distance(w[1].path.position(0.0).truncate()) > 1.0).count();
+    }
+    assert!(came_back >= 4, "{came_back} returns");
 }
 
 #[test]

@@ -1,0 +1,183 @@
+//! Long sequences: people (and, where no arc fits, the sensor) walking goal after goal for as
+//! long as the sequence lasts ([`long_walk`]).
+
+use super::{HumanPath, HumanPlan, Leg, SensorPath};
+use crate::config::Config;
+use crate::scene::{Trajectory, WalkableGrid};
+use glam::DVec2;
+use rand::RngExt;
+use std::sync::Arc;
+
+/// A long sequence's sensor walked through the walkable area goal after goal (see
+/// [`long_walk`]) at a speed drawn from `scene.sensor_speed_mps` (at least 0.3 m/s), keeping
+/// `scene.sensor_clearance_m` from obstacles; None when no walk keeps it.
+pub(super) fn walk_the_sensor(rng: &mut impl rand::Rng, cfg: &Config, grid: &WalkableGrid, times_s: &[f64]) -> Option<SensorPath> {
+    let sc = &cfg.scene;
+    let duration = *times_s.last()?;
+    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s };
+    let mut planner = crate::scene::planner::Planner::new();
+    let [lo, hi] = sc.sensor_speed_mps;
+    for _ in 0..LONG_TRIES {
+        let start = DVec2::new(grid.origin.x + rng.random::<f64>() * grid.nx as f64 * grid.cell_m, grid.origin.y + rng.random::<f64>() * grid.ny as f64 * grid.cell_m);
+        if grid.clearance(start) < sc.sensor_clearance_m {
+            continue;
+        }
+        let speed = (lo + (hi - lo) * rng.random::<f64>()).max(0.3);
+        if let Some(path) = long_walk(rng, &mut planner, &crowd, start, speed, false, 0.0, 0.0, duration) {
+            return Some(SensorPath::Walk(Box::new(path), sc.sensor_height_m));
+        }
+    }
+    None
+}
+
+/// Sequences longer than this, s, walk goal after goal (see [`long_walk`]) where one walk to
+/// one goal would have to last them.
+pub const LONG_SEQUENCE_S: f64 = 30.0;
+/// A long sequence's walk to its next goal takes at least this long, s (drawn), and the wait
+/// at the goal before the next this long.
+const LEG_S: [f64; 2] = [8.0, 25.0];
+const WAIT_S: [f64; 2] = [0.5, 5.0];
+/// A person who waits at the start (`humans.standing`) of a long sequence waits this long
+/// before walking on, s.
+const LONG_STAND_S: [f64; 2] = [10.0, 60.0];
+/// Somebody farther than this from the sensor, m, leaves (beyond what a sensor sees of a
+/// person) and comes back in near it.
+pub const LEAVE_M: f64 = 100.0;
+/// Tries at planning a leg, and at placing a whole long walk.
+const LEG_TRIES: usize = 20;
+pub(super) const LONG_TRIES: usize = 40;
+
+/// Who a new person must keep clear of over a long sequence: obstacles, the sensor, the people
+/// placed before.
+pub(super) struct Crowd<'a> {
+    pub grid: &'a WalkableGrid,
+    pub clearance_m: f64,
+    pub separation_m: f64,
+    /// The sensor (None: placing the sensor's own walk).
+    pub sensor: Option<&'a SensorPath>,
+    pub others: &'a [HumanPlan],
+    pub times_s: &'a [f64],
+}
+
+impl Crowd<'_> {
+    /// Whether `path` (its own time 0 at `t0`) keeps clear at every frame in `[t0, t1)`.
+    fn clear(&self, path: &HumanPath, t0: f64, t1: f64) -> bool {
+        let a = self.times_s.partition_point(|&t| t < t0);
+        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| {
+            let p = path.position(t - t0).truncate();
+            self.grid.clearance(p) >= self.clearance_m
+                && self.sensor.is_none_or(|s| p.distance(s.position(t).truncate()) >= self.separation_m)
+                && self.others.iter().all(|h| h.position_m(t).truncate().distance(p) >= self.separation_m)
+        })
+    }
+}
+
+/// A long sequence's walk: from `start`, goal after goal through the walkable area (each leg
+/// planned like a short sequence's walk, 8-25 s long at least), waiting 0.5-5 s at each goal,
+/// and after 10-60 s of waiting first for one who stands. Somebody left more than [`LEAVE_M`]
+/// from the sensor (a vehicle drives on) leaves and comes back in 0.3-1 spawn radii from where
+/// the sensor is then, so the people stay around it to the end. Each leg keeps clear of the
+/// obstacles, the sensor and the people placed before at every frame; None when a leg finds
+/// no way to.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn long_walk(
+    rng: &mut impl rand::Rng,
+    planner: &mut crate::scene::planner::Planner,
+    crowd: &Crowd,
+    start: DVec2,
+    speed: f64,
+    stands_first: bool,
+    spawn_radius_m: f64,
+    floor_z: f64,
+    duration: f64,
+) -> Option<HumanPath> {
+    fn u(rng: &mut impl rand::Rng, r: [f64; 2]) -> f64 {
+        r[0] + (r[1] - r[0]) * rng.random::<f64>()
+    }
+    let mut legs: Vec<Leg> = Vec::new();
+    let (mut t, mut d, mut pos) = (0.0, 0.0, start);
+    let mut heading = u(rng, [-std::f64::consts::PI, std::f64::consts::PI]);
+    let stand = |p: DVec2, h: f64| HumanPath::Arc(Trajectory::fixed(p, floor_z, h));
+    // Standing at `p` for `w` s, turning at a constant rate from heading `a` to `b` (the
+    // shorter way).
+    let turning = |p: DVec2, a: f64, b: f64, w: f64| {
+        let turn = (b - a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let rate = if w > 0.0 { turn / w } else { 0.0 };
+        HumanPath::Arc(Trajectory { start_m: p, z_m: floor_z, heading0_rad: a, speed_mps: 0.0, yaw_rate_rps: rate })
+    };
+    if stands_first {
+        let w = u(rng, LONG_STAND_S);
+        if !crowd.clear(&stand(pos, heading), 0.0, w) {
+            return None;
+        }
+        legs.push(Leg { t0_s: 0.0, d0_m: 0.0, path: stand(pos, heading) });
+        t = w;
+    }
+    // Somebody a vehicle leaves far behind (none for the sensor's own walk).
+    let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
+    let mut walked_before = false;
+    while t <= duration {
+        // Left far behind: come back in near the sensor.
+        if let Some(sensor) = crowd.sensor.filter(|_| far(pos, t)) {
+            let here = sensor.position(t).truncate();
+            let back = (0..LEG_TRIES)
+                .map(|_| {
+                    let (r, a) = (spawn_radius_m * u(rng, [0.3, 1.0]), u(rng, [0.0, std::f64::consts::TAU]));
+                    here + r * DVec2::new(a.cos(), a.sin())
+                })
+                .find(|&p| crowd.clear(&stand(p, heading), t, t + 1e-9));
+            pos = back?;
+            walked_before = false;
+        }
+        // After a walk, a wait at its goal, turning on the spot toward the next walk.
+        let wait = if walked_before { u(rng, WAIT_S) } else { 0.0 };
+        let leg_s = u(rng, LEG_S);
+        // One who has drifted farther than the spawn radius from the sensor walks back toward
+        // where it will be (first try), so the people stay around it (walls hide the rest).
+        let toward = crowd.sensor.filter(|s| pos.distance(s.position(t).truncate()) > spawn_radius_m).map(|s| {
+            let (r, a) = (spawn_radius_m * u(rng, [0.0, 1.0]).sqrt(), u(rng, [0.0, std::f64::consts::TAU]));
+            s.position(t + wait + leg_s).truncate() + r * DVec2::new(a.cos(), a.sin())
+        });
+        let mut walked = None;
+        for k in 0..LEG_TRIES {
+            let w = match toward.filter(|_| k == 0) {
+                Some(goal) => planner.plan_to(crowd.grid, crowd.clearance_m, speed, pos, goal),
+                None => planner.plan_walk(rng, crowd.grid, crowd.clearance_m, speed, leg_s, Some(pos)),
+            };
+            let Some(w) = w else { continue };
+            let path = HumanPath::Walk(w.clone(), floor_z);
+            let turn = turning(pos, heading, path.heading_rad(0.0), wait);
+            if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + w.duration_s()) {
+                walked = Some((w, path, turn));
+                break;
+            }
+        }
+        let Some((w, path, turn)) = walked else {
+            // Nowhere to walk now: wait where one is, or give up the person.
+            if !crowd.clear(&stand(pos, heading), t, t + 2.0) {
+                return None;
+            }
+            legs.push(Leg { t0_s: t, d0_m: d, path: stand(pos, heading) });
+            t += 2.0;
+            continue;
+        };
+        if wait > 0.0 {
+            legs.push(Leg { t0_s: t, d0_m: d, path: turn });
+            t += wait;
+        }
+        // The walk ends at its goal, or where it has left the sensor far behind.
+        let mut end = w.duration_s();
+        let a = crowd.times_s.partition_point(|&x| x < t);
+        if let Some(&x) = crowd.times_s[a..].iter().take_while(|&&x| x < t + end).find(|&&x| far(path.position(x - t).truncate(), x)) {
+            end = x - t;
+        }
+        legs.push(Leg { t0_s: t, d0_m: d, path: path.clone() });
+        t += end;
+        d += w.distance(end);
+        pos = path.position(end).truncate();
+        heading = path.heading_rad(end);
+        walked_before = true;
+    }
+    Some(HumanPath::Legs(Arc::new(legs)))
+}
+
