@@ -19,8 +19,9 @@
 //! Per-beam datasets are chunked one frame per chunk. Each frame's chunks are shuffled and
 //! deflated here (in parallel, one task per dataset) and stored with HDF5's direct chunk write,
 //! so the file is an ordinary shuffle+deflate file that every reader opens, but compression is
-//! not serialised inside libhdf5. Small per-frame records (times, poses, human states) are
-//! kept in memory (a few dozen bytes per frame and person) and written at the end.
+//! not serialised inside libhdf5. Each frame's column times are a row of their own chunk,
+//! written with it. Small per-frame records (times, poses, human and mover states) are kept in
+//! memory (a few dozen bytes per frame and person) and written at the end.
 //!
 //! Reproducibility: object modification times are switched off on the file (root group),
 //! every group and every dataset, and the compressor is deterministic, so identical inputs
@@ -87,7 +88,9 @@ pub(crate) struct H5Writer {
     frames: usize,
     humans: usize,
     time_s: Vec<f64>,
-    column_time_s: Vec<f64>,
+    /// `/sensor/column_time_s`, written a frame (a row) at a time: its size grows with the
+    /// sequence's length and the sensor's columns, so it is not kept until the end.
+    column_time: Option<Dataset>,
     world_from_sensor: Vec<f64>,
     sensor_velocity_mps: Vec<f64>,
     sensor_yaw_rate_rps: Vec<f64>,
@@ -294,6 +297,20 @@ impl H5Writer {
 
         // The beam table is known up front.
         let sensor = group(&file, "sensor").map_err(&e)?;
+        let column_time = sensor
+            .new_dataset::<f64>()
+            .shape(vec![t, w])
+            .chunk(vec![1, w])
+            .obj_track_times(false)
+            .create("column_time_s")
+            .map_err(&e)?;
+        attr_str(&column_time, "units", "s", name)?;
+        attr_str(
+            &column_time,
+            "description",
+            "Time each column's beams were fired, since the start of the sequence (rolling shutter; all the frame's time without)",
+            name,
+        )?;
         let el: Vec<f32> = meta.sensor.elevation_deg.iter().map(|&d| d as f32).collect();
         let az: Vec<f32> = (0..w).map(|c| meta.sensor.azimuth_rad(c).to_degrees() as f32).collect();
         let ds = small(&sensor, "elevation_deg", &[h], &el).map_err(&e)?;
@@ -317,7 +334,7 @@ impl H5Writer {
             frames: t,
             humans: n,
             time_s: Vec::with_capacity(t),
-            column_time_s: Vec::with_capacity(t * w),
+            column_time: Some(column_time),
             world_from_sensor: Vec::with_capacity(t * 16),
             sensor_velocity_mps: Vec::with_capacity(t * 3),
             sensor_yaw_rate_rps: Vec::with_capacity(t),
@@ -371,7 +388,10 @@ impl H5Writer {
             write_chunk(&b.ds, index, data).map_err(|m| write_error(&self.name, format!("writing frame {index} of {}: {m}", b.ds.name())))?;
         }
         self.time_s.push(f.time_s);
-        self.column_time_s.extend_from_slice(&f.column_time_s);
+        if let Some(ds) = &self.column_time {
+            write_chunk(ds, index, bytemuck::cast_slice(&f.column_time_s))
+                .map_err(|m| write_error(&self.name, format!("writing frame {index} of {}: {m}", ds.name())))?;
+        }
         self.world_from_sensor.extend(f.world_from_sensor.iter().flatten());
         self.sensor_velocity_mps.extend_from_slice(&f.sensor_velocity_mps);
         self.sensor_yaw_rate_rps.push(f.sensor_yaw_rate_rps);
@@ -403,15 +423,6 @@ impl H5Writer {
                 &ds,
                 "description",
                 "Time of each frame since the start of the sequence",
-                &name,
-            )?;
-            let w = self.column_time_s.len() / t.max(1);
-            let ds = small(&sensor, "column_time_s", &[t, w], &self.column_time_s).map_err(&e)?;
-            attr_str(&ds, "units", "s", &name)?;
-            attr_str(
-                &ds,
-                "description",
-                "Time each column's beams were fired, since the start of the sequence (rolling shutter; all the frame's time without)",
                 &name,
             )?;
             let ds = small(&sensor, "world_from_sensor", &[t, 4, 4], &self.world_from_sensor)
@@ -504,6 +515,7 @@ impl H5Writer {
         }
         // Every handle into the file must be gone before the close, or libhdf5 defers it.
         self.beams.clear();
+        self.column_time = None;
         file.close().map_err(&e)?;
         Ok(())
     }
