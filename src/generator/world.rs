@@ -3,16 +3,15 @@
 
 use super::Generator;
 use crate::output::semantickitti::{BACKGROUND, MOVING_PERSON, MOVING_SPEED_MPS, PERSON};
+use crate::output::{FrameOutput, NOT_SCORED};
+use crate::scene::sequence::SequencePlan;
 use crate::scene::world::things::class::{BICYCLIST, CAR};
-use crate::scene::world::NO_MOVER;
+use crate::scene::world::{WorldParams, NO_MOVER};
+use std::sync::Arc;
 
 /// SemanticKITTI's moving car and moving bicyclist.
 const MOVING_CAR: u16 = 252;
 const MOVING_BICYCLIST: u16 = 253;
-use crate::output::{FrameOutput, NOT_SCORED};
-use crate::scene::sequence::SequencePlan;
-use crate::scene::world::WorldParams;
-use std::sync::Arc;
 
 impl Generator {
     /// Triangles of the environment the frames are drawn in now (0 under a recording).
