@@ -3,8 +3,7 @@
 # cargo is missing), then either runs pedscan or its test suite.
 #
 #   bash tools/setup.sh generate [flags...]   # install, build, run `pedscan generate`
-#   bash tools/setup.sh test                  # install, build, run the whole test suite and a
-#                                             # few seconds of every fuzz target
+#   bash tools/setup.sh test                  # install, build, run the whole test suite
 #   bash tools/setup.sh test-latest           # the Python tests with the newest PyPI releases
 #   bash tools/setup.sh <any pedscan subcommand and flags>
 set -euo pipefail
@@ -46,8 +45,6 @@ case "$1" in
     # The Python packages pinned (tools/python/constraints.txt): the suite does not move when
     # PyPI serves a new release.
     python_tests tools/python/.venv -c tools/python/constraints.txt
-    # The whole suite (no filter given) ends with a fuzz smoke run: 5 s per reader's target.
-    if [ $# -eq 0 ]; then bash tools/fuzz.sh ci 5; fi
     ;;
   test-latest)
     # The Python tests against the newest releases PyPI serves, in a venv of their own (the

@@ -1,10 +1,5 @@
 #![no_main]
-//! Environments (glTF/GLB): `pedscan::scene::Environment::load`, then its triangles.
+//! The `environment_gltf` target: `pedscan_fuzz::environment_gltf` (fuzz/src/lib.rs) says what it reads.
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
-    let path = pedscan_fuzz::input_file("environment.glb", data);
-    if let Ok(env) = pedscan::scene::Environment::load(&path) {
-        let _ = env.triangles().count();
-    }
-});
+fuzz_target!(|data: &[u8]| pedscan_fuzz::environment_gltf(data));

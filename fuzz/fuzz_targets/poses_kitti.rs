@@ -1,8 +1,5 @@
 #![no_main]
-//! KITTI pose files (12 values per line): `pedscan::input::poses::read_poses`.
+//! The `poses_kitti` target: `pedscan_fuzz::poses_kitti` (fuzz/src/lib.rs) says what it reads.
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
-    let path = pedscan_fuzz::input_file("poses.txt", data);
-    let _ = pedscan::input::poses::read_poses(&path);
-});
+fuzz_target!(|data: &[u8]| pedscan_fuzz::poses_kitti(data));

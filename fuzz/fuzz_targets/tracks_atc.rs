@@ -1,7 +1,5 @@
 #![no_main]
-//! ATC CSV: `pedscan::input::tracks::read_tracks` with `TrackFormat::Atc`, then sampled.
+//! The `tracks_atc` target: `pedscan_fuzz::tracks_atc` (fuzz/src/lib.rs) says what it reads.
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
-    pedscan_fuzz::tracks(data, pedscan::input::tracks::TrackFormat::Atc);
-});
+fuzz_target!(|data: &[u8]| pedscan_fuzz::tracks_atc(data));

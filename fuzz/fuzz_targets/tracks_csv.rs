@@ -1,7 +1,5 @@
 #![no_main]
-//! pedscan track CSV: `pedscan::input::tracks::read_tracks` with `TrackFormat::Csv`, then sampled.
+//! The `tracks_csv` target: `pedscan_fuzz::tracks_csv` (fuzz/src/lib.rs) says what it reads.
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
-    pedscan_fuzz::tracks(data, pedscan::input::tracks::TrackFormat::Csv);
-});
+fuzz_target!(|data: &[u8]| pedscan_fuzz::tracks_csv(data));

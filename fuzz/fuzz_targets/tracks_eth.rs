@@ -1,7 +1,5 @@
 #![no_main]
-//! ETH/UCY `obsmat.txt`: `pedscan::input::tracks::read_tracks` with `TrackFormat::Eth`, then sampled.
+//! The `tracks_eth` target: `pedscan_fuzz::tracks_eth` (fuzz/src/lib.rs) says what it reads.
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
-    pedscan_fuzz::tracks(data, pedscan::input::tracks::TrackFormat::Eth);
-});
+fuzz_target!(|data: &[u8]| pedscan_fuzz::tracks_eth(data));

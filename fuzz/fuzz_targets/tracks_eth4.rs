@@ -1,7 +1,5 @@
 #![no_main]
-//! Trajectron++ 4-column text: `pedscan::input::tracks::read_tracks` with `TrackFormat::Eth4`, then sampled.
+//! The `tracks_eth4` target: `pedscan_fuzz::tracks_eth4` (fuzz/src/lib.rs) says what it reads.
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
-    pedscan_fuzz::tracks(data, pedscan::input::tracks::TrackFormat::Eth4);
-});
+fuzz_target!(|data: &[u8]| pedscan_fuzz::tracks_eth4(data));
