@@ -140,7 +140,7 @@ impl HumanPath {
     pub fn time_at_distance(&self, d_m: f64) -> Option<f64> {
         let at_speed = |t0: f64, d0: f64, v: f64| (v > 1e-9).then(|| t0 + (d_m - d0) / v);
         match self {
-            HumanPath::Paused(p, s) => p.time_at_distance(d_m).map(|u| s.time_walked(u)),
+            HumanPath::Paused(p, s) => p.time_at_distance(d_m).and_then(|u| s.time_walked(u)),
             HumanPath::Beside(p, _) => p.time_at_distance(d_m),
             HumanPath::Legs(l) => {
                 // The last leg that starts short of the distance, or an earlier one where

@@ -1,7 +1,7 @@
 //! Long sequences: people (and, where no arc fits, the sensor) walking goal after goal for as
 //! long as the sequence lasts ([`long_walk`]).
 
-use super::{HumanPath, HumanPlan, Leg, SensorPath};
+use super::{HumanPath, HumanPlan, Leg, Pauses, SensorPath};
 use crate::config::Config;
 use crate::scene::{Trajectory, WalkableGrid};
 use glam::DVec2;
@@ -74,7 +74,9 @@ impl Crowd<'_> {
 
 /// A long sequence's walk: from `start`, goal after goal through the walkable area (each leg
 /// planned like a short sequence's walk, 8-25 s long at least), waiting 0.5-5 s at each goal,
-/// and after 10-60 s of waiting first for one who stands. Somebody left more than [`LEAVE_M`]
+/// and after 10-60 s of waiting first for one who stands. Each walk slows to a stop at its
+/// goal, and one that begins after a wait gets going, over [`Pauses::RAMP_S`] (the speed never
+/// steps). Somebody left more than [`LEAVE_M`]
 /// from the sensor (a vehicle drives on) leaves and comes back in 0.3-1 spawn radii from where
 /// the sensor is then, so the people stay around it to the end. Each leg keeps clear of the
 /// obstacles, the sensor and the people placed before at every frame; None when a leg finds
@@ -113,9 +115,11 @@ pub(super) fn long_walk(
         legs.push(Leg { t0_s: 0.0, d0_m: 0.0, path: stand(pos, heading) });
         t = w;
     }
+    // Standing (after a walk, a wait or at the start): the next walk begins with a wait that
+    // turns toward it, and gets going from rest.
+    let mut at_rest = stands_first;
     // Somebody a vehicle leaves far behind (none for the sensor's own walk).
     let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
-    let mut walked_before = false;
     while t <= duration {
         // Left far behind: come back in near the sensor.
         if let Some(sensor) = crowd.sensor.filter(|_| far(pos, t)) {
@@ -127,10 +131,10 @@ pub(super) fn long_walk(
                 })
                 .find(|&p| crowd.clear(&stand(p, heading), t, t + 1e-9));
             pos = back?;
-            walked_before = false;
+            at_rest = false;
         }
         // After a walk, a wait at its goal, turning on the spot toward the next walk.
-        let wait = if walked_before { u(rng, WAIT_S) } else { 0.0 };
+        let wait = if at_rest { u(rng, WAIT_S) } else { 0.0 };
         let leg_s = u(rng, LEG_S);
         // One who has drifted farther than the spawn radius from the sensor walks back toward
         // where it will be (first try), so the people stay around it (walls hide the rest).
@@ -145,20 +149,21 @@ pub(super) fn long_walk(
                 None => planner.plan_walk(rng, crowd.grid, crowd.clearance_m, speed, leg_s, Some(pos)),
             };
             let Some(w) = w else { continue };
-            let path = HumanPath::Walk(w.clone(), floor_z);
+            let (path, arrive) = eased(HumanPath::Walk(w.clone(), floor_z), w.duration_s(), at_rest);
             let turn = turning(pos, heading, path.heading_rad(0.0), wait);
-            if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + w.duration_s()) {
-                walked = Some((w, path, turn));
+            if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + arrive) {
+                walked = Some((arrive, path, turn));
                 break;
             }
         }
-        let Some((w, path, turn)) = walked else {
+        let Some((arrive, path, turn)) = walked else {
             // Nowhere to walk now: wait where one is, or give up the person.
             if !crowd.clear(&stand(pos, heading), t, t + 2.0) {
                 return None;
             }
             legs.push(Leg { t0_s: t, d0_m: d, path: stand(pos, heading) });
             t += 2.0;
+            at_rest = true;
             continue;
         };
         if wait > 0.0 {
@@ -166,18 +171,34 @@ pub(super) fn long_walk(
             t += wait;
         }
         // The walk ends at its goal, or where it has left the sensor far behind.
-        let mut end = w.duration_s();
+        let mut end = arrive;
         let a = crowd.times_s.partition_point(|&x| x < t);
         if let Some(&x) = crowd.times_s[a..].iter().take_while(|&&x| x < t + end).find(|&&x| far(path.position(x - t).truncate(), x)) {
             end = x - t;
         }
         legs.push(Leg { t0_s: t, d0_m: d, path: path.clone() });
         t += end;
-        d += w.distance(end);
+        d += path.distance(end);
         pos = path.position(end).truncate();
         heading = path.heading_rad(end);
-        walked_before = true;
+        // Arrived (a walk cut short leaves, and comes back in walking).
+        at_rest = end >= arrive;
     }
     Some(HumanPath::Legs(Arc::new(legs)))
 }
 
+/// A walk of `walk_s` seconds that slows to a stop at its end, and with `from_rest` gets going
+/// at its start, each over [`Pauses::RAMP_S`] (a ramp costs half of it); and the time it then
+/// takes to arrive. A walk shorter than two ramps keeps its speed.
+fn eased(walk: HumanPath, walk_s: f64, from_rest: bool) -> (HumanPath, f64) {
+    let r = Pauses::RAMP_S;
+    if walk_s < 2.0 * r {
+        return (walk, walk_s);
+    }
+    let arrive = walk_s + if from_rest { r } else { 0.5 * r };
+    let mut stops = vec![(arrive, f64::INFINITY)];
+    if from_rest {
+        stops.push((f64::NEG_INFINITY, 0.0));
+    }
+    (HumanPath::Paused(Box::new(walk), Pauses::new(stops)), arrive)
+}

@@ -1,8 +1,10 @@
-//! Stops along a walk (`humans.stop_and_go`).
+//! Stops along a walk (`humans.stop_and_go`, and a long sequence's walks from a wait to a goal).
 
 /// When a person who walks a path stops: stops `[start, end)` in sequence time, each entered
 /// and left over [`Pauses::RAMP_S`] at a pace falling (rising) linearly between 1 and 0, so
-/// the speed, and with it the blend to the standing pose, change smoothly.
+/// the speed, and with it the blend to the standing pose, change smoothly. A stop may begin at
+/// minus infinity (the walk starts from standing: its time 0 is where the stop ends, its pace
+/// rising from there) and end at infinity (the walk ends standing where the stop begins).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pauses {
     /// Sorted, each at least two ramps after the one before.
@@ -14,9 +16,10 @@ impl Pauses {
     pub const RAMP_S: f64 = 0.6;
 
     /// Stops `[start, end)`, kept in order and apart (a stop that would begin within two
-    /// ramps of the previous one's end is dropped).
+    /// ramps of the previous one's end is dropped). A stop from minus infinity must end at 0 or
+    /// later.
     pub fn new(mut stops: Vec<(f64, f64)>) -> Pauses {
-        stops.retain(|(a, b)| a.is_finite() && b.is_finite() && b > a);
+        stops.retain(|&(a, b)| a < f64::INFINITY && b > a && (a.is_finite() || b >= 0.0));
         stops.sort_by(|p, q| p.0.total_cmp(&q.0));
         let mut kept: Vec<(f64, f64)> = Vec::new();
         for s in stops {
@@ -45,7 +48,8 @@ impl Pauses {
     }
 
     /// The time along the walked path at sequence time `t_s`: `t_s` less what the stops have
-    /// held back so far (the integral of 1 - pace from the first ramp).
+    /// held back so far (the integral of 1 - pace from the first ramp; a stop from minus
+    /// infinity holds back from time 0 only).
     pub fn walked_time(&self, t_s: f64) -> f64 {
         let r = Pauses::RAMP_S;
         let mut lost = 0.0;
@@ -53,11 +57,16 @@ impl Pauses {
             if t_s <= a - r {
                 break;
             }
-            // Slowing: 1 - pace = (s - a + r) / r over [a - r, a].
-            let x = t_s.min(a) - (a - r);
-            lost += x * x / (2.0 * r);
-            if t_s > a {
-                lost += t_s.min(b) - a;
+            if a.is_finite() {
+                // Slowing: 1 - pace = (s - a + r) / r over [a - r, a].
+                let x = t_s.min(a) - (a - r);
+                lost += x * x / (2.0 * r);
+                if t_s > a {
+                    lost += t_s.min(b) - a;
+                }
+            } else {
+                // Standing from the start: held at time 0 until b.
+                lost += t_s.min(b);
             }
             if t_s > b {
                 // Getting going: 1 - pace = 1 - (s - b) / r over [b, b + r].
@@ -69,18 +78,31 @@ impl Pauses {
     }
 
     /// The first sequence time at which the walked time is `u` (the inverse of
-    /// [`Pauses::walked_time`], which never decreases), by bisection to 1 us.
-    pub fn time_walked(&self, u: f64) -> f64 {
-        let total: f64 = self.stops.iter().map(|(a, b)| b - a + Pauses::RAMP_S).sum();
-        let (mut lo, mut hi) = (u, u + total + 1e-9);
+    /// [`Pauses::walked_time`], which never decreases), by bisection to 1 us; None past where
+    /// a stop that never ends begins.
+    pub fn time_walked(&self, u: f64) -> Option<f64> {
+        let r = Pauses::RAMP_S;
+        let mut hi = u + 1e-9;
+        for &(a, b) in &self.stops {
+            if b == f64::INFINITY {
+                if u > self.walked_time(a) {
+                    return None;
+                }
+                hi = hi.min(a);
+            } else {
+                let from = if a.is_finite() { a } else { 0.0 };
+                hi += b - from + r;
+            }
+        }
+        let mut lo = u.min(hi);
         if self.walked_time(lo) >= u {
-            return lo;
+            return Some(lo);
         }
         while hi - lo > 1e-6 {
             let mid = 0.5 * (lo + hi);
             if self.walked_time(mid) < u { lo = mid } else { hi = mid }
         }
-        hi
+        Some(hi)
     }
 
     pub fn stops(&self) -> &[(f64, f64)] {

@@ -365,8 +365,9 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
 }
 
 /// The checks of a long sequence's people: clear of the walls, of each other and of the
-/// sensor at every frame; within a leg the velocity is the positions' derivative; the gait's
-/// distance never jumps or goes back; and the people walk to the end.
+/// sensor at every frame; within a leg the velocity is the positions' derivative; the speed
+/// never steps (walks get going and slow down over [`Pauses::RAMP_S`]) save where somebody
+/// comes back in; the gait's distance never jumps or goes back; and the people walk to the end.
 fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Config) {
     let hc = &cfg.humans;
     let times = &plan.times_s;
@@ -376,7 +377,15 @@ fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Conf
         let HumanPath::Legs(legs) = &p.trajectory else { panic!("person {i}: {:?}", p.trajectory) };
         assert!(legs.len() >= 4, "person {i}: {} legs", legs.len());
         assert!(legs.windows(2).all(|w| w[1].t0_s > w[0].t0_s && w[1].d0_m >= w[0].d0_m));
-        let speed = legs.iter().map(|g| g.path.velocity(0.0).length()).fold(0.0, f64::max);
+        let speed = legs.iter().map(|g| g.path.velocity(1.0).length()).fold(0.0, f64::max);
+        // Where one leg hands over to the next in place, the velocity goes on.
+        for w in legs.windows(2) {
+            let span = w[1].t0_s - w[0].t0_s;
+            if w[0].path.position(span).distance(w[1].path.position(0.0)) < 1e-9 {
+                let (a, b) = (w[0].path.velocity(span), w[1].path.velocity(0.0));
+                assert!((a - b).length() < 1e-9, "person {i} at {} s: {a} then {b}", w[1].t0_s);
+            }
+        }
         for (k, &t) in times.iter().enumerate() {
             let q = p.position_m(t).truncate();
             assert!(grid.clearance(q) >= hc.clearance_m, "person {i} off the floor at {t} s");
@@ -387,6 +396,10 @@ fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Conf
             if k > 0 {
                 let step = p.trajectory.distance(t) - p.trajectory.distance(times[k - 1]);
                 assert!((-1e-9..=speed * 0.1 + 1e-9).contains(&step), "person {i}: the gait's distance steps {step} m at {t} s");
+                // From one frame to the next the speed changes by a ramp's 0.1 s at most.
+                let dv = p.trajectory.velocity(t).length() - p.trajectory.velocity(times[k - 1]).length();
+                let moved = p.position_m(t).distance(p.position_m(times[k - 1]));
+                assert!(dv.abs() <= speed * 0.1 / Pauses::RAMP_S + 1e-9 || moved > speed * 0.1 + 1e-6, "person {i}: the speed steps {dv} m/s at {t} s");
             }
             // Not within 10 ms of a leg's start (where the speed steps).
             let h = 1e-4;
@@ -418,14 +431,24 @@ fn long_sequences_keep_their_people_walking_to_the_end() {
     check_long(&plan, &grid, &cfg);
     // Waits turn at a constant rate from one walk's end heading to the next's start.
     let HumanPath::Legs(legs) = &plan.humans[0].trajectory else { unreachable!() };
+    let walk = |p: &HumanPath| match p {
+        HumanPath::Paused(w, _) => match &**w {
+            HumanPath::Walk(w, _) => Some(w.clone()),
+            _ => None,
+        },
+        _ => None,
+    };
+    let mut turns = 0;
     for w in legs.windows(3) {
-        if let (HumanPath::Walk(a, _), HumanPath::Arc(turn), HumanPath::Walk(b, _)) = (&w[0].path, &w[1].path, &w[2].path) {
+        if let (Some(a), HumanPath::Arc(turn), Some(b)) = (walk(&w[0].path), &w[1].path, walk(&w[2].path)) {
+            turns += 1;
             let span = w[2].t0_s - w[1].t0_s;
             let end = turn.heading_rad(span);
             let gap = |x: f64, y: f64| ((x - y + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI).abs();
             assert!(gap(turn.heading0_rad, a.heading_rad(a.duration_s())) < 1e-9 && gap(end, b.heading_rad(0.0)) < 1e-9);
         }
     }
+    assert!(turns >= 3, "{turns} waits between walks");
 }
 
 /// Where no arc of the sensor fits a long sequence, the sensor walks too, clear of the walls,
@@ -534,7 +557,8 @@ fn paused_and_companion_paths_move_as_their_velocities_say() {
     let arc: HumanPath = Trajectory { start_m: DVec2::new(1.0, 2.0), z_m: 0.0, heading0_rad: 0.3, speed_mps: 1.3, yaw_rate_rps: 0.4 }.into();
     let paused = HumanPath::Paused(Box::new(arc.clone()), Pauses::new(vec![(1.0, 2.5), (4.0, 4.5)]));
     let beside = HumanPath::Beside(Box::new(paused.clone()), -0.85);
-    for path in [&paused, &beside, &HumanPath::Beside(Box::new(arc.clone()), 0.8)] {
+    let rest_to_rest = HumanPath::Paused(Box::new(arc.clone()), Pauses::new(vec![(f64::NEG_INFINITY, 0.0), (4.0, f64::INFINITY)]));
+    for path in [&paused, &beside, &HumanPath::Beside(Box::new(arc.clone()), 0.8), &rest_to_rest] {
         for k in 0..140 {
             let t = -0.5 + 0.05 * k as f64 + 0.013;
             let h = 1e-5;
@@ -563,6 +587,26 @@ fn paused_and_companion_paths_move_as_their_velocities_say() {
         assert!((paused.distance(t) - d).abs() < 1e-5, "{d}: at {t} walked {}", paused.distance(t));
         assert!(paused.distance(t - 0.01) < d);
     }
+}
+
+/// A walk from standing to standing: held at its start, getting going over a ramp, slowing
+/// to a stop over another, held at its end; the walked time found back from either side.
+#[test]
+fn a_walk_from_rest_to_rest_ramps_at_both_ends() {
+    let r = Pauses::RAMP_S;
+    let p = Pauses::new(vec![(10.0 + r, f64::INFINITY), (f64::NEG_INFINITY, 0.0)]);
+    assert_eq!(p.stops().len(), 2);
+    for (t, pace, walked) in [(-1.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.5 * r, 0.5, r / 8.0), (r, 1.0, r / 2.0), (5.0, 1.0, 5.0 - r / 2.0), (10.0 + r, 0.0, 10.0), (99.0, 0.0, 10.0)] {
+        assert!((p.pace(t) - pace).abs() < 1e-12 && (p.walked_time(t) - walked).abs() < 1e-12, "at {t}: {} {}", p.pace(t), p.walked_time(t));
+    }
+    assert!((p.walked_time(10.0 + 0.5 * r) - (10.0 - r / 8.0)).abs() < 1e-12);
+    for u in [0.0, 0.01, r / 2.0, 3.0, 9.99, 10.0] {
+        let t = p.time_walked(u).unwrap();
+        assert!((p.walked_time(t) - u).abs() < 1e-5 && t <= 10.0 + r + 1e-9, "{u}: {t}");
+    }
+    assert_eq!(p.time_walked(10.01), None);
+    // A stop from minus infinity that ends before 0 would hold the walk before its start.
+    assert!(Pauses::new(vec![(f64::NEG_INFINITY, -1.0)]).stops().is_empty());
 }
 
 /// Overlapping or empty stops are dropped; a stop begins with a walk slowing down.
