@@ -9,7 +9,11 @@ stored ``/velocity``).
 
 Inputs per beam (:func:`input_channels`): ``range / 10 m`` on returned beams and 0 elsewhere,
 and a **validity channel** (1 returned, 0 no return), so a hole is never confused with a
-near surface; with ``intensity`` also the return's intensity (0 on holes).
+near surface; with ``intensity`` also the return's intensity (0 on holes). With
+``elevation_deg`` (not in the paper) the encoder also gets each return's **height** relative to
+the sensor, range x sin(its row's elevation) / 2 m, computed inside the network from the range
+channel (the inputs stay the same; the ONNX file holds the elevations): a range image alone
+says how far a surface is, not whether it stands on the road or hangs at a person's head.
 
 Every 3x3 convolution pads **circularly along the columns** (azimuth wraps: column 0 and
 W-1 are neighbours) and with zeros along the rows (the top and bottom beams are not).
@@ -47,6 +51,9 @@ RANGE_SCALE_M = 10.0
 #: Range changes beyond this many metres (a beam that met another surface) are clipped.
 CHANGE_CLIP_M = 3.0
 
+#: Height scale of the height channel, metres.
+HEIGHT_SCALE_M = 2.0
+
 
 @dataclass(frozen=True)
 class NetConfig:
@@ -60,10 +67,17 @@ class NetConfig:
     """channels of the encoder's first layer; the others are multiples of it"""
     range_change: bool = False
     """the decoder also sees each beam's range change against the earlier frames (N >= 2)"""
+    elevation_deg: tuple[float, ...] = ()
+    """the grid rows' elevations, top row first: the encoder also sees each return's height
+    (range x sin(elevation)); empty: no height channel"""
 
     def __post_init__(self) -> None:
         if self.range_change and self.frames < 2:
             raise ValueError("range-change channels need at least 2 frames")
+        # A model file's JSON gives a list.
+        object.__setattr__(self, "elevation_deg", tuple(float(e) for e in self.elevation_deg))
+        if not all(math.isfinite(e) and -90.0 <= e <= 90.0 for e in self.elevation_deg):
+            raise ValueError("row elevations must be finite degrees within +-90")
 
     @property
     def in_channels(self) -> int:
@@ -125,7 +139,7 @@ class Encoder(nn.Module):
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
         w = cfg.width
-        self.e1 = WrapConv(cfg.in_channels, w)  # H x W
+        self.e1 = WrapConv(cfg.in_channels + (1 if cfg.elevation_deg else 0), w)  # H x W
         self.e2 = WrapConv(w, w * 3 // 2, stride=(1, 2))  # H x W/2
         self.e3 = WrapConv(w * 3 // 2, 2 * w, stride=(2, 2))  # H/2 x W/4
         self.e4 = WrapConv(2 * w, 2 * w)
@@ -264,12 +278,21 @@ class SequenceNet(nn.Module):
         self.cfg = cfg
         self.encoder = Encoder(cfg)
         self.decoder = Decoder(cfg, self.encoder.channels)
+        # Not in the state dict: the model file's configuration gives it.
+        sin_el = np.sin(np.deg2rad(np.asarray(cfg.elevation_deg, dtype=np.float64)))
+        self.register_buffer("height_per_range", torch.tensor(sin_el * RANGE_SCALE_M / HEIGHT_SCALE_M, dtype=torch.float32),
+                             persistent=False)
 
     def encode(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """[B, C, H, W] -> (s1, s2, features) of each frame."""
         h, w = x.shape[-2:]
         if h % 4 or w % 8:
             raise ValueError(f"the grid must have a multiple of 4 rows and of 8 columns (got {h} x {w})")
+        if self.cfg.elevation_deg:
+            if h != len(self.cfg.elevation_deg):
+                raise ValueError(f"the network's height channel is for {len(self.cfg.elevation_deg)} rows (got {h})")
+            # Range channel (0 on holes) x sin(elevation): the height channel.
+            x = torch.cat([x, x[:, :1] * self.height_per_range.view(1, 1, h, 1)], dim=1)
         return self.encoder(x)
 
     def decode(

@@ -76,6 +76,12 @@ class TrainConfig:
     loss_weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS
     crop_columns: int = 0
     """0: whole frames; else each window is this many columns at a drawn azimuth (wrapping)"""
+    height: bool = False
+    """the encoder also sees each return's height (:class:`~pedscan_data.model.NetConfig`'s
+    ``elevation_deg``, the training grid's)"""
+    class_weight_power: float = 1.0
+    """a human beam's cross-entropy weight is (background beams / human beams of the frame) to this
+    power: 1 the paper's balance, 0 none"""
     data: list[dict[str, Any]] = field(default_factory=list)
     """the training sequences: file name, bytes, index, seed"""
 
@@ -153,11 +159,16 @@ class StepWindows:
 
 def paper_loss(
     logits: Any, velocity: Any, label: Any, v_true: Any, valid: Any,
-    weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS,
+    weights: tuple[float, float, float] = PAPER_LOSS_WEIGHTS, class_weight_power: float = 1.0,
 ) -> tuple[Any, dict[str, float]]:
     """The paper's loss over a batch; no-return beams (``valid`` False) and not-scored beams
     (``label`` 255, :data:`~pedscan_data.evaluate.NOT_SCORED`: a recorded background's own
     people) count in no term, nor in the class weight.
+
+    A human beam's cross-entropy weighs (background beams / human beams of its frame) to the
+    power ``class_weight_power``: the paper's 1 gives both classes the same total weight, which
+    where people are 0.6 % of the beams (a street) trains a network that calls far more beams
+    human than there are; 0 weighs every beam alike.
 
     logits [B,2,H,W], velocity and v_true [B,3,H,W], label [B,H,W] (1 human), valid [B,H,W].
     Returns the loss and its three terms (unweighted) for the log.
@@ -170,7 +181,8 @@ def paper_loss(
     human = (label == 1) & valid
     n_valid = valid_f.sum(dim=(1, 2)).clamp(min=1.0)
     n_human = human.to(logits.dtype).sum(dim=(1, 2))
-    class_w = torch.where(n_human > 0, (n_valid - n_human) / n_human.clamp(min=1.0), torch.ones_like(n_human))
+    ratio = (n_valid - n_human) / n_human.clamp(min=1.0)
+    class_w = torch.where(n_human > 0, ratio.clamp(min=0.0) ** class_weight_power, torch.ones_like(n_human))
     ce = F.cross_entropy(logits, label.clamp(0, 1), reduction="none")  # [B,H,W]
     w = torch.where(human, class_w[:, None, None], torch.ones_like(ce)) * valid_f
     seg = (w * ce).sum(dim=(1, 2)) / n_valid
@@ -346,7 +358,8 @@ def train(args: argparse.Namespace) -> int:
     cfg = TrainConfig(
         frames=args.frames, width=args.width, intensity=args.intensity, range_change=args.range_change, seed=args.seed,
         batch=args.batch, crop_columns=args.crop_columns,
-        lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights),
+        lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights), class_weight_power=args.class_weight_power,
+        height=args.height,
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
@@ -354,8 +367,8 @@ def train(args: argparse.Namespace) -> int:
         raise PedscanError(f"--crop-columns {cfg.crop_columns}: a multiple of 8 (the network's), or 0 for whole frames")
     if cfg.range_change and cfg.frames < 2:
         raise PedscanError("--range-change needs --frames 2 or more (a single frame has no range change)")
-    if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, *cfg.loss_weights)):
-        raise PedscanError("--lr, --decay and --loss-weights must be finite and not negative")
+    if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, cfg.class_weight_power, *cfg.loss_weights)):
+        raise PedscanError("--lr, --decay, --loss-weights and --class-weight-power must be finite and not negative")
     paths = training_paths(args.data)
     seqs = check_sequences(paths, cfg.frames, ", ".join(map(str, args.data)), cfg.intensity)
     val_seqs = check_sequences(sequence_paths(args.val), 1, str(args.val), cfg.intensity) if args.val else []
@@ -380,8 +393,15 @@ def train(args: argparse.Namespace) -> int:
         torch.use_deterministic_algorithms(True, warn_only=True)
     else:
         torch.use_deterministic_algorithms(True)
-    net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width,
-                                range_change=cfg.range_change)).to(device)
+    grid = sensor_of(seqs)
+    if cfg.height and grid is None:
+        raise PedscanError("--height: the training sequences are on different grids (the height channel needs one)")
+    if cfg.height and grid is not None:
+        for v in val_seqs:
+            if not np.array_equal(v.elevation_deg, np.asarray(grid["elevation_deg"], dtype=v.elevation_deg.dtype)):
+                raise PedscanError(f"--height: {v.path} is on another grid than the training sequences")
+    net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width, range_change=cfg.range_change,
+                                elevation_deg=tuple(grid["elevation_deg"]) if cfg.height and grid else ())).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
     if args.resume:
@@ -478,7 +498,7 @@ def train(args: argparse.Namespace) -> int:
             logits, vel = net(batch["x"].to(device))
             loss, parts = paper_loss(
                 logits, vel, batch["label"].to(device), batch["velocity"].to(device), batch["valid"].to(device),
-                cfg.loss_weights,
+                cfg.loss_weights, cfg.class_weight_power,
             )
             if not torch.isfinite(loss):
                 raise PedscanError(f"step {step}: the loss is {float(loss)} (window {batch['sequence'].tolist()}, "
@@ -587,6 +607,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--range-change", action="store_true",
                    help="the decoder also sees each beam's range change against the earlier frames, and the "
                         "velocity branch the whole scan's (not in the paper; N >= 2)")
+    p.add_argument("--height", action="store_true",
+                   help="the encoder also sees each return's height, range x sin(its row's elevation) (not in the paper)")
     p.add_argument("--batch", type=int, default=1, help="windows per step (paper: 1)")
     p.add_argument("--crop-columns", type=int, default=0, metavar="W",
                    help="train on W columns of each window at a drawn azimuth (a multiple of 8; a step costs about "
@@ -595,6 +617,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--decay", type=float, default=1e-3, help="time decay: lr / (1 + decay * step) (paper: 1e-3)")
     p.add_argument("--loss-weights", type=float, nargs=3, default=list(PAPER_LOSS_WEIGHTS),
                    metavar=("CE", "BG", "HUMAN"), help="paper: 10000 1 1001")
+    p.add_argument("--class-weight-power", type=float, default=1.0, metavar="P",
+                   help="a human beam's cross-entropy weight is (background / human beams of its frame) to the power P "
+                   "(paper: 1, both classes weigh alike; 0: every beam alike)")
     p.add_argument("--workers", type=int, default=1, help="data-loading processes (default 1; 0: in the trainer)")
     p.add_argument("--val-every", type=int, default=500)
     p.add_argument("--checkpoint-every", type=int, default=250)

@@ -112,7 +112,10 @@ def watch_devices(net: Any) -> list[Any]:
     return seen
 
 
-def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False, range_change: bool = False) -> Any:
+def net_for(
+    frames: int, width: int = 8, seed: int = 0, intensity: bool = False, range_change: bool = False,
+    elevation_deg: tuple[float, ...] = (),
+) -> Any:
     """A network of random, not trained weights, in eval mode; its biases are made nonzero so
     that zero padding or a dropped input shows in the outputs."""
     import torch
@@ -120,7 +123,8 @@ def net_for(frames: int, width: int = 8, seed: int = 0, intensity: bool = False,
     from pedscan_data.model import NetConfig, SequenceNet
 
     torch.manual_seed(seed)
-    net = SequenceNet(NetConfig(frames=frames, width=width, intensity=intensity, range_change=range_change)).eval()
+    cfg = NetConfig(frames=frames, width=width, intensity=intensity, range_change=range_change, elevation_deg=elevation_deg)
+    net = SequenceNet(cfg).eval()
     with torch.no_grad():
         for p in net.parameters():
             if p.ndim == 1:

@@ -192,6 +192,10 @@ def test_paper_loss_weights_human_beams_by_the_frames_class_ratio() -> None:
     no_human = torch.zeros_like(label)
     _, t2 = paper_loss(logits, v, no_human, v, valid)
     assert t2["ce"] == pytest.approx(np.log(2), rel=1e-6)
+    # The weight to a power: sqrt(7) with 0.5, every beam alike with 0.
+    for power, human_weight in [(0.5, np.sqrt(7)), (0.0, 1.0)]:
+        _, t3 = paper_loss(logits, v, label, v, valid, class_weight_power=power)
+        assert t3["ce"] == pytest.approx((7 + human_weight) * np.log(2) / 8, rel=1e-6)
 
 
 @pytest.mark.parametrize("n,change", [(2, False), (3, True)])
@@ -244,6 +248,47 @@ def test_onnx_export_matches_pytorch(tmp_path: Path, change: bool) -> None:
     for a, b in zip(ref, out):
         np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_the_height_channel_is_range_times_the_rows_sine_and_travels_with_the_model(tmp_path: Path) -> None:
+    """A network with ``elevation_deg`` sees each return's height: its first layer is fed the
+    range channel times sin(elevation) / 2 m as one more channel, which the model file and the
+    ONNX file both carry; a grid of other rows is refused."""
+    import onnxruntime as ort
+
+    from conftest import save_model
+    from pedscan_data.model import HEIGHT_SCALE_M, RANGE_SCALE_M
+    from pedscan_data.netio import load_net
+    from pedscan_data.predict import export_onnx
+
+    el = tuple(np.linspace(2.0, -24.9, 16))
+    net = net_for(1, elevation_deg=el)
+    assert net.encoder.e1.conv.in_channels == 3 and not any("height" in k for k in net.state_dict())
+    fed = []
+    net.encoder.e1.register_forward_hook(lambda m, inp, out: fed.append(inp[0]))
+    r = torch.rand(1, 16, 64) * 30.0
+    x = torch.from_numpy(input_channels(r.numpy()))[:, None]
+    with torch.no_grad():
+        net(x)
+    expected = x[0, 0, 0] * RANGE_SCALE_M * torch.sin(torch.deg2rad(torch.tensor(el)))[:, None] / HEIGHT_SCALE_M
+    torch.testing.assert_close(fed[0][0, 2], expected.float(), rtol=1e-5, atol=1e-6)
+    # The same weights on other elevations answer otherwise: the channel is used.
+    other = SequenceNet(NetConfig(frames=1, width=8, elevation_deg=tuple(e + 5.0 for e in el))).eval()
+    other.load_state_dict(net.state_dict())
+    with torch.no_grad():
+        assert not torch.allclose(net(x)[0], other(x)[0])
+    # Through the model file and ONNX.
+    back, _ = load_net(save_model(net, tmp_path / "h.pt"), torch.device("cpu"))
+    assert back.cfg == net.cfg
+    with torch.no_grad():
+        torch.testing.assert_close(back(x)[0], net(x)[0])
+    assert export_onnx(net, tmp_path / "h.onnx", 16, 64) <= 1e-4
+    out = ort.InferenceSession(str(tmp_path / "h.onnx"), providers=["CPUExecutionProvider"]).run(None, {"input": x.numpy()})
+    np.testing.assert_allclose(out[0], net(x)[0].detach().numpy(), rtol=1e-4, atol=1e-4)
+    with pytest.raises(ValueError, match="height channel is for 16 rows"):
+        net(torch.zeros(1, 1, 2, 20, 64))
+    with pytest.raises(ValueError, match="elevations"):
+        NetConfig(frames=1, elevation_deg=(float("nan"),))
 
 
 def test_the_calibrated_cut_is_the_best_of_every_cut() -> None:

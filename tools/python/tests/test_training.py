@@ -602,6 +602,8 @@ TRAIN_OPTIONS = [
     (["--intensity"], None, False, False, 0, None, "also take the return intensity as input"),
     (["--range-change"], None, False, False, 0, None, "the decoder also sees each beam's range change against the "
      "earlier frames, and the velocity branch the whole scan's (not in the paper; N >= 2)"),
+    (["--height"], None, False, False, 0, None, "the encoder also sees each return's height, range x sin(its row's "
+     "elevation) (not in the paper)"),
     (["--batch"], int, 1, False, None, None, "windows per step (paper: 1)"),
     (["--crop-columns"], int, 0, False, None, "W",
      "train on W columns of each window at a drawn azimuth (a multiple of 8; a step costs about W / columns of a "
@@ -609,6 +611,8 @@ TRAIN_OPTIONS = [
     (["--lr"], float, 1e-3, False, None, None, "Adam learning rate (paper: 1e-3)"),
     (["--decay"], float, 1e-3, False, None, None, "time decay: lr / (1 + decay * step) (paper: 1e-3)"),
     (["--loss-weights"], float, [10000.0, 1.0, 1001.0], False, 3, ("CE", "BG", "HUMAN"), "paper: 10000 1 1001"),
+    (["--class-weight-power"], float, 1.0, False, None, "P", "a human beam's cross-entropy weight is (background / "
+     "human beams of its frame) to the power P (paper: 1, both classes weigh alike; 0: every beam alike)"),
     (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
     (["--val-every"], int, 500, False, None, None, None),
     (["--checkpoint-every"], int, 250, False, None, None, None),
