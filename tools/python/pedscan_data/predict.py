@@ -256,6 +256,10 @@ def predict(
             raise PedscanError(
                 f"{seq.path}: a {seq.rows} x {seq.columns} grid; the network takes a multiple of 4 rows and of 8 columns"
             )
+        if net.cfg.elevation_deg and seq.rows != len(net.cfg.elevation_deg):
+            raise PedscanError(
+                f"{seq.path}: {seq.rows} rows; {model} sees heights on a grid of {len(net.cfg.elevation_deg)} rows"
+            )
     out.mkdir(parents=True, exist_ok=True)
     all_ms: list[float] = []
     for k, seq in enumerate(sequences):
@@ -290,6 +294,8 @@ def check_grid(grid: Grid, net: Any, obj: dict[str, Any], model: Any) -> list[st
         raise PedscanError(
             f"--sensor {grid.sensor}: a {grid.rows} x {grid.cols} grid; the network takes a multiple of 4 rows and of 8 columns"
         )
+    if net.cfg.elevation_deg and grid.rows != len(net.cfg.elevation_deg):
+        raise PedscanError(f"--sensor {grid.sensor}: {grid.rows} rows; {model} sees heights on a grid of {len(net.cfg.elevation_deg)} rows")
     if not net.cfg.intensity:
         return []
     trained = obj.get("intensity_units", obj.get("training", {}).get("intensity_units"))

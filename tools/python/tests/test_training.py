@@ -279,6 +279,13 @@ def test_predict_refuses_data_the_network_cannot_take(sample_minimal: Path, tmp_
     assert pr.main([str(net_file), str(data), "--out", str(tmp_path / "p")]) == 2
     assert f"{data / 'seq_000000.h5'}: no dataset /intensity" in capsys.readouterr().err
     assert not (tmp_path / "p").exists()
+    # A network that sees heights takes only the grid its row elevations are of.
+    with h5py.File(data / "seq_000000.h5") as f:
+        rows = f["range"].shape[1]
+    heights = save_model(SequenceNet(NetConfig(frames=2, width=4, elevation_deg=(0.0,) * (rows + 4))), tmp_path / "h.pt")
+    assert pr.main([str(heights), str(data), "--out", str(tmp_path / "p")]) == 2
+    assert f"{data / 'seq_000000.h5'}: {rows} rows; {heights} sees heights on a grid of {rows + 4} rows" in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
 
 
 def test_the_paper_experiment_runs_end_to_end_and_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
