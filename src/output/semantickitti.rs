@@ -41,10 +41,11 @@ pub const UNLABELED: u32 = 0;
 /// The class pedscan gives every background point.
 pub const BACKGROUND: u32 = 50;
 /// SemanticKITTI's names and colours (BGR, semantic-kitti.yaml) of the classes pedscan writes.
-pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 18] = [
+pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 21] = [
     (0, "unlabeled", [0, 0, 0]),
     (10, "car", [245, 150, 100]),
     (11, "bicycle", [245, 230, 100]),
+    (18, "truck", [180, 30, 80]),
     (30, "person", [30, 30, 255]),
     (31, "bicyclist", [200, 40, 255]),
     (40, "road", [255, 0, 255]),
@@ -59,6 +60,8 @@ pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 18] = [
     (80, "pole", [150, 240, 255]),
     (81, "traffic-sign", [0, 0, 255]),
     (99, "other-object", [255, 255, 50]),
+    (252, "moving-car", [245, 150, 100]),
+    (253, "moving-bicyclist", [255, 40, 200]),
     (254, "moving-person", [255, 30, 30]),
 ];
 

@@ -447,7 +447,7 @@ fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts
     }
 }
 
-/// Cars parked along one curb, with gaps, clear of the crossings.
+/// Cars parked along one curb, with gaps, clear of the crossings; one in eight a box truck.
 fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let y = l.curb_y(side) - s * PARKING_M * 0.48;
@@ -457,14 +457,22 @@ fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, cou
             x += uni(rng, 4.0, 25.0);
             continue;
         }
-        let len_guess = 5.2;
+        let truck = chance(rng, 0.125);
+        let len_guess = if truck { 8.5 } else { 5.2 };
         if l.near_crossing(x + len_guess * 0.5, len_guess * 0.5 + 1.5) {
             x += 2.0;
             continue;
         }
         let yaw = if chance(rng, 0.5) { 0.0 } else { PI };
-        let (len, _) = things::car(b, rng, DVec2::new(x + len_guess * 0.5, y), ROAD_Z, yaw);
-        count(counts, "parked car");
+        let len = if truck {
+            // Its side 0.05 m from the curb.
+            let centre = DVec2::new(x + len_guess * 0.5, l.curb_y(side) - s * 1.15);
+            count(counts, "parked truck");
+            things::truck(b, rng, centre, ROAD_Z, yaw).0
+        } else {
+            count(counts, "parked car");
+            things::car(b, rng, DVec2::new(x + len_guess * 0.5, y), ROAD_Z, yaw).0
+        };
         x += len_guess.max(len) + uni(rng, 0.6, 3.0);
     }
 }

@@ -53,12 +53,17 @@ fn layouts_differ_between_sequences_and_repeat_for_a_seed() {
 #[test]
 fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
     let human_sized = ["bollard", "bin", "bush", "cabinet", "kiosk", "parking meter", "planter", "post box", "mannequin", "plant", "coat stand", "info stand", "display case", "shelf", "sculpture", "ticket machine", "vending machine"];
+    let mut trucks = 0;
     for kind in [WorldKind::Street, WorldKind::Indoor] {
         for index in 0..4 {
             let w = World::build(kind, 3, index, &params()).unwrap();
+            // Streets park box trucks among their cars, as SemanticKITTI's trucks.
+            let parked = w.counts.get("parked truck").copied().unwrap_or(0);
+            assert_eq!(parked > 0, w.env.meshes.iter().any(|m| m.class == 18), "{}", w.summary());
+            trucks += parked;
             let n: usize = w.counts.iter().filter(|(k, _)| human_sized.contains(k)).map(|(_, n)| n).sum();
             assert!(n >= 20, "{kind:?} {index}: {n} things of human size: {}", w.summary());
-            let known = [10, 11, 40, 48, 49, 50, 51, 60, 70, 71, 72, 80, 81, 99];
+            let known = [10, 11, 18, 40, 48, 49, 50, 51, 60, 70, 71, 72, 80, 81, 99];
             for m in &w.env.meshes {
                 assert!(known.contains(&m.class), "{}: class {}", m.name, m.class);
                 assert!((0.04..=1.0).contains(&m.reflectance), "{}", m.name);
@@ -68,6 +73,7 @@ fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
             assert!(r.iter().any(|&x| x <= 0.2) && r.iter().any(|&x| x >= 0.6), "{kind:?} {index}: {r:?}");
         }
     }
+    assert!(trucks >= 2, "{trucks} parked trucks in four streets");
 }
 
 #[test]

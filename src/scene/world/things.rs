@@ -13,6 +13,7 @@ use rand::{Rng, RngExt};
 pub mod class {
     pub const CAR: u16 = 10;
     pub const BICYCLE: u16 = 11;
+    pub const TRUCK: u16 = 18;
     /// A person riding a bicycle (the bicycle itself is [`BICYCLE`]).
     pub const BICYCLIST: u16 = 31;
     pub const ROAD: u16 = 40;
@@ -44,7 +45,7 @@ pub fn material(rng: &mut impl Rng, class: u16) -> Material {
         class::TERRAIN => (0.25, 0.6),
         class::POLE => (0.1, 0.6),
         class::TRAFFIC_SIGN => (0.5, 0.95),
-        class::CAR => (0.05, 0.8),
+        class::CAR | class::TRUCK => (0.05, 0.8),
         class::BICYCLE => (0.05, 0.6),
         _ => (0.05, 0.8),
     };
@@ -340,6 +341,30 @@ pub fn car(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> (
         for s in [-1.0, 1.0] {
             let c = (p + DVec2::new(yaw.cos(), yaw.sin()) * (fx * l) + side * (s * (w * 0.5 - 0.12))).extend(g + 0.32);
             b.rod(tyre, c - (side * 0.11).extend(0.0), c + (side * 0.11).extend(0.0), 0.32, 10);
+        }
+    }
+    (l, w)
+}
+
+/// A parked box truck along `yaw` (its centre at `p`): a cab (2.4-2.9 m tall) and a cargo box
+/// (3.0-3.6 m tall) on a frame, 6-8.5 m long and 2.05-2.2 m wide (a delivery truck that fits a
+/// parking lane), on its wheels; SemanticKITTI's truck.
+pub fn truck(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> (f64, f64) {
+    let m = material(rng, class::TRUCK);
+    let (l, w) = (uni(rng, 6.0, 8.5), uni(rng, 2.05, 2.2));
+    let cab = uni(rng, 1.7, 2.2);
+    let (cab_h, box_h, floor) = (uni(rng, 2.4, 2.9), uni(rng, 3.0, 3.6), uni(rng, 0.9, 1.2));
+    // The cab at the front (+x along yaw), the box behind it with a gap, a frame under both.
+    b.cuboid(m, at(p, yaw, 0.5 * l - 0.5 * cab, g + 0.45), DVec3::new(cab, w, cab_h - 0.45), yaw);
+    let box_l = l - cab - 0.15;
+    b.cuboid(material(rng, class::TRUCK), at(p, yaw, -0.5 * l + 0.5 * box_l, g + floor), DVec3::new(box_l, w, box_h - floor), yaw);
+    b.cuboid(m, at(p, yaw, 0.0, g + 0.5), DVec3::new(l - 0.3, w * 0.6, floor - 0.5), yaw);
+    let tyre = material(rng, class::TRUCK);
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    for fx in [0.5 * l - 0.6 * cab, -0.5 * l + 1.2] {
+        for s in [-1.0, 1.0] {
+            let c = (p + DVec2::new(yaw.cos(), yaw.sin()) * fx + side * (s * (w * 0.5 - 0.15))).extend(g + 0.45);
+            b.rod(tyre, c - (side * 0.14).extend(0.0), c + (side * 0.14).extend(0.0), 0.45, 10);
         }
     }
     (l, w)
