@@ -149,7 +149,8 @@ pub(super) fn long_walk(
                 None => planner.plan_walk(rng, crowd.grid, crowd.clearance_m, speed, leg_s, Some(pos)),
             };
             let Some(w) = w else { continue };
-            let (path, arrive) = eased(HumanPath::Walk(w.clone(), floor_z), w.duration_s(), at_rest);
+            let walk_s = w.duration_s();
+            let (path, arrive) = eased(HumanPath::Walk(w, floor_z), walk_s, at_rest);
             let turn = turning(pos, heading, path.heading_rad(0.0), wait);
             if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + arrive) {
                 walked = Some((arrive, path, turn));

@@ -401,7 +401,7 @@ fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Conf
                 let moved = p.position_m(t).distance(p.position_m(times[k - 1]));
                 assert!(dv.abs() <= speed * 0.1 / Pauses::RAMP_S + 1e-9 || moved > speed * 0.1 + 1e-6, "person {i}: the speed steps {dv} m/s at {t} s");
             }
-            // Not within 10 ms of a leg's start (where the speed steps).
+            // Not within 10 ms of a leg's start (where somebody comes back in, the position jumps).
             let h = 1e-4;
             if legs.iter().all(|g| (g.t0_s - t).abs() > 0.01) {
                 let fd = (p.trajectory.position(t + h) - p.trajectory.position(t - h)) / (2.0 * h);

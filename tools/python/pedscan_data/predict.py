@@ -256,10 +256,7 @@ def predict(
             raise PedscanError(
                 f"{seq.path}: a {seq.rows} x {seq.columns} grid; the network takes a multiple of 4 rows and of 8 columns"
             )
-        if net.cfg.elevation_deg and seq.rows != len(net.cfg.elevation_deg):
-            raise PedscanError(
-                f"{seq.path}: {seq.rows} rows; {model} sees heights on a grid of {len(net.cfg.elevation_deg)} rows"
-            )
+        check_height_rows(net, model, seq.rows, str(seq.path))
     out.mkdir(parents=True, exist_ok=True)
     all_ms: list[float] = []
     for k, seq in enumerate(sequences):
@@ -287,6 +284,13 @@ def model_sensor(obj: dict[str, Any]) -> Any:
     return obj.get("sensor", obj.get("training", {}).get("sensor"))
 
 
+def check_height_rows(net: Any, model: Any, rows: int, what: str) -> None:
+    """Refuses ``what``'s grid of ``rows`` rows where the network's height channel is for
+    another (its row elevations)."""
+    if net.cfg.elevation_deg and rows != len(net.cfg.elevation_deg):
+        raise PedscanError(f"{what}: {rows} rows; {model} sees heights on a grid of {len(net.cfg.elevation_deg)} rows")
+
+
 def check_grid(grid: Grid, net: Any, obj: dict[str, Any], model: Any) -> list[str]:
     """Refuses a grid the network cannot take or whose intensity is not in the units it was
     trained on; the notes to print (units the model file does not record)."""
@@ -294,8 +298,7 @@ def check_grid(grid: Grid, net: Any, obj: dict[str, Any], model: Any) -> list[st
         raise PedscanError(
             f"--sensor {grid.sensor}: a {grid.rows} x {grid.cols} grid; the network takes a multiple of 4 rows and of 8 columns"
         )
-    if net.cfg.elevation_deg and grid.rows != len(net.cfg.elevation_deg):
-        raise PedscanError(f"--sensor {grid.sensor}: {grid.rows} rows; {model} sees heights on a grid of {len(net.cfg.elevation_deg)} rows")
+    check_height_rows(net, model, grid.rows, f"--sensor {grid.sensor}")
     if not net.cfg.intensity:
         return []
     trained = obj.get("intensity_units", obj.get("training", {}).get("intensity_units"))

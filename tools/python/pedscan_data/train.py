@@ -393,15 +393,15 @@ def train(args: argparse.Namespace) -> int:
         torch.use_deterministic_algorithms(True, warn_only=True)
     else:
         torch.use_deterministic_algorithms(True)
-    grid = sensor_of(seqs)
-    if cfg.height and grid is None:
-        raise PedscanError("--height: the training sequences are on different grids (the height channel needs one)")
-    if cfg.height and grid is not None:
+    sensor = sensor_of(seqs)
+    if cfg.height:
+        if sensor is None:
+            raise PedscanError("--height: the training sequences are on different grids (the height channel needs one)")
         for v in val_seqs:
-            if not np.array_equal(v.elevation_deg, np.asarray(grid["elevation_deg"], dtype=v.elevation_deg.dtype)):
+            if not np.array_equal(v.elevation_deg, np.asarray(sensor["elevation_deg"], dtype=v.elevation_deg.dtype)):
                 raise PedscanError(f"--height: {v.path} is on another grid than the training sequences")
     net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width, range_change=cfg.range_change,
-                                elevation_deg=tuple(grid["elevation_deg"]) if cfg.height and grid else ())).to(device)
+                                elevation_deg=tuple(sensor["elevation_deg"]) if cfg.height else ())).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
     if args.resume:
@@ -454,8 +454,6 @@ def train(args: argparse.Namespace) -> int:
         prefetch_factor=4 if args.workers else None, persistent_workers=False,
     )
     title = f"{run.name}: N={cfg.frames}, {len(seqs)} training sequences"
-
-    sensor = sensor_of(seqs)
 
     def save(step: int) -> None:
         weights = {k: v.detach().cpu() for k, v in net.state_dict().items()}
