@@ -56,6 +56,7 @@ import numpy as np
 
 from .evaluate import NOT_SCORED
 from .reader import PedscanError, Sequence, sequence_paths
+from .windows import widen_people
 
 #: The paper's loss weights: cross-entropy, background velocity, human velocity.
 PAPER_LOSS_WEIGHTS = (10_000.0, 1.0, 1_001.0)
@@ -82,6 +83,11 @@ class TrainConfig:
     class_weight_power: float = 1.0
     """a human beam's cross-entropy weight is (background beams / human beams of the frame) to this
     power: 1 the paper's balance, 0 none"""
+    widen_m: float = 0.0
+    """each window's people are made wider on either side by a reach drawn in [0, widen_m] m
+    (:func:`~pedscan_data.windows.widen_people`); 0: as drawn"""
+    init: dict[str, Any] | None = None
+    """the model file the weights started from (name, SHA-256, its step), or None"""
     data: list[dict[str, Any]] = field(default_factory=list)
     """the training sequences: file name, bytes, index, seed"""
 
@@ -113,12 +119,15 @@ class StepWindows:
     ``numpy.random.default_rng([seed, i])`` alone (a map-style dataset: workers and resume do
     not change what step k sees)."""
 
-    def __init__(self, sequences: list[Sequence], frames: int, seed: int, intensity: bool, crop_columns: int = 0) -> None:
+    def __init__(
+        self, sequences: list[Sequence], frames: int, seed: int, intensity: bool, crop_columns: int = 0, widen_m: float = 0.0
+    ) -> None:
         self.sequences = sequences
         self.frames = frames
         self.seed = seed
         self.intensity = intensity
         self.crop_columns = crop_columns
+        self.widen_m = widen_m
 
     def pick(self, i: int) -> tuple[int, int]:
         rng = np.random.default_rng([self.seed, i])
@@ -138,9 +147,21 @@ class StepWindows:
         seq = self.sequences[s]
         window = slice(t - self.frames + 1, t + 1)
         r = seq.read("range", window)
-        x = input_channels(r, seq.read("intensity", window) if self.intensity else None)
+        intensity = seq.read("intensity", window) if self.intensity else None
         label = seq.read("label", t)
         velocity = seq.read("velocity", t)
+        if self.widen_m > 0:
+            # One reach for the window's frames (a stream of its own: what step i draws otherwise
+            # stays as without widening).
+            reach = float(np.random.default_rng([self.seed, i, 2]).uniform(0.0, self.widen_m))
+            labels = seq.read("label", window)
+            for k in range(r.shape[0]):
+                r[k], labels[k], src = widen_people(r[k], labels[k], reach)
+                if intensity is not None:
+                    intensity[k] = np.take_along_axis(intensity[k], src, axis=1)
+            label = labels[-1]
+            velocity = np.take_along_axis(velocity, src[..., None], axis=1)
+        x = input_channels(r, intensity)
         if 0 < self.crop_columns < seq.columns:
             # Columns c0 .. c0 + crop - 1 around the turn, c0 from a stream of its own (the
             # sequence and frame of step i stay those of whole-frame training).
@@ -347,6 +368,20 @@ class Stop(Exception):
     pass
 
 
+def load_init(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``--init``: what run.json records of the model file (name, SHA-256, its training step),
+    and the file."""
+    import hashlib
+
+    from .netio import load_file
+
+    obj = load_file(path)
+    if "net" not in obj or "state_dict" not in obj:
+        raise PedscanError(f"--init {path}: not a pedscan model file (no network or weights)")
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return {"file": path.name, "sha256": digest, "step": (obj.get("training") or {}).get("step")}, obj
+
+
 def train(args: argparse.Namespace) -> int:
     import torch
 
@@ -359,7 +394,7 @@ def train(args: argparse.Namespace) -> int:
         frames=args.frames, width=args.width, intensity=args.intensity, range_change=args.range_change, seed=args.seed,
         batch=args.batch, crop_columns=args.crop_columns,
         lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights), class_weight_power=args.class_weight_power,
-        height=args.height,
+        height=args.height, widen_m=args.widen_m,
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
@@ -367,8 +402,8 @@ def train(args: argparse.Namespace) -> int:
         raise PedscanError(f"--crop-columns {cfg.crop_columns}: a multiple of 8 (the network's), or 0 for whole frames")
     if cfg.range_change and cfg.frames < 2:
         raise PedscanError("--range-change needs --frames 2 or more (a single frame has no range change)")
-    if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, cfg.class_weight_power, *cfg.loss_weights)):
-        raise PedscanError("--lr, --decay, --loss-weights and --class-weight-power must be finite and not negative")
+    if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, cfg.class_weight_power, cfg.widen_m, *cfg.loss_weights)):
+        raise PedscanError("--lr, --decay, --loss-weights, --class-weight-power and --widen-m must be finite and not negative")
     paths = training_paths(args.data)
     seqs = check_sequences(paths, cfg.frames, ", ".join(map(str, args.data)), cfg.intensity)
     val_seqs = check_sequences(sequence_paths(args.val), 1, str(args.val), cfg.intensity) if args.val else []
@@ -377,6 +412,9 @@ def train(args: argparse.Namespace) -> int:
         if s.frames <= score_from:
             raise PedscanError(f"{s.path}: {s.frames} frames, none scored from frame {score_from} (--score-from)")
     cfg.data = describe_data(paths)
+    init = load_init(args.init) if args.init is not None else None
+    if init is not None:
+        cfg.init = init[0]
     if args.max_minutes is not None and not (math.isfinite(args.max_minutes) and args.max_minutes > 0):
         raise PedscanError(f"--max-minutes {args.max_minutes}: not a positive number of minutes")
     device = pick_device(args.device)
@@ -402,6 +440,12 @@ def train(args: argparse.Namespace) -> int:
                 raise PedscanError(f"--height: {v.path} is on another grid than the training sequences")
     net = SequenceNet(NetConfig(frames=cfg.frames, intensity=cfg.intensity, width=cfg.width, range_change=cfg.range_change,
                                 elevation_deg=tuple(sensor["elevation_deg"]) if cfg.height else ())).to(device)
+    if init is not None:
+        if init[1]["net"] != net.cfg.as_dict():
+            diff = sorted(k for k in set(init[1]["net"]) | set(net.cfg.as_dict()) if init[1]["net"].get(k) != net.cfg.as_dict().get(k))
+            raise PedscanError(f"--init {args.init}: a network of other options (differs in: {', '.join(diff)}); "
+                               "give its flags (--frames, --width, --height, ...)")
+        net.load_state_dict(init[1]["state_dict"])
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
     if args.resume:
@@ -447,7 +491,7 @@ def train(args: argparse.Namespace) -> int:
                 metrics.append(m)
     atomic_write_text(metrics_path, "".join(json.dumps(m) + "\n" for m in metrics))
 
-    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns)
+    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns, cfg.widen_m)
     sampler = range(start * cfg.batch, args.steps * cfg.batch)
     loader = torch.utils.data.DataLoader(
         data, batch_size=cfg.batch, sampler=sampler, num_workers=args.workers,
@@ -618,6 +662,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--class-weight-power", type=float, default=1.0, metavar="P",
                    help="a human beam's cross-entropy weight is (background / human beams of its frame) to the power P "
                    "(paper: 1, both classes weigh alike; 0: every beam alike)")
+    p.add_argument("--widen-m", type=float, default=0.0, metavar="M",
+                   help="make each window's people wider on either side by up to M metres, drawn per window, as clothes "
+                   "and carried things make real people (not in the paper; default 0)")
+    p.add_argument("--init", type=Path, default=None, metavar="MODEL",
+                   help="start from the weights of this model file (the same network options; fine-tuning)")
     p.add_argument("--workers", type=int, default=1, help="data-loading processes (default 1; 0: in the trainer)")
     p.add_argument("--val-every", type=int, default=500)
     p.add_argument("--checkpoint-every", type=int, default=250)

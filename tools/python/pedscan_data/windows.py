@@ -32,6 +32,52 @@ def class_weight(label: np.ndarray, range_m: np.ndarray) -> float:
     return (int(np.count_nonzero(returned)) - humans) / humans
 
 
+#: A widened person's cells must lie this much nearer than what they cover, m.
+WIDEN_STEP_M = 0.3
+
+
+def widen_people(range_m: np.ndarray, label: np.ndarray, reach_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One frame's people made up to ``reach_m`` wider on either side, as clothes, bags and
+    carried things make real people wider than the bodies pedscan draws.
+
+    range_m f32 [H,W] (0 = no return) and label [H,W] (1 human) of a whole turn (columns wrap).
+    A cell takes the range and label of the human cell ``d`` columns to its left or right when
+    ``d`` columns span at most ``reach_m`` at that person's range, the cell is not human, and it
+    holds no return or one more than :data:`WIDEN_STEP_M` farther (a person never grows over
+    what stands in front of it) and every cell between them has grown too; the nearest such
+    human cell wins, the left one on a tie.
+    Returns the new range, the new label and, per cell, the column it was taken from (its own
+    where unchanged), for the arrays that go with the cell (intensity, velocity).
+    """
+    h, w = range_m.shape
+    cols = np.broadcast_to(np.arange(w), (h, w))
+    src = cols.copy()
+    r_out, l_out = range_m.copy(), label.copy()
+    human = label == 1
+    if reach_m <= 0 or not human.any():
+        return r_out, l_out, src
+    column_rad = 2.0 * np.pi / w
+    nearest = float(range_m[human & (range_m > 0)].min(initial=np.inf))
+    if not np.isfinite(nearest):
+        return r_out, l_out, src
+    reach_cols = np.zeros((h, w), dtype=np.float64)
+    ok = human & (range_m > 0)
+    reach_cols[ok] = reach_m / (range_m[ok] * column_rad)
+    grown = human.copy()
+    # Per side, the cells grown from it so far: growth stays contiguous (it stops at what it
+    # may not cover).
+    chain = {1: human.copy(), -1: human.copy()}
+    for d in range(1, min(int(reach_m / (nearest * column_rad)), w // 2) + 1):
+        for side in (1, -1):  # from the human cell d columns to the left, then to the right
+            sr, sh, sreach = (np.roll(a, side * d, axis=1) for a in (range_m, human, reach_cols))
+            take = (sh & (sreach >= d) & ~grown & np.roll(chain[side], side, axis=1)
+                    & ((r_out <= 0) | (sr < r_out - WIDEN_STEP_M)))
+            r_out[take], l_out[take], src[take] = sr[take], 1, ((cols - side * d) % w)[take]
+            grown |= take
+            chain[side] |= take
+    return r_out, l_out, src
+
+
 class WindowDataset:
     """Windows of ``length`` consecutive frames over one sequence file or a pedscan folder.
 

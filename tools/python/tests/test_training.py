@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 import warnings
@@ -620,6 +621,10 @@ TRAIN_OPTIONS = [
     (["--loss-weights"], float, [10000.0, 1.0, 1001.0], False, 3, ("CE", "BG", "HUMAN"), "paper: 10000 1 1001"),
     (["--class-weight-power"], float, 1.0, False, None, "P", "a human beam's cross-entropy weight is (background / "
      "human beams of its frame) to the power P (paper: 1, both classes weigh alike; 0: every beam alike)"),
+    (["--widen-m"], float, 0.0, False, None, "M", "make each window's people wider on either side by up to M metres, "
+     "drawn per window, as clothes and carried things make real people (not in the paper; default 0)"),
+    (["--init"], Path, None, False, None, "MODEL", "start from the weights of this model file (the same network options; "
+     "fine-tuning)"),
     (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
     (["--val-every"], int, 500, False, None, None, None),
     (["--checkpoint-every"], int, 250, False, None, None, None),
@@ -722,3 +727,57 @@ def test_cropped_windows_are_columns_of_the_whole_ones_around_the_turn(sample: P
     assert len(starts) > 6
     assert tr.main([str(sample), "--frames", "1", "--out", str(sample.parent / "odd"), "--crop-columns", "60", "--quiet"]) == 2
     assert not (sample.parent / "odd").exists()
+
+
+def test_widened_windows_are_the_drawn_ones_with_wider_people_and_their_velocities(sample: Path) -> None:
+    """--widen-m: the same sequence and frame at each step; the range, label and velocity are
+    those of :func:`widen_people` on each frame of the window with one reach drawn per step;
+    reproducible; the people grow in some windows."""
+    from pedscan_data.model import input_channels
+    from pedscan_data.windows import widen_people
+
+    seqs = tr.check_sequences(tr.training_paths([sample]), 2, str(sample), False)
+    plain, wide = tr.StepWindows(seqs, 2, 5, False), tr.StepWindows(seqs, 2, 5, False, widen_m=0.5)
+    grew = 0
+    for i in range(8):
+        a, b = plain[i], wide[i]
+        assert (a["sequence"], a["frame"]) == (b["sequence"], b["frame"])
+        seq, t = seqs[a["sequence"]], a["frame"]
+        reach = float(np.random.default_rng([5, i, 2]).uniform(0.0, 0.5))
+        r, labels = seq.read("range", slice(t - 1, t + 1)), seq.read("label", slice(t - 1, t + 1))
+        want = [widen_people(r[k], labels[k], reach) for k in range(2)]
+        np.testing.assert_array_equal(b["x"].numpy(), input_channels(np.stack([w[0] for w in want])))
+        np.testing.assert_array_equal(b["label"].numpy(), want[1][1])
+        v = np.take_along_axis(seq.read("velocity", t), want[1][2][..., None], axis=1)
+        np.testing.assert_array_equal(b["velocity"].numpy(), v.transpose(2, 0, 1))
+        assert torch.equal(b["label"][a["label"] == 1], a["label"][a["label"] == 1])  # nobody shrinks
+        grew += int((b["label"] == 1).sum() > (a["label"] == 1).sum())
+        assert all(torch.equal(x, y) for x, y in zip(b.values(), tr.StepWindows(seqs, 2, 5, False, widen_m=0.5)[i].values())
+                   if isinstance(x, torch.Tensor))
+    assert grew >= 4
+    assert run_train(sample, "--frames", "1", "--out", sample.parent / "neg", "--widen-m", "-1") == 2
+    assert not (sample.parent / "neg").exists()
+
+
+def test_a_run_can_start_from_a_model_files_weights_and_records_it(sample: Path, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    common = ["--frames", "1", "--width", "4", "--lr", "0"]
+    assert run_train(sample, "--out", tmp_path / "a", *common, "--steps", "2") == 0
+    model = tmp_path / "a" / "model.pt"
+    # With no learning rate the weights stay the model file's.
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--steps", "2", "--init", model) == 0
+    a, b = weights(tmp_path / "a"), weights(tmp_path / "b")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    init = json.loads((tmp_path / "b" / "run.json").read_text())["config"]["init"]
+    assert init == {"file": "model.pt", "sha256": hashlib.sha256(model.read_bytes()).hexdigest(), "step": 2}
+    # Not starting from it, the same seed starts elsewhere.
+    assert run_train(sample, "--out", tmp_path / "c", "--frames", "1", "--width", "4", "--lr", "0", "--steps", "2", "--seed", "1") == 0
+    assert not all(torch.equal(a[k], v) for k, v in weights(tmp_path / "c").items())
+    # A model of other options, or a file that is no model: refused before anything is written.
+    capsys.readouterr()
+    assert run_train(sample, "--out", tmp_path / "d", "--frames", "1", "--width", "6", "--steps", "2", "--init", model) == 2
+    assert "a network of other options (differs in: width)" in capsys.readouterr().err
+    (tmp_path / "junk.pt").write_bytes(b"not a model")
+    assert run_train(sample, "--out", tmp_path / "e", *common, "--steps", "2", "--init", tmp_path / "junk.pt") == 2
+    assert "junk.pt" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists() and not (tmp_path / "e").exists()

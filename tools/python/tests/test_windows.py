@@ -119,3 +119,34 @@ def test_torch_dataset_batches(sample: Path) -> None:
     finally:
         torch.set_default_dtype(default)
     np.testing.assert_array_equal(item["instance"].numpy(), WindowDataset(sample, length=2, targets=("instance",))[0]["instance"])
+
+
+def test_widening_grows_a_person_over_what_lies_behind_it_and_never_over_what_stands_in_front() -> None:
+    from pedscan_data.windows import widen_people
+
+    w = 64
+    col = 2 * np.pi / w  # rad per column
+    r = np.full((2, w), 20.0, dtype=np.float32)  # a wall at 20 m
+    label = np.zeros((2, w), dtype=np.uint8)
+    r[:, 10:12], label[:, 10:12] = 10.0, 1  # a person at 10 m, two columns
+    r[0, 8] = 0.0  # no return left of it
+    r[:, 13] = 5.0  # a post nearer than the person, right of it
+    r[1, 9] = 10.2  # something just behind the person (within 0.3 m): not covered
+    label[1, 30] = 255  # not scored, far from the person
+    reach = 2.5 * 10.0 * col  # 2.5 columns at 10 m
+    got_r, got_l, src = widen_people(r, label, reach)
+    assert (got_l[0] == 1).nonzero()[0].tolist() == [8, 9, 10, 11, 12]  # 2 columns left (the hole too), 1 right (then the post)
+    assert (got_l[1] == 1).nonzero()[0].tolist() == [10, 11, 12]  # row 1: column 9 lies within 0.3 m behind: it and 8 stay
+    assert got_l[1, 30] == 255 and got_r[1, 9] == np.float32(10.2) and got_r[0, 13] == 5.0
+    np.testing.assert_array_equal(got_r[0, 8:13], 10.0)
+    assert src[0, 8] == 10 and src[0, 9] == 10 and src[0, 12] == 11 and src[0, 20] == 20
+    # Columns wrap: a person at the turn's seam grows across it.
+    r2, l2 = np.roll(r, -10, axis=1), np.roll(label, -10, axis=1)
+    g2 = widen_people(r2, l2, reach)[1]
+    assert sorted(g2[0].nonzero()[0].tolist()) == [0, 1, 2, w - 2, w - 1]
+    # No reach, or nobody to widen: the same arrays back.
+    for lab, reach_m in ((label, 0.0), (np.where(label == 1, 0, label).astype(np.uint8), reach)):
+        same = widen_people(r, lab, reach_m)
+        np.testing.assert_array_equal(same[0], r)
+        np.testing.assert_array_equal(same[1], lab)
+        np.testing.assert_array_equal(same[2], np.broadcast_to(np.arange(w), (2, w)))
