@@ -230,6 +230,10 @@ pub struct HumansConfig {
     /// Share of synthetic people who stand (waiting, looking around; a third of them turn on
     /// the spot at 0.15-0.5 rad/s), 0..1.
     pub standing: f64,
+    /// Share of the standing people who stand by something: within `clearance_m` +
+    /// [`BY_THING_M`] of an obstacle (a wall, a pole, a parked car, a tree), as people wait at
+    /// a stop, by a shop window or beside a car, 0..1.
+    pub by_things: f64,
     /// Share of synthetic people who join the person placed before them: face to face 0.8-1.4 m
     /// away when that one stands (talking), side by side 0.75-0.95 m apart when it walks, 0..1.
     pub groups: f64,
@@ -472,6 +476,10 @@ impl PlatformBox {
 /// Most boxes a platform may have.
 pub const MAX_PLATFORM_BOXES: usize = 64;
 
+/// `humans.by_things`: a person standing by something has an obstacle within `clearance_m` +
+/// this, m (a body's half depth and a hand's breadth: its back or side a few centimetres off).
+pub const BY_THING_M: f64 = 0.25;
+
 impl Default for SensorModelConfig {
     fn default() -> Self {
         SensorModelConfig {
@@ -614,6 +622,7 @@ impl Default for HumansConfig {
             stride_variation: [0.9, 1.1],
             yaw_rate_rps: [-0.3, 0.3],
             standing: 0.0,
+            by_things: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
             spawn_radius_m: 12.0,
@@ -873,7 +882,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

@@ -835,6 +835,8 @@ fn sample_synthetic_people(
         let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
         let stands = hc.standing > 0.0 && rng.random::<f64>() < hc.standing;
+        // Drawn only where asked for, as the other behaviours.
+        let by_thing = stands && hc.by_things > 0.0 && rng.random::<f64>() < hc.by_things;
         let mut placed = None;
         let mut tries = 0;
         let placeable = |plan: &HumanPlan| {
@@ -866,6 +868,9 @@ fn sample_synthetic_people(
                 continue;
             }
             if inp.grid.is_some_and(|g| g.clearance(start) < hc.clearance_m) {
+                continue;
+            }
+            if by_thing && inp.grid.is_some_and(|g| g.clearance(start) > hc.clearance_m + crate::config::BY_THING_M) {
                 continue;
             }
             if long {

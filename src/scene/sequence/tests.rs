@@ -682,3 +682,39 @@ fn behaviours_come_in_the_shares_asked_for() {
     cfg.humans.stop_and_go = 0.0;
     assert_eq!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(4), &cfg, &inp).unwrap(), plain);
 }
+
+/// `humans.by_things`: a person standing by something stands with an obstacle within
+/// `clearance_m` + `BY_THING_M` (and never nearer than `clearance_m`); without it, people stand
+/// anywhere (most of them in the open here).
+#[test]
+fn people_asked_to_stand_by_things_stand_beside_them() {
+    let model = crate::human::tests_support::tiny_model();
+    let boxes: Vec<[f64; 4]> = (0..4).map(|k| [6.0 + 8.0 * k as f64, 18.0, 6.6 + 8.0 * k as f64, 18.6]).collect();
+    let grid = crate::scene::planner::tests::grid(40.0, 40.0, &boxes, 0.1);
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let mut cfg = Config::default();
+    cfg.humans.count = [6, 6];
+    cfg.humans.spawn_radius_m = 18.0;
+    cfg.humans.standing = 1.0;
+    let near = crate::config::BY_THING_M + cfg.humans.clearance_m;
+    let count_near = |cfg: &Config| {
+        let (mut n, mut total) = (0, 0);
+        for seed in 0..10 {
+            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, &inp).unwrap();
+            for p in &plan.humans {
+                let c = grid.clearance(p.position_m(0.0).truncate());
+                assert!(c >= cfg.humans.clearance_m, "seed {seed}: a person inside an obstacle's clearance ({c} m)");
+                n += usize::from(c <= near);
+                total += 1;
+            }
+        }
+        (n, total)
+    };
+    let (anywhere, total) = count_near(&cfg);
+    assert!(anywhere * 4 < total, "{anywhere} of {total} by a thing without being asked");
+    cfg.humans.by_things = 1.0;
+    let (by, total) = count_near(&cfg);
+    assert_eq!(by, total, "{by} of {total} by a thing");
+    cfg.humans.by_things = 1.5;
+    assert!(cfg.validate().is_err());
+}
