@@ -1,0 +1,179 @@
+"""Is it the people or what stands around them? A network's response to real and generated
+people, each in its own scan and transplanted into the other's.
+
+    python -m pedscan_data.transplant MODEL REAL GENERATED [--columns 8] [--range 8 24] [--json FILE]
+
+REAL and GENERATED are labeled scans in SemanticKITTI's layout (a sequence folder or dataset
+root with ``labels/``: real scans, and pedscan's ``--formats semantickitti`` export of the
+world the network was trained on). Both are put on the model's grid by ``pedscan project``, as
+``predict`` does, and each scan is seen alone (an N-frame network sees it as a still scene).
+A person is one instance of class 30 or 254 in one scan whose median range lies in
+``--range``, with at least 20 cells and spread over at most 2 m (:mod:`pedscan_data.people`).
+
+Per person the median human margin (logit of human minus background, over its cells) and
+whether it exceeds the model's threshold (found), in four settings:
+
+- ``real``: real people in their scans; ``generated``: generated people in theirs;
+- ``real in generated``: a real person's columns, ``--columns`` either side of it, every row,
+  put into a generated scan at the same columns (its k-th scan for the k-th person, cycling);
+- ``generated in real``: the other way round.
+
+When a real person is missed in its own scan and found among generated surroundings (and a
+generated one missed among real surroundings), the surroundings decide, not the person's own
+shape; ``--columns 0`` moves the people's columns alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .evaluate import PERSON_CLASSES
+from .people import MERGED_M
+from .reader import PedscanError
+from .scans import NO_CELL, POINT_BYTES, find_pedscan, projected_scans, read_points, read_u32, scan_sequences, sensor_argument
+
+#: A person needs this many cells of the grid.
+MIN_CELLS = 20
+
+#: People taken from each side at most (the first in file order).
+MAX_PEOPLE = 200
+
+
+def centre_column(col: np.ndarray, cols: int) -> int:
+    """The circular mean of columns (a person across the turn's seam keeps its place)."""
+    return int(np.round(np.angle(np.exp(2j * np.pi * col / cols).mean()) / (2 * np.pi) * cols)) % cols
+
+
+def grid_people(points: np.ndarray, labels: np.ndarray, cells: np.ndarray, range_m: np.ndarray,
+                band: tuple[float, float]) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """The people of one projected scan: (rows, columns, median range) of each one's cells."""
+    rows, cols = range_m.shape
+    cls, inst = labels & 0xFFFF, labels >> 16
+    person = np.isin(cls, PERSON_CLASSES) & (cells != NO_CELL)
+    out = []
+    for i in np.unique(inst[person]):
+        m = person & (inst == i)
+        if np.ptp(points[m, :2], axis=0).max() > MERGED_M:
+            continue
+        c = np.unique(cells[m].astype(np.int64))
+        if len(c) < MIN_CELLS:
+            continue
+        r, col = np.divmod(c, cols)
+        if np.ptp((col - centre_column(col, cols) + cols // 2) % cols) > cols // 4:
+            continue
+        d = float(np.median(range_m[r, col]))
+        if band[0] <= d < band[1]:
+            out.append((r, col, d))
+    return out
+
+
+def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[float, float]) -> tuple[list[np.ndarray], list[tuple[int, np.ndarray, np.ndarray, float]]]:
+    """The range images of every scan, and (scan index, rows, columns, range) of its people."""
+    images: list[np.ndarray] = []
+    people: list[tuple[int, np.ndarray, np.ndarray, float]] = []
+    for seq in scan_sequences(scans, labelled=True):
+        for _, p in projected_scans(binary, seq, work, sensor):
+            n = p.file.stat().st_size // POINT_BYTES
+            labels = read_u32(seq.label_path(p.file), n, "labels", p.file.name)
+            for r, c, d in grid_people(read_points(p.file), labels, p.cells, p.range_m, band):
+                if len(people) < MAX_PEOPLE:
+                    people.append((len(images), r, c, d))
+            images.append(p.range_m)
+    return images, people
+
+
+def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band: tuple[float, float] = (8.0, 24.0),
+               pedscan: Path | None = None) -> dict[str, Any]:
+    """The four settings' people, median margins and shares found (module docs)."""
+    from .model import input_channels
+    from .netio import load_net
+    from .predict import human_margin, model_sensor, stream
+
+    net, obj = load_net(model, "cpu")
+    cut = human_margin(obj)
+    spec = model_sensor(obj)
+    if spec is None:
+        raise PedscanError(f"{model}: the model file does not say which sensor's grid it was trained on")
+    binary = find_pedscan(pedscan)
+    with tempfile.TemporaryDirectory(prefix="pedscan-transplant-") as tmp:
+        sensor = sensor_argument(spec, Path(tmp))
+        real_img, real_people = collect(binary, real, Path(tmp) / "real", sensor, band)
+        gen_img, gen_people = collect(binary, generated, Path(tmp) / "generated", sensor, band)
+    if not real_people or not gen_people:
+        empty = real if not real_people else generated
+        raise PedscanError(f"{empty}: no person at {band[0]:g}-{band[1]:g} m with {MIN_CELLS} cells or more")
+
+    def margin(r: np.ndarray) -> np.ndarray:
+        return next(stream(net, [input_channels(r)], "cpu"))[1]
+
+    def moved(source: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]], target: list[np.ndarray]) -> list[float]:
+        out = []
+        for k, (s, r, c, _) in enumerate(people):
+            image = target[k % len(target)].copy()
+            w = image.shape[1]
+            cols = (centre_column(c, w) + np.arange(-columns, columns + 1)) % w
+            image[:, cols] = source[s][:, cols]
+            image[r, c] = source[s][r, c]
+            out.append(float(np.median(margin(image)[r, c])))
+        return out
+
+    def own(images: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]]) -> list[float]:
+        cache: dict[int, np.ndarray] = {}
+        out = []
+        for s, r, c, _ in people:
+            if s not in cache:
+                cache[s] = margin(images[s])
+            out.append(float(np.median(cache[s][r, c])))
+        return out
+
+    settings = {
+        "real": own(real_img, real_people),
+        "generated": own(gen_img, gen_people),
+        "real in generated": moved(real_img, real_people, gen_img),
+        "generated in real": moved(gen_img, gen_people, real_img),
+    }
+    return {
+        "model": str(model), "real": str(real), "generated": str(generated), "columns": columns, "range_m": list(band),
+        "threshold_margin": cut,
+        "settings": {k: {"people": len(v), "median_margin": float(np.median(v)), "found": float(np.mean(np.array(v) > cut))}
+                     for k, v in settings.items()},
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pedscan_data.transplant", description=__doc__.split("\n\n")[0])
+    p.add_argument("model", type=Path, help="model file (.pt) or run folder")
+    p.add_argument("real", type=Path, help="real labeled scans (SemanticKITTI layout)")
+    p.add_argument("generated", type=Path, help="generated labeled scans (pedscan's semantickitti export)")
+    p.add_argument("--columns", type=int, default=8, help="columns of surroundings moved with a person, either side (default 8)")
+    p.add_argument("--range", type=float, nargs=2, default=(8.0, 24.0), metavar=("MIN", "MAX"), help="people at these ranges, m")
+    p.add_argument("--pedscan", type=Path, default=None, help="the pedscan binary (default: $PEDSCAN, the checkout's, PATH)")
+    p.add_argument("--json", type=Path, default=None)
+    args = p.parse_args(argv)
+    if args.columns < 0 or not (0 <= args.range[0] < args.range[1]):
+        print("error: --columns must not be negative and --range MIN MAX must rise from 0 or more", file=sys.stderr)
+        return 2
+    try:
+        d = transplant(args.model, args.real, args.generated, args.columns, tuple(args.range), args.pedscan)
+    except PedscanError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"people at {d['range_m'][0]:g}-{d['range_m'][1]:g} m, {d['columns']} columns either side moved with each; "
+          f"threshold margin {d['threshold_margin']:.2f}")
+    print("setting              people  median margin  found")
+    for k, v in d["settings"].items():
+        print(f"{k:<20} {v['people']:>6}  {v['median_margin']:>13.2f}  {v['found']:>5.2f}")
+    if args.json:
+        args.json.write_text(json.dumps(d, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

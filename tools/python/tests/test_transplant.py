@@ -1,0 +1,51 @@
+"""Real and generated people transplanted into each other's scans: a person with its whole turn
+moved is what it was in its own scan; no person in the band is bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+
+from conftest import generate_test16, net_for, save_model
+from pedscan_data.reader import Sequence
+from pedscan_data.transplant import main, transplant
+
+
+@pytest.fixture(scope="module")
+def scans(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """pedscan's SemanticKITTI export of two sequences, and a model file on their grid."""
+    tmp = tmp_path_factory.mktemp("transplant")
+    out = generate_test16(tmp, "--sequences", "2", "--frames", "2", "--humans", "8..10", "--seed", "7", "--formats", "h5,semantickitti")
+    seq = Sequence(out / "seq_000000.h5")
+    model = save_model(net_for(1, width=4, seed=2), tmp / "net.pt", threshold=0.5)
+    obj = torch.load(model, weights_only=True)
+    obj["sensor"] = {"name": seq.sensor, "elevation_deg": seq.elevation_deg.tolist(), "columns": seq.columns}
+    torch.save(obj, model)
+    return out / "semantickitti", model
+
+
+def test_a_person_moved_with_its_whole_turn_is_what_it_was(scans: tuple[Path, Path]) -> None:
+    folder, model = scans
+    # 256 columns either side of a 512-column grid: the whole scan goes with the person.
+    d = transplant(model, folder, folder, columns=256, band=(0.0, 100.0))
+    s = d["settings"]
+    assert s["real"]["people"] >= 8 and s["real"] == s["generated"] == s["real in generated"] == s["generated in real"]
+    assert 0.0 <= s["real"]["found"] <= 1.0
+    # With no surroundings moved, people land among other scans' beams: other margins.
+    near = transplant(model, folder, folder, columns=0, band=(0.0, 100.0))["settings"]
+    assert near["real"] == s["real"] and near["real in generated"] != s["real in generated"]
+
+
+def test_the_command_writes_its_figures_and_refuses_a_band_without_people(scans: tuple[Path, Path], tmp_path: Path,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    folder, model = scans
+    out = tmp_path / "t.json"
+    assert main([str(model), str(folder), str(folder), "--range", "0", "100", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["settings"]["real"]["people"] >= 8
+    assert "real in generated" in capsys.readouterr().out
+    assert main([str(model), str(folder), str(folder), "--range", "500", "600"]) == 2
+    assert f"{folder}: no person at 500-600 m" in capsys.readouterr().err
+    assert main([str(model), str(folder), str(folder), "--columns", "-1"]) == 2
