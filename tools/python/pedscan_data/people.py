@@ -22,6 +22,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -49,24 +50,35 @@ MERGED_M = 2.0
 FEW_POINTS = 5
 
 
+def person_instances(labels: np.ndarray, keep: np.ndarray | None = None) -> Iterator[np.ndarray]:
+    """The points of each person instance (class 30 or 254; among ``keep`` if given), a mask each."""
+    cls, inst = labels & 0xFFFF, labels >> 16
+    person = np.isin(cls, PERSON_CLASSES) if keep is None else np.isin(cls, PERSON_CLASSES) & keep
+    for i in np.unique(inst[person]):
+        yield person & (inst == i)
+
+
+def merged(points: np.ndarray, m: np.ndarray) -> bool:
+    """Whether the points ``m`` of one instance spread over more than :data:`MERGED_M` horizontally."""
+    return bool(np.ptp(points[m, :2], axis=0).max() > MERGED_M)
+
+
 def scan_people(points: np.ndarray, labels: np.ndarray) -> tuple[list[dict[str, float]], int, int]:
     """The people of one scan (dicts of range_m, points, width_m, height_m, bottom_m, top_m; the
     last two NaN without ground around), and the instances merged and with few points."""
-    cls, inst = labels & 0xFFFF, labels >> 16
-    person = np.isin(cls, PERSON_CLASSES)
+    person = np.isin(labels & 0xFFFF, PERSON_CLASSES)
     xy = points[:, :2].astype(np.float64)
     z = points[:, 2].astype(np.float64)
     out: list[dict[str, float]] = []
-    merged = few = 0
-    for i in np.unique(inst[person]):
-        m = person & (inst == i)
+    spread = few = 0
+    for m in person_instances(labels):
         if m.sum() < FEW_POINTS:
             few += 1
             continue
-        p = xy[m]
-        if np.ptp(p, axis=0).max() > MERGED_M:
-            merged += 1
+        if merged(points, m):
+            spread += 1
             continue
+        p = xy[m]
         centre = np.median(p, axis=0)
         horizontal = np.hypot(p[:, 0], p[:, 1])
         rng = float(np.median(horizontal))
@@ -78,7 +90,7 @@ def scan_people(points: np.ndarray, labels: np.ndarray) -> tuple[list[dict[str, 
             "range_m": rng, "points": int(m.sum()), "width_m": float(np.ptp(az) * rng),
             "height_m": float(np.ptp(z[m])), "bottom_m": float(z[m].min() - ground), "top_m": float(z[m].max() - ground),
         })
-    return out, merged, few
+    return out, spread, few
 
 
 def summarize(people: list[dict[str, float]]) -> list[dict[str, Any]]:

@@ -34,8 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from .evaluate import PERSON_CLASSES
-from .people import MERGED_M
+from .people import merged, person_instances
 from .reader import PedscanError
 from .scans import NO_CELL, POINT_BYTES, find_pedscan, projected_scans, read_points, read_u32, scan_sequences, sensor_argument
 
@@ -54,13 +53,10 @@ def centre_column(col: np.ndarray, cols: int) -> int:
 def grid_people(points: np.ndarray, labels: np.ndarray, cells: np.ndarray, range_m: np.ndarray,
                 band: tuple[float, float]) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """The people of one projected scan: (rows, columns, median range) of each one's cells."""
-    rows, cols = range_m.shape
-    cls, inst = labels & 0xFFFF, labels >> 16
-    person = np.isin(cls, PERSON_CLASSES) & (cells != NO_CELL)
+    cols = range_m.shape[1]
     out = []
-    for i in np.unique(inst[person]):
-        m = person & (inst == i)
-        if np.ptp(points[m, :2], axis=0).max() > MERGED_M:
+    for m in person_instances(labels, cells != NO_CELL):
+        if merged(points, m):
             continue
         c = np.unique(cells[m].astype(np.int64))
         if len(c) < MIN_CELLS:
