@@ -148,11 +148,12 @@ class StepWindows:
         window = slice(t - self.frames + 1, t + 1)
         r = seq.read("range", window)
         intensity = seq.read("intensity", window) if self.intensity else None
-        label = seq.read("label", t)
         velocity = seq.read("velocity", t)
-        if self.widen_m > 0:
+        if self.widen_m <= 0:
+            label = seq.read("label", t)
+        else:
             # One reach for the window's frames (a stream of its own: what step i draws otherwise
-            # stays as without widening).
+            # stays as without widening); every frame's labels, the last one's the target.
             reach = float(np.random.default_rng([self.seed, i, 2]).uniform(0.0, self.widen_m))
             labels = seq.read("label", window)
             for k in range(r.shape[0]):
