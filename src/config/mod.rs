@@ -234,6 +234,11 @@ pub struct HumansConfig {
     /// [`BY_THING_M`] of an obstacle (a wall, a pole, a parked car, a tree), as people wait at
     /// a stop, by a shop window or beside a car, 0..1.
     pub by_things: f64,
+    /// Share of the standing people who stand at a place a built-in world makes for it:
+    /// behind a market stall's counter or in front of it, beside a beer-garden table (the
+    /// street's markets, `scene.markets`), where one within `spawn_radius_m` is free; the
+    /// others, and everyone where there is none, are placed as before, 0..1.
+    pub at_places: f64,
     /// Share of synthetic people who join the person placed before them: face to face 0.8-1.4 m
     /// away when that one stands (talking), side by side 0.75-0.95 m apart when it walks, 0..1.
     pub groups: f64,
@@ -338,6 +343,10 @@ pub struct SceneConfig {
     pub sensor_yaw_rate_rps: [f64; 2],
     /// The sensor keeps at least this clearance from obstacles, m.
     pub sensor_clearance_m: f64,
+    /// The street world: share of the lots behind the sidewalks that are markets or beer
+    /// gardens (stalls, table sets, parasols); the others are buildings, alleys, plazas and
+    /// green slopes in fixed proportions.
+    pub markets: f64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -623,6 +632,7 @@ impl Default for HumansConfig {
             yaw_rate_rps: [-0.3, 0.3],
             standing: 0.0,
             by_things: 0.0,
+            at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
             spawn_radius_m: 12.0,
@@ -654,9 +664,13 @@ impl Default for SceneConfig {
             sensor_speed_mps: [0.3, 1.0],
             sensor_yaw_rate_rps: [-0.15, 0.15],
             sensor_clearance_m: 0.8,
+            markets: DEFAULT_MARKETS,
         }
     }
 }
+
+/// The default of `scene.markets`: one lot in ten.
+pub const DEFAULT_MARKETS: f64 = 0.1;
 
 /// The default of `render.host_cast_beams` (the raster backend's `HOST_BEAMS`, where the
 /// measurements that chose it are).
@@ -882,7 +896,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("scene.markets", self.scene.markets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

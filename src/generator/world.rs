@@ -20,7 +20,7 @@ impl Generator {
     }
 
     /// What a built-in world is built for: the sequence's length, the sensor's height and
-    /// speed, the people's clearance.
+    /// speed, the people's clearance, the street's share of markets.
     pub(super) fn world_params(&self) -> WorldParams {
         let sc = &self.cfg.scene;
         WorldParams {
@@ -28,6 +28,7 @@ impl Generator {
             sensor_height_m: sc.sensor_height_m,
             sensor_speed_mps: sc.sensor_speed_mps,
             clearance_m: self.cfg.humans.clearance_m,
+            markets: sc.markets,
         }
     }
 

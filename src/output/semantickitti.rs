@@ -41,7 +41,7 @@ pub const UNLABELED: u32 = 0;
 /// The class pedscan gives every background point.
 pub const BACKGROUND: u32 = 50;
 /// SemanticKITTI's names and colours (BGR, semantic-kitti.yaml) of the classes pedscan writes.
-pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 21] = [
+pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 22] = [
     (0, "unlabeled", [0, 0, 0]),
     (10, "car", [245, 150, 100]),
     (11, "bicycle", [245, 230, 100]),
@@ -53,6 +53,7 @@ pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 21] = [
     (49, "other-ground", [75, 0, 175]),
     (50, "building", [0, 200, 255]),
     (51, "fence", [50, 120, 255]),
+    (52, "other-structure", [0, 150, 255]),
     (60, "lane-marking", [150, 255, 170]),
     (70, "vegetation", [0, 175, 0]),
     (71, "trunk", [0, 60, 135]),

@@ -559,6 +559,8 @@ pub struct PlanInputs<'a> {
     /// The sensor's path when the background sets it (a built-in street's lane); None: a
     /// sampled arc (or the recorded `sensor`, which wins).
     pub sensor_arc: Option<Trajectory>,
+    /// Places people stand at (a built-in world's [`crate::scene::world::World::places`]).
+    pub places: &'a [DVec2],
 }
 
 /// Tries at joining the person placed before (`humans.groups`) before placing one alone.
@@ -831,12 +833,15 @@ fn sample_synthetic_people(
     let long = free_span.is_some_and(|span| duration > LONG_SEQUENCE_S || hc.speed_mps[1] * duration > span);
     let s0 = sensor.start_xy();
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
+    // The world's places within reach (`humans.at_places`).
+    let places: Vec<DVec2> = inp.places.iter().copied().filter(|q| q.distance(s0) <= hc.spawn_radius_m).collect();
     for k in 0..count {
         let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
         let stands = hc.standing > 0.0 && rng.random::<f64>() < hc.standing;
         // Drawn only where asked for, as the other behaviours.
         let by_thing = stands && hc.by_things > 0.0 && rng.random::<f64>() < hc.by_things;
+        let at_place = stands && hc.at_places > 0.0 && !places.is_empty() && rng.random::<f64>() < hc.at_places;
         let mut placed = None;
         let mut tries = 0;
         let placeable = |plan: &HumanPlan| {
@@ -848,11 +853,17 @@ fn sample_synthetic_people(
                 free && off_sensor && apart
             })
         };
-        for _ in 0..TRIES {
+        for attempt in 0..TRIES {
             let mut u01 = || rng.random::<f64>();
             let r = hc.spawn_radius_m * u01().sqrt();
             let a = u01() * std::f64::consts::TAU;
-            let start = s0 + r * DVec2::new(a.cos(), a.sin());
+            let mut start = s0 + r * DVec2::new(a.cos(), a.sin());
+            // At a place for the first half of the tries (the places may all be taken), then
+            // anywhere.
+            let at_place = at_place && attempt < TRIES / 2;
+            if at_place {
+                start = places[((u01() * places.len() as f64) as usize).min(places.len() - 1)];
+            }
             let mut speed = uniform(&mut u01, hc.speed_mps);
             // Behaviours (drawn only where asked for, so a run without them draws as before):
             // joining the person placed last, standing.
@@ -870,7 +881,7 @@ fn sample_synthetic_people(
             if inp.grid.is_some_and(|g| g.clearance(start) < hc.clearance_m) {
                 continue;
             }
-            if by_thing && inp.grid.is_some_and(|g| g.clearance(start) > hc.clearance_m + crate::config::BY_THING_M) {
+            if by_thing && !at_place && inp.grid.is_some_and(|g| g.clearance(start) > hc.clearance_m + crate::config::BY_THING_M) {
                 continue;
             }
             if long {

@@ -234,7 +234,7 @@ fn track_windows_take_only_tracks_that_cover_them() {
     };
     // 32 frames at 10 Hz; tracks of 32 samples span the same 3.1 s, one of 21 ends early.
     let tracks = [walk(1, 0.0, 32), walk(2, 8.0, 32), walk(3, -8.0, 21)];
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     for seed in 0..5 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
         let mut ids: Vec<i64> = plan
@@ -259,7 +259,7 @@ fn track_windows_take_only_tracks_that_cover_them() {
     // Tracks longer than the sequence: its window starts anywhere they all cover it, and
     // a person's stride is the model's for the track's mean speed (1 m/s).
     let long = [walk(1, 0.0, 100), walk(2, 8.0, 100)];
-    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let starts: Vec<f64> = (0..30)
         .map(|seed| {
             let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp_long).unwrap();
@@ -310,7 +310,7 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
     cfg.humans.count = [4, 4];
     cfg.humans.speed_mps = [0.8, 1.5];
     let model = crate::human::tests_support::tiny_model();
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for seed in 0..12 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
@@ -323,7 +323,7 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
     }
     assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
     // People walk on the floor's height.
-    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75, sensor_arc: None };
+    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75, sensor_arc: None, places: &[] };
     let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &raised).unwrap();
     for p in &plan.humans {
         assert!(matches!(p.trajectory, HumanPath::Walk(..)) && p.trajectory.position(1.0).z == 0.75, "{:?}", p.trajectory);
@@ -420,7 +420,7 @@ fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Conf
 fn long_sequences_keep_their_people_walking_to_the_end() {
     let model = crate::human::tests_support::tiny_model();
     let grid = crate::scene::planner::tests::grid(30.0, 20.0, &[], 0.25);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let mut cfg = Config::default();
     cfg.frames = 1201;
     cfg.humans.count = [6, 6];
@@ -458,7 +458,7 @@ fn long_sequences_keep_their_people_walking_to_the_end() {
 fn a_long_sequences_sensor_walks_and_a_driving_one_keeps_its_people() {
     let model = crate::human::tests_support::tiny_model();
     let grid = crate::scene::planner::tests::grid(30.0, 20.0, &[], 0.25);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let mut cfg = Config::default();
     cfg.frames = 601;
     cfg.humans.count = [3, 3];
@@ -529,7 +529,7 @@ fn sampling_is_reproducible_and_respects_counts() {
     let mut cfg = Config::default();
     cfg.humans.count = [3, 5];
     let model = crate::human::tests_support::tiny_model();
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let a = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
     let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
     assert_eq!(a, b);
@@ -631,7 +631,7 @@ fn behaviours_come_in_the_shares_asked_for() {
     let model = crate::human::tests_support::tiny_model();
     let (w, h) = (40.0, 40.0);
     let grid = crate::scene::planner::tests::grid(w, h, &[], 0.25);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let mut cfg = Config::default();
     cfg.humans.count = [10, 10];
     cfg.humans.spawn_radius_m = 18.0;
@@ -691,7 +691,7 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
     let model = crate::human::tests_support::tiny_model();
     let boxes: Vec<[f64; 4]> = (0..4).map(|k| [6.0 + 8.0 * k as f64, 18.0, 6.6 + 8.0 * k as f64, 18.6]).collect();
     let grid = crate::scene::planner::tests::grid(40.0, 40.0, &boxes, 0.1);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let mut cfg = Config::default();
     cfg.humans.count = [6, 6];
     cfg.humans.spawn_radius_m = 18.0;
@@ -716,5 +716,42 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
     let (by, total) = count_near(&cfg);
     assert_eq!(by, total, "{by} of {total} by a thing");
     cfg.humans.by_things = 1.5;
+    assert!(cfg.validate().is_err());
+}
+
+/// `humans.at_places`: in a street of markets, every person asked to stand at a place stands
+/// on one of the world's places (behind a counter, before it, by a table), each on their own;
+/// without it, hardly anybody does.
+#[test]
+fn people_asked_to_stand_at_places_stand_on_them() {
+    use crate::scene::world::{World, WorldKind, WorldParams};
+    let model = crate::human::tests_support::tiny_model();
+    let params = WorldParams { duration_s: 0.3, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 2.0], clearance_m: 0.35, markets: 1.0 };
+    let w = World::build(WorldKind::Street, 2, 0, &params).unwrap();
+    assert!(w.places.len() > 20, "{} places: {}", w.places.len(), w.summary());
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places };
+    let mut cfg = Config::default();
+    cfg.frames = 4;
+    cfg.humans.count = [8, 8];
+    cfg.humans.spawn_radius_m = 35.0;
+    cfg.humans.standing = 1.0;
+    let on_places = |cfg: &Config| {
+        let (mut n, mut total) = (0, 0);
+        for seed in 0..4 {
+            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, &inp).unwrap();
+            for p in &plan.humans {
+                let at = p.position_m(0.0).truncate();
+                n += usize::from(w.places.iter().any(|q| q.distance(at) < 1e-9));
+                total += 1;
+            }
+        }
+        (n, total)
+    };
+    let (anywhere, total) = on_places(&cfg);
+    assert!(total >= 24 && anywhere * 10 < total, "{anywhere} of {total} on a place without being asked");
+    cfg.humans.at_places = 1.0;
+    let (at, total) = on_places(&cfg);
+    assert_eq!(at, total, "{at} of {total} on a place");
+    cfg.humans.at_places = -0.1;
     assert!(cfg.validate().is_err());
 }

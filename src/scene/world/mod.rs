@@ -38,6 +38,8 @@ pub struct WorldParams {
     pub sensor_speed_mps: [f64; 2],
     /// People's clearance from obstacles, m (the walkable area keeps room for them).
     pub clearance_m: f64,
+    /// The street's share of lots that are markets (`scene.markets`).
+    pub markets: f64,
 }
 
 /// One sequence's world.
@@ -55,6 +57,10 @@ pub struct World {
     pub sensor: Option<Trajectory>,
     /// How many of each kind of thing it holds (the sequence's XML records them).
     pub counts: BTreeMap<&'static str, usize>,
+    /// Places people stand at, floor xy: behind a market stall's counter and in front of it,
+    /// beside a beer-garden table (`humans.at_places`). Each had room for a person
+    /// (`clearance_m`) where it was made; the walkable area has the last word.
+    pub places: Vec<DVec2>,
     /// Its footprint (xy bounds), m.
     pub bounds: (DVec2, DVec2),
     /// The movers driving through it ([`World::add_movers`]); their meshes are the last of
@@ -100,12 +106,12 @@ impl World {
     pub fn build(kind: WorldKind, seed: u64, index: usize, p: &WorldParams) -> Result<World> {
         let mut rng = world_rng(seed, index);
         let mut counts = BTreeMap::new();
-        let (env, sensor, traffic) = match kind {
+        let (env, sensor, traffic, places) = match kind {
             WorldKind::Street => {
-                let (env, sensor, traffic) = street::build(&mut rng, p, &mut counts);
-                (env, sensor, Some(traffic))
+                let (env, sensor, traffic, places) = street::build(&mut rng, p, &mut counts);
+                (env, sensor, Some(traffic), places)
             }
-            WorldKind::Indoor => (indoor::build(&mut rng, p, &mut counts), None, None),
+            WorldKind::Indoor => (indoor::build(&mut rng, p, &mut counts), None, None, Vec::new()),
         };
         let what = || format!("scene.background = \"{}\" (sequence {index})", kind.name());
         if env.positions.iter().any(|v| !v.is_finite()) {
@@ -132,7 +138,7 @@ impl World {
         }
         let draws = env.draws();
         let mover_of_draw = vec![NO_MOVER; draws.len()];
-        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
+        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, places, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
     }
 
     /// Drives the world's traffic over `duration_s` around the people at their floor

@@ -51,6 +51,8 @@ pub struct Builder {
     positions: Vec<DVec3>,
     meshes: Vec<(Material, Vec<u32>)>,
     by_key: HashMap<(u16, u32), usize>,
+    /// Places people stand at (behind a stall's counter, at a table), floor xy.
+    pub places: Vec<DVec2>,
 }
 
 impl Builder {

@@ -5,7 +5,8 @@
 //! planters, hydrants, post boxes, ticket machines, bus shelters) and a frontage strip by the
 //! facades (A-frame signs, planters, bicycles, bins, crates, café tables). Behind the
 //! sidewalks, lot by lot: buildings (ground-floor walls with door recesses, piers, cornices,
-//! set back or not), alleys, plazas furnished like the sidewalks, and green slopes behind fences.
+//! set back or not), alleys, plazas furnished like the sidewalks, markets and beer gardens
+//! (stalls, table sets, parasols), and green slopes behind fences.
 //! The sensor drives in a lane, in either direction, along the whole street; cars and cyclists
 //! come the other way ([`super::movers`]).
 
@@ -67,10 +68,12 @@ pub struct Traffic {
     pub movers: Vec<MoverSpec>,
 }
 
-/// Builds one street; the sensor's trajectory along it, and its traffic: 2-6 cars and 1-3
+/// Builds one street; the sensor's trajectory along it, its traffic: 2-6 cars and 1-3
 /// cyclists for the oncoming lane (drawn after everything else, so the layout of a seed is
-/// the same with or without them).
-pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic) {
+/// the same with or without them), and the places people stand at ([`World::places`]).
+///
+/// [`World::places`]: super::World::places
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic, Vec<DVec2>) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
     let run = speed * p.duration_s.max(0.0);
@@ -88,7 +91,7 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
 
     ground(&mut b, rng, &l);
     for side in 0..2 {
-        lots(&mut b, rng, &l, side, counts);
+        lots(&mut b, rng, &l, side, p.markets, counts);
         curb_strip(&mut b, rng, &l, side, counts);
         frontage(&mut b, rng, &l, side, counts);
         if l.parking[side] {
@@ -131,7 +134,8 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         let k = ((rng.random::<f64>() * rest.len() as f64) as usize).min(rest.len() - 1);
         movers.push(if rest.swap_remove(k) { movers::car(rng) } else { movers::cyclist(rng) });
     }
-    (b.finish(), Some(sensor), Traffic { lane, movers })
+    let places = std::mem::take(&mut b.places);
+    (b.finish(), Some(sensor), Traffic { lane, movers }, places)
 }
 
 /// Length of a raised crossing's ramps, m.
@@ -180,13 +184,16 @@ fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
     }
 }
 
-/// Behind one sidewalk, lot after lot.
-fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+/// The lots behind one sidewalk, one after another: buildings, alleys, plazas, green slopes in proportions
+/// 0.6 : 0.11 : 0.16 : 0.13, and markets, a share `markets` of them.
+fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f64, counts: &mut BTreeMap<&'static str, usize>) {
+    let rest = 1.0 - markets;
+    let weights = [0.6 * rest, 0.11 * rest, 0.16 * rest, 0.13 * rest, markets];
     let s = sign(side);
     let y0 = l.back_y(side);
     let mut x = l.x0;
     while x < l.x1 {
-        match pick(rng, &[0.62, 0.1, 0.16, 0.12]) {
+        match pick(rng, &weights) {
             0 => {
                 let w = uni(rng, 8.0, 30.0);
                 building(b, rng, x, x + w, y0, s);
@@ -212,9 +219,14 @@ fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &m
                 plaza(b, rng, x, x + w, y0, s, counts);
                 x += w;
             }
-            _ => {
+            3 => {
                 let w = uni(rng, 10.0, 30.0);
                 green(b, rng, x, x + w, y0, s, counts);
+                x += w;
+            }
+            _ => {
+                let w = uni(rng, 12.0, 30.0);
+                market(b, rng, x, x + w, y0, s, counts);
                 x += w;
             }
         }
@@ -275,12 +287,18 @@ fn building(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f
     }
 }
 
-/// A paved plaza behind the sidewalk, a building at its back, furnished.
-fn plaza(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
-    let depth = uni(rng, 8.0, 20.0);
+/// A paved lot from `xa` to `xb`, `depth` deep behind the sidewalk's back `y0`, a building at
+/// its back.
+fn paved_lot(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, depth: f64) {
     let floor = material(rng, class::SIDEWALK);
     b.quad(floor, [DVec3::new(xa, y0, 0.0), DVec3::new(xb, y0, 0.0), DVec3::new(xb, y0 + s * depth, 0.0), DVec3::new(xa, y0 + s * depth, 0.0)]);
     building(b, rng, xa, xb, y0 + s * depth, s);
+}
+
+/// A paved plaza behind the sidewalk, a building at its back, furnished.
+fn plaza(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
+    let depth = uni(rng, 8.0, 20.0);
+    paved_lot(b, rng, xa, xb, y0, s, depth);
     count(counts, "plaza");
     let n = ((xb - xa) * depth / uni(rng, 12.0, 30.0)) as usize;
     let mut placed: Vec<(DVec2, f64)> = Vec::new();
@@ -307,6 +325,48 @@ fn plaza(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64,
             placed.push((q, r));
             break;
         }
+    }
+}
+
+/// A market or beer garden behind the sidewalk, a building at its back: rows of stalls under
+/// their roofs, or of table sets under parasols, with aisles 1-2.5 m wide between them. The
+/// stalls and tables make places to stand at (`humans.at_places`: behind and before the
+/// counters, by the tables), where people show above a counter or a table with the stall's
+/// roof and posts around them at their own range, as the real people of a market do.
+fn market(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
+    let depth = uni(rng, 8.0, 16.0);
+    paved_lot(b, rng, xa, xb, y0, s, depth);
+    count(counts, "market");
+    // Rows along the street, each of stalls (facing the street or away) or of table sets.
+    let mut y = uni(rng, 1.0, 2.0);
+    loop {
+        let stalls = chance(rng, 0.5);
+        let row = if stalls { 2.2 } else { 1.6 };
+        if y + row > depth - 1.0 {
+            break;
+        }
+        let facing = if chance(rng, 0.5) { -s * FRAC_PI_2 } else { s * FRAC_PI_2 };
+        let mut x = xa + uni(rng, 0.5, 2.0);
+        loop {
+            let len = if stalls { uni(rng, 2.0, 3.5) } else { 2.2 };
+            if x + len > xb - 0.5 {
+                break;
+            }
+            let q = DVec2::new(x + len * 0.5, y0 + s * (y + row * 0.5));
+            if stalls {
+                things::stall(b, rng, q, 0.0, facing, len);
+                count(counts, "stall");
+            } else {
+                things::table_set(b, rng, q, 0.0, 0.0);
+                count(counts, "table set");
+                if chance(rng, 0.6) {
+                    things::parasol(b, rng, q, 0.0);
+                    count(counts, "parasol");
+                }
+            }
+            x += len + uni(rng, 1.0, 2.5);
+        }
+        y += row + uni(rng, 1.0, 2.5);
     }
 }
 

@@ -3,7 +3,7 @@ use std::path::Path;
 use super::*;
 
 fn params() -> WorldParams {
-    WorldParams { duration_s: 3.0, sensor_height_m: 1.73, sensor_speed_mps: [2.0, 8.0], clearance_m: 0.35 }
+    WorldParams { duration_s: 3.0, sensor_height_m: 1.73, sensor_speed_mps: [2.0, 8.0], clearance_m: 0.35, markets: crate::config::DEFAULT_MARKETS }
 }
 
 /// Obstacle triangles (between 5 cm and 2 m, as the walkable area counts them) as xy triangles.
@@ -63,7 +63,7 @@ fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
             trucks += parked;
             let n: usize = w.counts.iter().filter(|(k, _)| human_sized.contains(k)).map(|(_, n)| n).sum();
             assert!(n >= 20, "{kind:?} {index}: {n} things of human size: {}", w.summary());
-            let known = [10, 11, 18, 40, 48, 49, 50, 51, 60, 70, 71, 72, 80, 81, 99];
+            let known = [10, 11, 18, 40, 48, 49, 50, 51, 52, 60, 70, 71, 72, 80, 81, 99];
             for m in &w.env.meshes {
                 assert!(known.contains(&m.class), "{}: class {}", m.name, m.class);
                 assert!((0.04..=1.0).contains(&m.reflectance), "{}", m.name);
@@ -74,6 +74,56 @@ fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
         }
     }
     assert!(trucks >= 2, "{trucks} parked trucks in four streets");
+}
+
+/// Markets: stalls and table sets (class 52 and 99) whose roofs and parasols are above 2 m, so
+/// that people stand under them, close by the counters and benches (the band
+/// `humans.by_things` draws from).
+#[test]
+fn markets_have_stalls_and_room_to_stand_among_them_under_their_roofs() {
+    let mut markets = 0;
+    let mut under = 0;
+    for index in 0..12 {
+        let w = World::build(WorldKind::Street, 5, index, &params()).unwrap();
+        if w.counts.get("market").is_none() {
+            continue;
+        }
+        markets += 1;
+        assert!(w.counts.get("stall").or(w.counts.get("table set")).is_some(), "{}", w.summary());
+        let roofs: Vec<[DVec2; 3]> = w
+            .env
+            .meshes
+            .iter()
+            .filter(|m| m.class == things::class::OTHER_STRUCTURE)
+            .flat_map(|m| m.indices.chunks(3).map(|t| t.iter().map(|&i| w.env.positions[i as usize]).collect::<Vec<_>>()))
+            .filter(|t| t.iter().all(|p| p.z >= 2.0))
+            .map(|t| [t[0].truncate(), t[1].truncate(), t[2].truncate()])
+            .collect();
+        assert!(!roofs.is_empty(), "{}", w.summary());
+        let g = &w.grid;
+        let band = 0.35..=0.35 + crate::config::BY_THING_M;
+        for j in 0..g.ny {
+            for i in 0..g.nx {
+                let c = g.clearance_m[j * g.nx + i] as f64;
+                if !band.contains(&c) {
+                    continue;
+                }
+                let p = g.origin + DVec2::new((i as f64 + 0.5) * g.cell_m, (j as f64 + 0.5) * g.cell_m);
+                if roofs.iter().any(|t| crate::scene::dist_point_triangle_2d(p, t) == 0.0) {
+                    under += 1;
+                }
+            }
+        }
+    }
+    assert!(markets >= 2, "{markets} streets of twelve with a market");
+    assert!(under > 50, "{under} cells to stand in by things, under roofs and parasols");
+    // `scene.markets` is the share of lots: none, or every one.
+    for (share, want) in [(0.0, false), (1.0, true)] {
+        let w = World::build(WorldKind::Street, 5, 0, &WorldParams { markets: share, ..params() }).unwrap();
+        assert_eq!(w.counts.contains_key("market"), want, "{}", w.summary());
+        let others = ["building", "alley", "plaza", "green slope"].iter().any(|k| w.counts.contains_key(k));
+        assert_eq!(others, !want, "{}", w.summary());
+    }
 }
 
 #[test]
@@ -254,4 +304,21 @@ fn a_car_and_a_cyclist_pass_the_sensor_in_every_street() {
         w.add_movers(3.0, |_, out| out.clear());
         assert_eq!(w.movers.len(), n);
     }
+}
+
+/// The places a market makes for people (behind and before the counters, by the tables) have
+/// room for one: nearly all of them are walkable with `clearance_m` to spare.
+#[test]
+fn market_places_have_room_for_a_person() {
+    let p = WorldParams { markets: 1.0, ..params() };
+    let (mut roomy, mut total) = (0, 0);
+    for index in 0..3 {
+        let w = World::build(WorldKind::Street, 9, index, &p).unwrap();
+        for q in &w.places {
+            roomy += usize::from(w.grid.clearance(*q) >= p.clearance_m);
+            total += 1;
+        }
+    }
+    assert!(total > 100, "{total} places");
+    assert!(roomy * 10 >= total * 9, "{roomy} of {total} places with room for a person");
 }

@@ -21,6 +21,8 @@ pub mod class {
     pub const OTHER_GROUND: u16 = 49;
     pub const BUILDING: u16 = 50;
     pub const FENCE: u16 = 51;
+    /// Stalls, awnings and parasols: what SemanticKITTI labels other-structure.
+    pub const OTHER_STRUCTURE: u16 = 52;
     pub const LANE_MARKING: u16 = 60;
     pub const VEGETATION: u16 = 70;
     pub const TRUNK: u16 = 71;
@@ -38,7 +40,7 @@ pub fn material(rng: &mut impl Rng, class: u16) -> Material {
         class::ROAD => (0.06, 0.2),
         class::SIDEWALK | class::OTHER_GROUND => (0.12, 0.45),
         class::BUILDING => (0.1, 0.8),
-        class::FENCE => (0.1, 0.6),
+        class::FENCE | class::OTHER_STRUCTURE => (0.1, 0.6),
         class::LANE_MARKING => (0.5, 0.8),
         class::VEGETATION => (0.35, 0.7),
         class::TRUNK => (0.15, 0.4),
@@ -498,4 +500,97 @@ pub fn crates(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -
         z += h;
     }
     s * 0.7
+}
+
+/// A market stall `len` long facing `yaw`: a counter 0.85-1.0 m high (goods on it now and
+/// then), a roof at 2.25-2.55 m on four posts with a valance hanging no lower than 2 m (people
+/// walk under it), and a back panel in one stall of two. Who stands behind the counter shows
+/// only above it, with the roof and the posts around them at their own range.
+pub fn stall(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, len: f64) -> f64 {
+    let m = material(rng, class::OTHER_STRUCTURE);
+    let d = uni(rng, 0.6, 0.9);
+    let counter = uni(rng, 0.85, 1.0);
+    let h = uni(rng, 2.25, 2.55);
+    // The counter at the front; the stall reaches 1.8-2.4 m back from its front edge, room for
+    // someone behind the counter.
+    let depth = uni(rng, 1.8, 2.4);
+    let front = at(p, yaw, depth * 0.5 - d * 0.5, g);
+    b.cuboid(m, front, DVec3::new(d, len, counter), yaw);
+    if chance(rng, 0.6) {
+        let goods = material(rng, class::OTHER_OBJECT);
+        let mut y = -len * 0.5 + 0.1;
+        while y < len * 0.5 - 0.4 {
+            let w = uni(rng, 0.3, 0.7).min(len * 0.5 - 0.1 - y);
+            let side = DVec2::new(-yaw.sin(), yaw.cos()) * (y + w * 0.5);
+            b.cuboid(goods, (front.truncate() + side).extend(g + counter), DVec3::new(d * 0.8, w * 0.9, uni(rng, 0.05, 0.35)), yaw);
+            y += w + uni(rng, 0.0, 0.3);
+        }
+    }
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    for (f, l) in [(0.5, -0.5), (0.5, 0.5), (-0.5, -0.5), (-0.5, 0.5)] {
+        b.cylinder(m, (at(p, yaw, f * depth, g).truncate() + side * (l * len)).extend(g), 0.03, h, 6);
+    }
+    let roof = material(rng, class::OTHER_STRUCTURE);
+    b.cuboid(roof, p.extend(g + h), DVec3::new(depth + uni(rng, 0.2, 0.6), len + 0.2, 0.05), yaw);
+    let valance = uni(rng, 0.0, h - 2.0).min(0.3);
+    if valance > 0.05 {
+        b.cuboid(roof, at(p, yaw, depth * 0.5 + 0.1, g + h - valance), DVec3::new(0.02, len + 0.2, valance), yaw);
+    }
+    if chance(rng, 0.5) {
+        b.cuboid(m, at(p, yaw, -depth * 0.5, g + 0.9), DVec3::new(0.03, len, h - 0.9), yaw);
+    }
+    // Places: behind the counter (midway to the back), and 0.55 m in front of it; one every
+    // 0.9 m along it.
+    let k = ((len - 0.2) / 0.9).floor().max(1.0) as usize;
+    for i in 0..k {
+        let y = (i as f64 + 0.5) / k as f64 - 0.5;
+        for f in [-d * 0.5, depth * 0.5 + 0.55] {
+            b.places.push(at(p, yaw, f, 0.0).truncate() + side * (y * len));
+        }
+    }
+    0.5 * len.max(depth)
+}
+
+/// A beer-garden table set facing `yaw`: a table 1.8-2.2 m long, 0.72-0.78 m high, a bench
+/// 0.45 m high on each side (one side now and then left out).
+pub fn table_set(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
+    let m = material(rng, class::OTHER_OBJECT);
+    let len = uni(rng, 1.8, 2.2);
+    let w = uni(rng, 0.5, 0.7);
+    let h = uni(rng, 0.72, 0.78);
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    // Top and two trestle legs across the table.
+    b.cuboid(m, at(p, yaw, 0.0, g + h - 0.03), DVec3::new(len, w, 0.03), yaw);
+    for s in [-0.4, 0.4] {
+        b.cuboid(m, at(p, yaw, s * len, g), DVec3::new(0.04, w * 0.9, h - 0.03), yaw);
+    }
+    let off = w * 0.5 + uni(rng, 0.25, 0.35);
+    for s in [-1.0, 1.0] {
+        if chance(rng, 0.15) {
+            continue;
+        }
+        let q = p + side * (s * off);
+        b.cuboid(m, q.extend(g + 0.42), DVec3::new(len, 0.25, 0.03), yaw);
+        for e in [-0.4, 0.4] {
+            b.cuboid(m, at(q, yaw, e * len, g), DVec3::new(0.04, 0.22, 0.42), yaw);
+        }
+    }
+    // Places: behind each bench (half a metre off it), at a quarter of the table from its middle.
+    for s in [-1.0, 1.0] {
+        for e in [-0.25, 0.25] {
+            b.places.push(at(p, yaw, e * len, 0.0).truncate() + side * (s * (off + 0.125 + 0.5)));
+        }
+    }
+    0.5 * len
+}
+
+/// A parasol 2.35-2.6 m high: a pole and a shallow cone 2.4-3.2 m across whose rim is above
+/// 2 m (people walk under it).
+pub fn parasol(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64) -> f64 {
+    let m = material(rng, class::OTHER_STRUCTURE);
+    let h = uni(rng, 2.35, 2.6);
+    let r = uni(rng, 1.2, 1.6);
+    b.cylinder(m, p.extend(g), 0.025, h, 6);
+    b.frustum(m, p.extend(g + h - 0.3), r, 0.05, 0.3, 12);
+    0.1
 }
