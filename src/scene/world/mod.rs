@@ -210,7 +210,8 @@ pub(crate) fn pick(rng: &mut impl rand::Rng, weights: &[f64]) -> usize {
         }
         u -= w;
     }
-    weights.len() - 1
+    // Rounding left `u` past the end: the last index that can be drawn (never a zero weight).
+    weights.iter().rposition(|&w| w > 0.0).unwrap_or(weights.len() - 1)
 }
 
 /// A point `d` along direction `yaw` from `p` (xy), at height `z`.
