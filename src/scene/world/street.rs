@@ -184,8 +184,8 @@ fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
     }
 }
 
-/// The lots behind one sidewalk, one after another: buildings, alleys, plazas, green slopes in proportions
-/// 0.6 : 0.11 : 0.16 : 0.13, and markets, a share `markets` of them.
+/// The lots behind one sidewalk, one after another: buildings, alleys, plazas and green slopes
+/// in proportions 0.6 : 0.11 : 0.16 : 0.13, and markets, a share `markets` of them.
 fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f64, counts: &mut BTreeMap<&'static str, usize>) {
     let rest = 1.0 - markets;
     let weights = [0.6 * rest, 0.11 * rest, 0.16 * rest, 0.13 * rest, markets];

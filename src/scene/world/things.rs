@@ -516,17 +516,17 @@ pub fn stall(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, le
     let depth = uni(rng, 1.8, 2.4);
     let front = at(p, yaw, depth * 0.5 - d * 0.5, g);
     b.cuboid(m, front, DVec3::new(d, len, counter), yaw);
+    // Along the counter, to the stall's left.
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
     if chance(rng, 0.6) {
         let goods = material(rng, class::OTHER_OBJECT);
         let mut y = -len * 0.5 + 0.1;
         while y < len * 0.5 - 0.4 {
             let w = uni(rng, 0.3, 0.7).min(len * 0.5 - 0.1 - y);
-            let side = DVec2::new(-yaw.sin(), yaw.cos()) * (y + w * 0.5);
-            b.cuboid(goods, (front.truncate() + side).extend(g + counter), DVec3::new(d * 0.8, w * 0.9, uni(rng, 0.05, 0.35)), yaw);
+            b.cuboid(goods, (front.truncate() + side * (y + w * 0.5)).extend(g + counter), DVec3::new(d * 0.8, w * 0.9, uni(rng, 0.05, 0.35)), yaw);
             y += w + uni(rng, 0.0, 0.3);
         }
     }
-    let side = DVec2::new(-yaw.sin(), yaw.cos());
     for (f, l) in [(0.5, -0.5), (0.5, 0.5), (-0.5, -0.5), (-0.5, 0.5)] {
         b.cylinder(m, (at(p, yaw, f * depth, g).truncate() + side * (l * len)).extend(g), 0.03, h, 6);
     }
