@@ -64,6 +64,7 @@ any command on ``DIR``, not only this one's ``--world``).
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import shutil
 import subprocess
@@ -94,6 +95,43 @@ SCORE_FROM = 15
 RECORDED_FRAMES = 17
 #: The networks trained on people composited into the recording (``--recorded``).
 RECORDED_FRAMES_N = (16, 1)
+
+
+#: What a training process imports before its first step (torch, and torch._dynamo, which
+#: torch.optim imports at the first optimizer): about 5 s a run, paid once by the server that
+#: forks the runs (:func:`run_train`).
+TRAIN_PRELOAD = ["pedscan_data.train", "torch._dynamo"]
+
+
+def _train_process(argv: list[str]) -> None:
+    from .train import main
+
+    sys.exit(main(argv))
+
+
+def run_train(argv: list[str]) -> int:
+    """``python -m pedscan_data.train ARGV``'s exit code. Each run is a process of its own as
+    before (its memory, threads and seeds its own), forked from a server that has imported
+    :data:`TRAIN_PRELOAD` once, so runs after the first start at once; where a platform
+    cannot fork, a fresh interpreter."""
+    import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return subprocess.run([sys.executable, "-m", "pedscan_data.train", *argv], check=False).returncode
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(TRAIN_PRELOAD)
+    # By the module's name: run as `python -m`, this one is __main__, which the server lacks.
+    target = importlib.import_module("pedscan_data.experiments")._train_process
+    proc = ctx.Process(target=target, args=(argv,))
+    proc.start()
+    try:
+        proc.join()
+    except KeyboardInterrupt:
+        # The run saw Ctrl-C too (one terminal): it checkpoints and ends with 130.
+        proc.join()
+        raise
+    # As subprocess's: -N when a signal N ended it.
+    return int(proc.exitcode if proc.exitcode is not None else 1)
 
 
 @dataclass(frozen=True)
@@ -196,11 +234,14 @@ class Experiment:
 
     def run(self, cmd: list[str], what: str) -> None:
         print(f"[{what}] {' '.join(cmd)}", file=sys.stderr, flush=True)
-        done = subprocess.run(cmd, check=False)
-        if done.returncode == 130:
+        if cmd[:3] == [self.python, "-m", "pedscan_data.train"]:
+            code = run_train(cmd[3:])
+        else:
+            code = subprocess.run(cmd, check=False).returncode
+        if code == 130:
             raise KeyboardInterrupt
-        if done.returncode != 0:
-            raise PedscanError(f"{what}: `{' '.join(cmd)}` exited {done.returncode}")
+        if code != 0:
+            raise PedscanError(f"{what}: `{' '.join(cmd)}` exited {code}")
 
     def run_shards(self, cmd: list[str], what: str) -> None:
         """``cmd`` as ``--jobs`` processes, one ``--shard I/J`` each, at once; every one must end well."""

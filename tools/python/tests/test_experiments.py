@@ -195,3 +195,16 @@ def test_the_paper_experiments_run_in_a_world_beside_the_hall(tmp_path: Path) ->
     rows = table4_rows((work / "results.md").read_text())
     assert [r.split(" | ")[0] for r in rows] == ["| hall"] * 4 + ["| street"] * 4
     assert all(r.split(" | ")[2] != "— / 0.4358" for r in rows if r.split(" | ")[1] == "0-inf m")
+
+
+def test_a_training_run_is_a_process_of_its_own_and_its_failure_names_the_command(tmp_path: Path) -> None:
+    """Runs are forked from a server that imported torch once, each its own process: its exit
+    code comes back (2 for bad input, as ``python -m pedscan_data.train`` gives) and a failed
+    run stops the experiment naming the command."""
+    missing = tmp_path / "no-data"
+    assert exp.run_train([str(missing), "--out", str(tmp_path / "run"), "--steps", "1"]) == 2
+    assert exp.run_train(["--no-such-flag"]) == 2
+    assert not (tmp_path / "run").exists()
+    hall = experiments(tmp_path)["hall"]
+    with pytest.raises(exp.PedscanError, match=r"train frames1: `.* -m pedscan_data.train .*no-data.*` exited 2"):
+        hall.run([hall.python, "-m", "pedscan_data.train", str(missing), "--out", str(tmp_path / "run")], "train frames1")
