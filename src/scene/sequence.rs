@@ -560,11 +560,14 @@ pub struct PlanInputs<'a> {
     /// sampled arc (or the recorded `sensor`, which wins).
     pub sensor_arc: Option<Trajectory>,
     /// Places people stand at (a built-in world's [`crate::scene::world::World::places`]).
-    pub places: &'a [DVec2],
+    pub places: &'a [crate::scene::world::Place],
 }
 
 /// Tries at joining the person placed before (`humans.groups`) before placing one alone.
 const JOIN_TRIES: usize = 20;
+
+/// How far a person standing at a place turns from its way (`humans.at_places`), either side.
+const PLACE_FACING_RAD: f64 = std::f64::consts::FRAC_PI_6;
 
 /// A companion for `leader` of model `model`: face to face 0.8-1.4 m away when the leader
 /// stands, else side by side 0.75-0.95 m to its left or right, at its pace.
@@ -834,7 +837,7 @@ fn sample_synthetic_people(
     let s0 = sensor.start_xy();
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     // The world's places within reach (`humans.at_places`).
-    let places: Vec<DVec2> = inp.places.iter().copied().filter(|q| q.distance(s0) <= hc.spawn_radius_m).collect();
+    let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
     for k in 0..count {
         let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
@@ -861,8 +864,11 @@ fn sample_synthetic_people(
             // At a place for the first half of the tries (the places may all be taken), then
             // anywhere.
             let at_place = at_place && attempt < TRIES / 2;
+            let mut facing = None;
             if at_place {
-                start = places[((u01() * places.len() as f64) as usize).min(places.len() - 1)];
+                let q = places[((u01() * places.len() as f64) as usize).min(places.len() - 1)];
+                start = q.at;
+                facing = Some(q.facing_rad);
             }
             let mut speed = uniform(&mut u01, hc.speed_mps);
             // Behaviours (drawn only where asked for, so a run without them draws as before):
@@ -915,9 +921,13 @@ fn sample_synthetic_people(
                     }
                 }
                 _ if stands => {
-                    // Waiting or looking around: a third turn on the spot.
+                    // Waiting or looking around: a third turn on the spot. At a place, facing
+                    // its way give or take 30 degrees.
                     let mut u01 = || rng.random::<f64>();
-                    let heading = (u01() * 2.0 - 1.0) * std::f64::consts::PI;
+                    let heading = match facing {
+                        Some(f) => f + (u01() * 2.0 - 1.0) * PLACE_FACING_RAD,
+                        None => (u01() * 2.0 - 1.0) * std::f64::consts::PI,
+                    };
                     let turn = if u01() < 1.0 / 3.0 { (0.15 + 0.35 * u01()) * if u01() < 0.5 { -1.0 } else { 1.0 } } else { 0.0 };
                     HumanPath::Arc(Trajectory { start_m: start, z_m: inp.floor_z_m, heading0_rad: heading, speed_mps: 0.0, yaw_rate_rps: turn })
                 }

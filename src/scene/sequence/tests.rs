@@ -720,8 +720,8 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
 }
 
 /// `humans.at_places`: in a street of markets, every person asked to stand at a place stands
-/// on one of the world's places (behind a counter, before it, by a table), each on their own;
-/// without it, hardly anybody does.
+/// on one of the world's places (behind a counter, before it, by a table), each on their own
+/// and facing the place's way; without it, hardly anybody does.
 #[test]
 fn people_asked_to_stand_at_places_stand_on_them() {
     use crate::scene::world::{World, WorldKind, WorldParams};
@@ -741,7 +741,7 @@ fn people_asked_to_stand_at_places_stand_on_them() {
             let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, &inp).unwrap();
             for p in &plan.humans {
                 let at = p.position_m(0.0).truncate();
-                n += usize::from(w.places.iter().any(|q| q.distance(at) < 1e-9));
+                n += usize::from(w.places.iter().any(|q| q.at.distance(at) < 1e-9));
                 total += 1;
             }
         }
@@ -752,6 +752,16 @@ fn people_asked_to_stand_at_places_stand_on_them() {
     cfg.humans.at_places = 1.0;
     let (at, total) = on_places(&cfg);
     assert_eq!(at, total, "{at} of {total} on a place");
+    // Each faces the place's way (out over a counter, towards a stall or a table) within 30
+    // degrees; drawn anyhow, a third would not.
+    for seed in 0..4 {
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
+        for p in &plan.humans {
+            let q = w.places.iter().find(|q| q.at.distance(p.position_m(0.0).truncate()) < 1e-9).unwrap();
+            let off = (p.trajectory.heading_rad(0.0) - q.facing_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            assert!(off.abs() <= std::f64::consts::FRAC_PI_6 + 1e-9, "faces {off} rad off its place's way");
+        }
+    }
     cfg.humans.at_places = -0.1;
     assert!(cfg.validate().is_err());
 }

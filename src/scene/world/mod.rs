@@ -26,6 +26,7 @@ use std::collections::BTreeMap;
 
 pub use crate::config::WorldKind;
 pub use movers::{Mover, MoverKind};
+pub use shapes::Place;
 
 /// What a world is built for besides its random stream.
 #[derive(Clone, Copy, Debug)]
@@ -57,10 +58,11 @@ pub struct World {
     pub sensor: Option<Trajectory>,
     /// How many of each kind of thing it holds (the sequence's XML records them).
     pub counts: BTreeMap<&'static str, usize>,
-    /// Places people stand at, floor xy: behind a market stall's counter and in front of it,
-    /// beside a beer-garden table (`humans.at_places`). Each had room for a person
-    /// (`clearance_m`) where it was made; the walkable area has the last word.
-    pub places: Vec<DVec2>,
+    /// Places people stand at: behind a market stall's or booth's counter and in front of it,
+    /// beside a beer-garden table (`humans.at_places`), each with the way a person there
+    /// faces. Each had room for a person (`clearance_m`) where it was made; the walkable area
+    /// has the last word.
+    pub places: Vec<Place>,
     /// Its footprint (xy bounds), m.
     pub bounds: (DVec2, DVec2),
     /// The movers driving through it ([`World::add_movers`]); their meshes are the last of

@@ -51,8 +51,16 @@ pub struct Builder {
     positions: Vec<DVec3>,
     meshes: Vec<(Material, Vec<u32>)>,
     by_key: HashMap<(u16, u32), usize>,
-    /// Places people stand at (behind a stall's counter, at a table), floor xy.
-    pub places: Vec<DVec2>,
+    /// Places people stand at (behind a stall's counter, at a table).
+    pub places: Vec<Place>,
+}
+
+/// A place a person stands at ([`super::World::places`]): floor xy, and the way they face
+/// there (out over a counter, towards a stall, towards a table), radians from +x.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Place {
+    pub at: DVec2,
+    pub facing_rad: f64,
 }
 
 impl Builder {

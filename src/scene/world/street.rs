@@ -73,7 +73,7 @@ pub struct Traffic {
 /// the same with or without them), and the places people stand at ([`World::places`]).
 ///
 /// [`World::places`]: super::World::places
-pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic, Vec<DVec2>) {
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic, Vec<super::Place>) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
     let run = speed * p.duration_s.max(0.0);
@@ -328,45 +328,73 @@ fn plaza(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64,
     }
 }
 
-/// A market or beer garden behind the sidewalk, a building at its back: rows of stalls under
-/// their roofs, or of table sets under parasols, with aisles 1-2.5 m wide between them. The
-/// stalls and tables make places to stand at (`humans.at_places`: behind and before the
-/// counters, by the tables), where people show above a counter or a table with the stall's
-/// roof and posts around them at their own range, as the real people of a market do.
+/// A market or beer garden behind the sidewalk, a building at its back: rows of open stalls
+/// under their roofs, of booths (huts open at the front above a counter) side by side, or of
+/// table sets under parasols, with aisles 1-2.5 m wide between them. They make places to
+/// stand at (`humans.at_places`: behind and before the counters, by the tables), where people
+/// show above a counter or a table with the stall's roof and posts or the booth's walls around
+/// them at their own range, as the real people of a market do.
 fn market(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
     let depth = uni(rng, 8.0, 16.0);
     paved_lot(b, rng, xa, xb, y0, s, depth);
     count(counts, "market");
-    // Rows along the street, each of stalls (facing the street or away) or of table sets.
+    #[derive(PartialEq)]
+    enum Row {
+        Stalls,
+        Booths,
+        Tables,
+    }
+    // Rows along the street. Stalls face the street or away; booths mostly face it.
     let mut y = uni(rng, 1.0, 2.0);
     loop {
-        let stalls = chance(rng, 0.5);
-        let row = if stalls { 2.2 } else { 1.6 };
-        if y + row > depth - 1.0 {
+        let row = match uni(rng, 0.0, 1.0) {
+            u if u < 0.35 => Row::Stalls,
+            u if u < 0.7 => Row::Booths,
+            _ => Row::Tables,
+        };
+        let across = match row {
+            Row::Stalls => 2.2,
+            Row::Booths => 2.6,
+            Row::Tables => 1.6,
+        };
+        if y + across > depth - 1.0 {
             break;
         }
-        let facing = if chance(rng, 0.5) { -s * FRAC_PI_2 } else { s * FRAC_PI_2 };
+        let towards = chance(rng, if row == Row::Booths { 0.8 } else { 0.5 });
+        let facing = if towards { -s * FRAC_PI_2 } else { s * FRAC_PI_2 };
         let mut x = xa + uni(rng, 0.5, 2.0);
         loop {
-            let len = if stalls { uni(rng, 2.0, 3.5) } else { 2.2 };
+            let len = match row {
+                Row::Stalls => uni(rng, 2.0, 3.5),
+                Row::Booths => uni(rng, 2.0, 4.0),
+                Row::Tables => 2.2,
+            };
             if x + len > xb - 0.5 {
                 break;
             }
-            let q = DVec2::new(x + len * 0.5, y0 + s * (y + row * 0.5));
-            if stalls {
-                things::stall(b, rng, q, 0.0, facing, len);
-                count(counts, "stall");
-            } else {
-                things::table_set(b, rng, q, 0.0, 0.0);
-                count(counts, "table set");
-                if chance(rng, 0.6) {
-                    things::parasol(b, rng, q, 0.0);
-                    count(counts, "parasol");
+            let q = DVec2::new(x + len * 0.5, y0 + s * (y + across * 0.5));
+            match row {
+                Row::Stalls => {
+                    things::stall(b, rng, q, 0.0, facing, len);
+                    count(counts, "stall");
+                }
+                Row::Booths => {
+                    things::booth(b, rng, q, 0.0, facing, len);
+                    count(counts, "booth");
+                }
+                Row::Tables => {
+                    things::table_set(b, rng, q, 0.0, 0.0);
+                    count(counts, "table set");
+                    if chance(rng, 0.6) {
+                        things::parasol(b, rng, q, 0.0);
+                        count(counts, "parasol");
+                    }
                 }
             }
-            x += len + uni(rng, 1.0, 2.5);
+            // Booths stand side by side, an aisle now and then.
+            x += len + if row == Row::Booths && chance(rng, 0.7) { uni(rng, 0.0, 0.3) } else { uni(rng, 1.0, 2.5) };
         }
-        y += row + uni(rng, 1.0, 2.5);
+        y += across + uni(rng, 1.0, 2.5);
     }
 }
 

@@ -89,7 +89,7 @@ fn markets_have_stalls_and_room_to_stand_among_them_under_their_roofs() {
             continue;
         }
         markets += 1;
-        assert!(w.counts.get("stall").or(w.counts.get("table set")).is_some(), "{}", w.summary());
+        assert!(["stall", "booth", "table set"].iter().any(|k| w.counts.contains_key(k)), "{}", w.summary());
         let roofs: Vec<[DVec2; 3]> = w
             .env
             .meshes
@@ -315,10 +315,76 @@ fn market_places_have_room_for_a_person() {
     for index in 0..3 {
         let w = World::build(WorldKind::Street, 9, index, &p).unwrap();
         for q in &w.places {
-            roomy += usize::from(w.grid.clearance(*q) >= p.clearance_m);
+            roomy += usize::from(w.grid.clearance(q.at) >= p.clearance_m);
             total += 1;
         }
     }
     assert!(total > 100, "{total} places");
     assert!(roomy * 10 >= total * 9, "{roomy} of {total} places with room for a person");
+}
+
+/// Where a horizontal ray from `o` along `dir` first meets `env` within `max_m`, m (None: clear).
+fn first_hit(env: &crate::scene::Environment, o: DVec3, dir: DVec3, max_m: f64) -> Option<f64> {
+    let mut best: Option<f64> = None;
+    for m in &env.meshes {
+        for t in m.indices.chunks(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| env.positions[t[k] as usize]);
+            // Moller-Trumbore, both sides.
+            let (e1, e2) = (b - a, c - a);
+            let pv = dir.cross(e2);
+            let det = e1.dot(pv);
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let tv = o - a;
+            let u = tv.dot(pv) / det;
+            let qv = tv.cross(e1);
+            let v = dir.dot(qv) / det;
+            let d = e2.dot(qv) / det;
+            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && d > 0.0 && d <= max_m && best.is_none_or(|x| d < x) {
+                best = Some(d);
+            }
+        }
+    }
+    best
+}
+
+/// A booth is a hut someone serves from: just behind its counter a person has the counter
+/// before their legs and the back wall a metre or so behind, and looks out through the
+/// opening above it; before the counter a customer faces it, nothing behind. Side by side,
+/// booths make a market's frontage of walls.
+#[test]
+fn booths_are_huts_open_above_their_counters() {
+    use rand::SeedableRng;
+    for (k, yaw) in [0.3, 2.0, -1.2].into_iter().enumerate() {
+        let mut b = shapes::Builder::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(k as u64);
+        things::booth(&mut b, &mut rng, DVec2::new(1.0, -2.0), 0.0, yaw, 3.0);
+        let places = std::mem::take(&mut b.places);
+        let env = b.finish();
+        let (inside, outside): (Vec<&shapes::Place>, Vec<_>) = places.iter().partition(|q| (q.facing_rad - yaw).abs() < 1e-9);
+        assert!(!inside.is_empty() && outside.len() >= inside.len(), "{places:?}");
+        for q in inside {
+            let out = DVec3::new(yaw.cos(), yaw.sin(), 0.0);
+            let side = DVec3::new(-yaw.sin(), yaw.cos(), 0.0);
+            let chest = q.at.extend(1.5);
+            let back = first_hit(&env, chest, -out, 5.0).expect("a back wall");
+            assert!((0.5..=1.6).contains(&back), "back wall {back} m behind");
+            let counter = first_hit(&env, q.at.extend(0.6), out, 5.0).expect("a counter before the legs");
+            assert!((0.5..=0.6).contains(&counter), "counter {counter} m ahead");
+            assert_eq!(first_hit(&env, chest, out, 5.0), None, "the opening above the counter");
+            assert!(first_hit(&env, q.at.extend(2.2), out, 5.0).is_some(), "the fascia above the opening");
+            for s in [-1.0, 1.0] {
+                assert!(first_hit(&env, chest, side * s, 3.0).is_some(), "walls either side");
+            }
+        }
+        for q in outside {
+            let dir = DVec3::new(q.facing_rad.cos(), q.facing_rad.sin(), 0.0);
+            assert!(first_hit(&env, q.at.extend(0.6), dir, 0.8).is_some(), "a customer faces the counter");
+            assert_eq!(first_hit(&env, q.at.extend(1.0), -dir, 5.0), None, "nothing behind a customer");
+        }
+    }
+    // In a street of markets, booths stand in rows of them.
+    let w = World::build(WorldKind::Street, 3, 0, &WorldParams { markets: 1.0, ..params() }).unwrap();
+    assert!(w.counts.get("booth").is_some_and(|&n| n >= 4), "{}", w.summary());
 }

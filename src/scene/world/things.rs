@@ -4,7 +4,7 @@
 //! drawn per thing. Every function places one thing standing on ground height `g` at `p`, facing
 //! `yaw`, and returns its footprint's radius (m) for spacing.
 
-use super::shapes::{Builder, Material};
+use super::shapes::{Builder, Material, Place};
 use super::{at, chance, uni};
 use glam::{DVec2, DVec3};
 use rand::{Rng, RngExt};
@@ -21,7 +21,7 @@ pub mod class {
     pub const OTHER_GROUND: u16 = 49;
     pub const BUILDING: u16 = 50;
     pub const FENCE: u16 = 51;
-    /// Stalls, awnings and parasols: what SemanticKITTI labels other-structure.
+    /// Stalls, booths, awnings and parasols: what SemanticKITTI labels other-structure.
     pub const OTHER_STRUCTURE: u16 = 52;
     pub const LANE_MARKING: u16 = 60;
     pub const VEGETATION: u16 = 70;
@@ -539,15 +539,73 @@ pub fn stall(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, le
     if chance(rng, 0.5) {
         b.cuboid(m, at(p, yaw, -depth * 0.5, g + 0.9), DVec3::new(0.03, len, h - 0.9), yaw);
     }
-    // Places: behind the counter (midway to the back), and 0.55 m in front of it; one every
-    // 0.9 m along it.
+    // Places: just behind the counter, facing out over it, and 0.55 m in front of it, facing
+    // it.
+    counter_places(b, p, yaw, len, depth * 0.5 - d - SERVING_M.min((depth - d) * 0.5), yaw);
+    counter_places(b, p, yaw, len, depth * 0.5 + 0.55, yaw + std::f64::consts::PI);
+    0.5 * len.max(depth)
+}
+
+/// How far behind a counter's back edge someone serving stands (their centre; midway to the
+/// back where that is nearer): as close as the default `humans.clearance_m` (0.35 m) and the
+/// walkable grid's cells let them, so the counter's top reaches almost to them in the range
+/// image, as at a real market.
+const SERVING_M: f64 = 0.55;
+
+/// Places along a line `len` long across `yaw` through `p`, one every 0.9 m, `ahead` along
+/// `yaw` from it, facing `facing_rad`.
+fn counter_places(b: &mut Builder, p: DVec2, yaw: f64, len: f64, ahead: f64, facing_rad: f64) {
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
     let k = ((len - 0.2) / 0.9).floor().max(1.0) as usize;
     for i in 0..k {
         let y = (i as f64 + 0.5) / k as f64 - 0.5;
-        for f in [-d * 0.5, depth * 0.5 + 0.55] {
-            b.places.push(at(p, yaw, f, 0.0).truncate() + side * (y * len));
+        b.places.push(Place { at: at(p, yaw, ahead, 0.0).truncate() + side * (y * len), facing_rad });
+    }
+}
+
+/// A market booth facing `yaw`, `len` (at least 2 m) wide: a hut of boards, walls on three
+/// sides up to its roof at 2.3-2.7 m, a door 0.8 m wide at one end of the back wall, its front
+/// open from a counter 0.9-1.05 m high to a fascia at 1.95-2.15 m; 1.8-2.5 m deep, room
+/// behind the counter for someone serving. Seen from the front, who serves shows between the
+/// counter and the fascia, the back wall about a metre behind them and the side walls beside
+/// them, as at a real market's huts.
+pub fn booth(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, len: f64) -> f64 {
+    const WALL: f64 = 0.05;
+    const DOOR: f64 = 0.8;
+    let m = material(rng, class::OTHER_STRUCTURE);
+    let depth = uni(rng, 1.8, 2.5);
+    let h = uni(rng, 2.3, 2.7);
+    let counter = uni(rng, 0.9, 1.05);
+    let top = uni(rng, 1.95, 2.15);
+    let d = uni(rng, 0.5, 0.7);
+    let side = DVec2::new(-yaw.sin(), yaw.cos());
+    // The back wall, the door at the end `door` (-1 or 1) across, a lintel above it at 2.05 m.
+    let door = if chance(rng, 0.5) { -1.0 } else { 1.0 };
+    let back = at(p, yaw, WALL * 0.5 - depth * 0.5, 0.0).truncate();
+    b.cuboid(m, (back - side * (door * (WALL + DOOR) * 0.5)).extend(g), DVec3::new(WALL, len - WALL - DOOR, h), yaw);
+    b.cuboid(m, (back + side * (door * (len - DOOR) * 0.5)).extend(g + 2.05), DVec3::new(WALL, DOOR, h - 2.05), yaw);
+    for s in [-1.0, 1.0] {
+        b.cuboid(m, (p + side * (s * (len - WALL) * 0.5)).extend(g), DVec3::new(depth, WALL, h), yaw);
+    }
+    b.cuboid(m, at(p, yaw, (depth - d) * 0.5, g), DVec3::new(d, len - 2.0 * WALL, counter), yaw);
+    b.cuboid(m, at(p, yaw, (depth - WALL) * 0.5, g + top), DVec3::new(WALL, len, h - top), yaw);
+    // The roof overhangs the front.
+    let over = uni(rng, 0.2, 0.6);
+    let roof = material(rng, class::OTHER_STRUCTURE);
+    b.cuboid(roof, at(p, yaw, over * 0.5, g + h), DVec3::new(depth + over, len + 0.2, 0.05), yaw);
+    if chance(rng, 0.6) {
+        let goods = material(rng, class::OTHER_OBJECT);
+        let mut y = -len * 0.5 + WALL + 0.1;
+        while y < len * 0.5 - WALL - 0.4 {
+            let w = uni(rng, 0.3, 0.7).min(len * 0.5 - WALL - 0.1 - y);
+            b.cuboid(goods, (at(p, yaw, (depth - d) * 0.5, g).truncate() + side * (y + w * 0.5)).extend(g + counter), DVec3::new(d * 0.8, w * 0.9, uni(rng, 0.05, 0.3)), yaw);
+            y += w + uni(rng, 0.1, 0.5);
         }
     }
+    // Places: just behind the counter (where the wall is), facing out, and 0.55 m in front,
+    // facing in.
+    counter_places(b, p - side * (door * DOOR * 0.5), yaw, len - 2.0 * WALL - DOOR, depth * 0.5 - d - SERVING_M.min((depth - d - WALL) * 0.5), yaw);
+    counter_places(b, p, yaw, len, depth * 0.5 + 0.55, yaw + std::f64::consts::PI);
     0.5 * len.max(depth)
 }
 
@@ -575,10 +633,12 @@ pub fn table_set(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64
             b.cuboid(m, at(q, yaw, e * len, g), DVec3::new(0.04, 0.22, 0.42), yaw);
         }
     }
-    // Places: behind each bench (half a metre off it), at a quarter of the table from its middle.
+    // Places: behind each bench (half a metre off it), at a quarter of the table from its
+    // middle, facing the table.
     for s in [-1.0, 1.0] {
         for e in [-0.25, 0.25] {
-            b.places.push(at(p, yaw, e * len, 0.0).truncate() + side * (s * (off + 0.125 + 0.5)));
+            let facing_rad = (-s * side.y).atan2(-s * side.x);
+            b.places.push(Place { at: at(p, yaw, e * len, 0.0).truncate() + side * (s * (off + 0.125 + 0.5)), facing_rad });
         }
     }
     0.5 * len
