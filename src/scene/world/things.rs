@@ -567,8 +567,8 @@ fn counter_places(b: &mut Builder, p: DVec2, yaw: f64, len: f64, ahead: f64, fac
 /// sides up to its roof at 2.3-2.7 m, a door 0.8 m wide at one end of the back wall, its front
 /// open from a counter 0.9-1.05 m high to a fascia at 1.95-2.15 m; 1.8-2.5 m deep, room
 /// behind the counter for someone serving. Seen from the front, who serves shows between the
-/// counter and the fascia, the back wall about a metre behind them and the side walls beside
-/// them, as at a real market's huts.
+/// counter and the fascia, the back wall 0.5-1.4 m behind them and the side walls beside them,
+/// as at a real market's huts.
 pub fn booth(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, len: f64) -> f64 {
     const WALL: f64 = 0.05;
     const DOOR: f64 = 0.8;
