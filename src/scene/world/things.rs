@@ -587,7 +587,8 @@ pub fn booth(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, le
     for s in [-1.0, 1.0] {
         b.cuboid(m, (p + side * (s * (len - WALL) * 0.5)).extend(g), DVec3::new(depth, WALL, h), yaw);
     }
-    b.cuboid(m, at(p, yaw, (depth - d) * 0.5, g), DVec3::new(d, len - 2.0 * WALL, counter), yaw);
+    let front = at(p, yaw, (depth - d) * 0.5, g);
+    b.cuboid(m, front, DVec3::new(d, len - 2.0 * WALL, counter), yaw);
     b.cuboid(m, at(p, yaw, (depth - WALL) * 0.5, g + top), DVec3::new(WALL, len, h - top), yaw);
     // The roof overhangs the front.
     let over = uni(rng, 0.2, 0.6);
@@ -598,7 +599,7 @@ pub fn booth(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, le
         let mut y = -len * 0.5 + WALL + 0.1;
         while y < len * 0.5 - WALL - 0.4 {
             let w = uni(rng, 0.3, 0.7).min(len * 0.5 - WALL - 0.1 - y);
-            b.cuboid(goods, (at(p, yaw, (depth - d) * 0.5, g).truncate() + side * (y + w * 0.5)).extend(g + counter), DVec3::new(d * 0.8, w * 0.9, uni(rng, 0.05, 0.3)), yaw);
+            b.cuboid(goods, (front.truncate() + side * (y + w * 0.5)).extend(g + counter), DVec3::new(d * 0.8, w * 0.9, uni(rng, 0.05, 0.3)), yaw);
             y += w + uni(rng, 0.1, 0.5);
         }
     }
