@@ -23,6 +23,7 @@ use glam::{DVec2, DVec3};
 use rand::RngExt;
 use rand::SeedableRng;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 pub use crate::config::WorldKind;
 pub use movers::{Mover, MoverKind};
@@ -153,12 +154,14 @@ impl World {
         rng.set_stream(self.index as u64);
         let sensor = self.sensor;
         let sensor_x = |t: f64| sensor.map_or(0.0, |s| s.position(t).x);
-        let kept = movers::drive(&mut rng, &traffic.movers, &traffic.lane, duration_s, sensor_x, people);
+        let oncoming = movers::drive(&mut rng, &traffic.movers, &traffic.lane, duration_s, sensor_x, None, &people);
+        let own = movers::drive(&mut rng, &traffic.own_movers, &traffic.own_lane, duration_s, sensor_x, Some(traffic.ego), &people);
         let mut added = Environment::default();
-        for (i, u0, table) in kept {
-            let spec = &traffic.movers[i];
+        let kept = oncoming.into_iter().map(|k| (&traffic.lane, &traffic.movers, k)).chain(own.into_iter().map(|k| (&traffic.own_lane, &traffic.own_movers, k)));
+        for (lane, specs, (i, u0, table)) in kept {
+            let spec = &specs[i];
             let first = self.env.positions.len();
-            let m = movers::mover(spec, &traffic.lane, u0, table, first);
+            let m = movers::mover(spec, lane, u0, table, first);
             let mut placed = vec![DVec3::ZERO; m.local.len()];
             m.place(0.0, &mut placed);
             self.env.positions.extend_from_slice(&placed);
@@ -173,7 +176,12 @@ impl World {
             self.mover_of_draw.extend(std::iter::repeat_n(self.movers.len() as u32, draws.len()));
             self.draws.extend(draws);
             added.meshes.clear();
-            *self.counts.entry(if m.kind == MoverKind::Car { "car driving" } else { "cyclist riding" }).or_insert(0) += 1;
+            let what = match m.kind {
+                _ if Arc::ptr_eq(lane, &traffic.own_lane) => "car in the sensor lane",
+                MoverKind::Car => "car driving",
+                MoverKind::Cyclist => "cyclist riding",
+            };
+            *self.counts.entry(what).or_insert(0) += 1;
             self.movers.push(m);
         }
     }

@@ -1,5 +1,5 @@
 //! Other movers: cars driving and cyclists riding the street's oncoming lane, one after the
-//! other. Each is a rigid mesh of its own (a cyclist's rider and bicycle together), held level
+//! other, and cars ahead of and behind the sensor's own vehicle in its lane. Each is a rigid mesh of its own (a cyclist's rider and bicycle together), held level
 //! and following the ground under it (the raised crossings' ramps), with its own instance id
 //! and per-beam velocity in the frames.
 //!
@@ -7,8 +7,10 @@
 //! each keeps a time gap to the one ahead and stops at a crossing while somebody is on it or
 //! about to step on it; the people's plans are known before the movers drive. Speeds and
 //! positions come from one table per mover of constant-acceleration steps, so a position and
-//! its velocity are exact derivatives of each other. A mover that would still touch a person
-//! (somebody stepping out under its bumper) is left out of the sequence. The lane wraps: a
+//! its velocity are exact derivatives of each other. In the sensor's lane the sensor's vehicle
+//! is one more to keep a time gap to; it keeps its own speed, so a car that it would still run
+//! into (one slower ahead of it) is left out, as is a mover that would still touch a person
+//! (somebody stepping out under its bumper). The lane wraps: a
 //! mover driving off one end of the street comes back in at the other, farther from the sensor
 //! than it sees (`street::MARGIN_M`), so a long sequence keeps its traffic.
 
@@ -67,6 +69,17 @@ const STOP_LINE_M: f64 = 1.5;
 /// A person's radius in the movers' check, m (a mover's footprint grown by it never holds a
 /// person's position).
 pub const PERSON_RADIUS_M: f64 = 0.35;
+
+/// The sensor's own vehicle in its lane: the half of its footprint (its centre under the
+/// sensor) and its constant speed.
+#[derive(Clone, Copy, Debug)]
+pub struct Ego {
+    pub half: DVec2,
+    pub speed_mps: f64,
+}
+
+/// The sensor's vehicle's half length and half width, m (a car's, the sensor over its middle).
+pub const EGO_HALF_M: DVec2 = DVec2::new(2.3, 0.95);
 
 /// The drive table's step, s.
 const STEP_S: f64 = 0.05;
@@ -190,9 +203,13 @@ impl Mover {
     }
     /// Whether a person at `p` (floor plane) touches its footprint at `t_s`.
     pub fn touches(&self, t_s: f64, p: DVec2) -> bool {
-        let c = self.position(t_s).truncate();
-        let d = (p - c).abs();
-        d.x < self.half.x + PERSON_RADIUS_M && d.y < self.half.y + PERSON_RADIUS_M
+        self.overlaps(t_s, p, DVec2::splat(PERSON_RADIUS_M))
+    }
+    /// Whether its footprint at `t_s` overlaps a box of half size `half` centred at `p` (both
+    /// axis-aligned: a lane runs along x).
+    pub fn overlaps(&self, t_s: f64, p: DVec2, half: DVec2) -> bool {
+        let d = (p - self.position(t_s).truncate()).abs();
+        d.x < self.half.x + half.x && d.y < self.half.y + half.y
     }
 }
 
@@ -231,35 +248,46 @@ pub fn cyclist(rng: &mut impl Rng) -> MoverSpec {
     MoverSpec { kind: MoverKind::Cyclist, mesh: b.finish(), half: DVec2::new(0.95, 0.35), driver }
 }
 
-/// Places the movers in their lane and drives them over `duration_s`. The first car and the
-/// first cyclist pass the sensor (at `sensor_x(t)`) 8-40 m from it halfway through the
-/// sequence; the others start anywhere along the lane, clear of each other. People (their
-/// floor positions at a time, from `people`) make the movers stop before the crossings they
-/// are on; a mover that still touches somebody is left out, and the others drive again
-/// without it. Returns the movers kept, with their index in `specs`.
+/// Places the movers in their lane and drives them over `duration_s`. In a lane of its own
+/// (`ego` None) the first car and the first cyclist pass the sensor (at `sensor_x(t)`) 8-40 m
+/// from it halfway through the sequence and the others start anywhere along the lane; in the
+/// sensor's lane (`ego`: its vehicle, at `sensor_x(t)` on the lane's centre line) each starts
+/// 10-60 m ahead of or behind it. All start clear of each other (and of the sensor's vehicle).
+/// People (their floor positions at a time, from `people`) make the movers stop before the
+/// crossings they are on; a mover that still touches somebody, or the sensor's vehicle, is
+/// left out, and the others drive again without it. Returns the movers kept, with their index
+/// in `specs`.
 pub fn drive(
     rng: &mut impl Rng,
     specs: &[MoverSpec],
     lane: &Arc<Lane>,
     duration_s: f64,
     sensor_x: impl Fn(f64) -> f64,
+    ego: Option<Ego>,
     people: impl Fn(f64, &mut Vec<DVec2>),
 ) -> Vec<(usize, f64, Vec<[f64; 3]>)> {
     let len = lane.length();
     let mid = 0.5 * duration_s.max(0.0);
     // Lane positions at time 0.
     let mut placed: Vec<(usize, f64)> = Vec::new();
+    let apart = |u: f64, v: f64, room: f64| {
+        let d = (u - v).rem_euclid(len);
+        d.min(len - d) > room
+    };
+    let ego_u = |t: f64| lane.u_of(sensor_x(t));
     let clear = |placed: &[(usize, f64)], i: usize, u: f64| {
-        placed.iter().all(|&(j, v)| {
-            let d = (u - v).rem_euclid(len);
-            d.min(len - d) > specs[i].half.x + specs[j].half.x + specs[i].driver.min_gap_m.max(specs[j].driver.min_gap_m) + 2.0
-        })
+        let (half, gap) = (specs[i].half.x, specs[i].driver.min_gap_m);
+        placed.iter().all(|&(j, v)| apart(u, v, half + specs[j].half.x + gap.max(specs[j].driver.min_gap_m) + 2.0))
+            && ego.is_none_or(|e| apart(u, ego_u(0.0), half + e.half.x + gap + 2.0))
     };
     let mut firsts = [false; 2];
     for (i, sp) in specs.iter().enumerate() {
         let kind = sp.kind as usize;
         for _ in 0..40 {
-            let u = if !firsts[kind] {
+            let u = if ego.is_some() {
+                let side = if rng.random::<f64>() < 0.5 { -1.0 } else { 1.0 };
+                ego_u(0.0) + side * uni(rng, 10.0, 60.0)
+            } else if !firsts[kind] {
                 let side = if rng.random::<f64>() < 0.5 { -1.0 } else { 1.0 };
                 let x = sensor_x(mid) + side * uni(rng, 8.0, 40.0);
                 lane.u_of(x) - sp.driver.speed_mps * mid
@@ -275,16 +303,19 @@ pub fn drive(
     }
     let mut who = Vec::new();
     let steps = (duration_s.max(0.0) / STEP_S).ceil() as usize + 1;
+    let ego_at = |t: f64| ego.map(|e| (lane.u_of(sensor_x(t)), e));
     loop {
-        let tables = simulate(specs, &placed, lane, steps, &people);
-        // The first mover (in placing order) that touches somebody is left out; the rest drive again.
+        let tables = simulate(specs, &placed, lane, steps, &ego_at, &people);
+        // The first mover (in placing order) that touches somebody or the sensor's vehicle is
+        // left out; the rest drive again.
         let mut hit = None;
         'check: for (n, &(i, u0)) in placed.iter().enumerate() {
             let m = mover(&specs[i], lane, u0, tables[n].clone(), 0);
             for k in 0..=steps {
                 let t = k as f64 * STEP_S;
                 people(t, &mut who);
-                if who.iter().any(|&p| m.touches(t, p)) {
+                let on_ego = ego.is_some_and(|e| m.overlaps(t, DVec2::new(sensor_x(t), lane.y), e.half));
+                if on_ego || who.iter().any(|&p| m.touches(t, p)) {
                     hit = Some(n);
                     break 'check;
                 }
@@ -299,8 +330,16 @@ pub fn drive(
     }
 }
 
-/// The lane's movers driven together, step by step; one table per placed mover.
-fn simulate(specs: &[MoverSpec], placed: &[(usize, f64)], lane: &Lane, steps: usize, people: &impl Fn(f64, &mut Vec<DVec2>)) -> Vec<Vec<[f64; 3]>> {
+/// The lane's movers driven together, step by step; one table per placed mover. `ego(t)`: the
+/// sensor's vehicle in the lane (its centre's lane position, and what it is), if it is there.
+fn simulate(
+    specs: &[MoverSpec],
+    placed: &[(usize, f64)],
+    lane: &Lane,
+    steps: usize,
+    ego: &impl Fn(f64) -> Option<(f64, Ego)>,
+    people: &impl Fn(f64, &mut Vec<DVec2>),
+) -> Vec<Vec<[f64; 3]>> {
     let len = lane.length();
     let n = placed.len();
     let mut s = vec![0.0; n];
@@ -327,6 +366,12 @@ fn simulate(specs: &[MoverSpec], placed: &[(usize, f64)], lane: &Lane, steps: us
                 let g = (back[b] - front[a]).rem_euclid(len);
                 if g < gap {
                     (gap, lead_v) = (g, v[b]);
+                }
+            }
+            if let Some((u, e)) = ego(t) {
+                let g = (u - e.half.x - front[a]).rem_euclid(len);
+                if g < gap {
+                    (gap, lead_v) = (g, e.speed_mps);
                 }
             }
             for (c, _) in lane.crossings.iter().zip(&blocked).filter(|(_, &b)| b) {

@@ -8,9 +8,9 @@
 //! set back or not), alleys, plazas furnished like the sidewalks, markets and beer gardens
 //! (stalls, table sets, parasols), and green slopes behind fences.
 //! The sensor drives in a lane, in either direction, along the whole street; cars and cyclists
-//! come the other way ([`super::movers`]).
+//! come the other way, and cars drive ahead of and behind it in its lane ([`super::movers`]).
 
-use super::movers::{self, Lane, MoverSpec};
+use super::movers::{self, Ego, Lane, MoverSpec};
 use super::shapes::Builder;
 use super::things::{self, class, material};
 use super::{chance, pick, uni, WorldParams};
@@ -62,15 +62,21 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
     *counts.entry(what).or_insert(0) += 1;
 }
 
-/// What the street's traffic is drawn from: the oncoming lane and the movers for it.
+/// What the street's traffic is drawn from: the oncoming lane and the movers for it, the
+/// sensor's lane, the cars for it and the sensor's vehicle there.
 pub struct Traffic {
     pub lane: Arc<Lane>,
     pub movers: Vec<MoverSpec>,
+    pub own_lane: Arc<Lane>,
+    pub own_movers: Vec<MoverSpec>,
+    pub ego: Ego,
 }
 
 /// Builds one street; the sensor's trajectory along it, its traffic: 2-6 cars and 1-3
-/// cyclists for the oncoming lane (drawn after everything else, so the layout of a seed is
-/// the same with or without them), and the places people stand at ([`World::places`]).
+/// cyclists for the oncoming lane and 1-3 cars for the sensor's (drawn after everything else,
+/// in that order, so the layout of a seed is the same with or without them, and the oncoming
+/// traffic with or without the sensor's lane's), and the places people stand at
+/// ([`World::places`]).
 ///
 /// [`World::places`]: super::World::places
 pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic, Vec<super::Place>) {
@@ -134,8 +140,21 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         let k = ((rng.random::<f64>() * rest.len() as f64) as usize).min(rest.len() - 1);
         movers.push(if rest.swap_remove(k) { movers::car(rng) } else { movers::cyclist(rng) });
     }
+    // Cars ahead of and behind the sensor's vehicle in its lane.
+    let own_lane = Arc::new(Lane { y, dir, bike_offset_m: 0.0, ..(*lane).clone() });
+    let own = 1 + (rng.random::<f64>() * 3.0) as usize;
+    // They drive a little faster than the sensor (or at town speed where it stands), so those
+    // ahead of it stay in view a while and those behind catch up with it.
+    let own_movers = (0..own)
+        .map(|_| {
+            let mut car = movers::car(rng);
+            car.driver.speed_mps = (speed + uni(rng, 0.3, 2.5)).max(uni(rng, 5.0, 9.0));
+            car
+        })
+        .collect();
+    let ego = Ego { half: movers::EGO_HALF_M, speed_mps: speed };
     let places = std::mem::take(&mut b.places);
-    (b.finish(), Some(sensor), Traffic { lane, movers }, places)
+    (b.finish(), Some(sensor), Traffic { lane, movers, own_lane, own_movers, ego }, places)
 }
 
 /// Length of a raised crossing's ramps, m.

@@ -252,7 +252,6 @@ fn movers_stop_for_a_person_on_a_crossing_and_keep_their_distance() {
     for index in 0..4 {
         let (w, person) = street_with_a_person_on_a_crossing(6, index, 40.0);
         assert!(w.movers.iter().any(|m| m.kind == MoverKind::Car) && w.movers.iter().any(|m| m.kind == MoverKind::Cyclist), "{}", w.summary());
-        let lane = &w.movers[0].lane;
         for k in 0..=800 {
             let t = 0.05 * k as f64;
             for (i, m) in w.movers.iter().enumerate() {
@@ -260,8 +259,9 @@ fn movers_stop_for_a_person_on_a_crossing_and_keep_their_distance() {
                 // Never over the person (a footprint grown by the person's radius).
                 let d = (person - c).abs();
                 assert!(d.x >= m.half.x + movers::PERSON_RADIUS_M || d.y >= m.half.y + movers::PERSON_RADIUS_M, "sequence {index}: {:?} {i} on the person at {t} s", m.kind);
-                // Never into the one ahead: footprints apart along the lane.
-                for o in &w.movers[i + 1..] {
+                // Never into the one ahead in its lane: footprints apart along the lane.
+                for o in w.movers[i + 1..].iter().filter(|o| Arc::ptr_eq(&o.lane, &m.lane)) {
+                    let lane = &m.lane;
                     let gap = (lane.u_of(o.position(t).x) - lane.u_of(c.x)).rem_euclid(lane.length());
                     let gap = gap.min(lane.length() - gap);
                     assert!(gap > m.half.x + o.half.x, "sequence {index}: movers {gap:.2} m apart at {t} s");
@@ -274,6 +274,43 @@ fn movers_stop_for_a_person_on_a_crossing_and_keep_their_distance() {
         }
     }
     assert!(stopped >= 3, "movers that stopped for the person: {stopped} of 4 streets");
+}
+
+/// Cars in the sensor's lane drive its way on its lane's centre line, and never into the
+/// sensor's vehicle: those behind it keep their distance (the ones that catch up follow it),
+/// one it would run into is left out; over eight streets some are kept, ahead and behind.
+#[test]
+fn cars_in_the_sensors_lane_keep_clear_of_its_vehicle() {
+    let (mut ahead, mut behind, mut following) = (0, 0, 0);
+    for index in 0..8 {
+        let duration = 20.0;
+        let mut w = World::build(WorldKind::Street, 21, index, &WorldParams { duration_s: duration, ..params() }).unwrap();
+        let own = w.traffic.as_ref().unwrap().own_lane.clone();
+        let sensor = w.sensor.unwrap();
+        assert_eq!(own.y, sensor.position(0.0).y);
+        assert_eq!(own.dir, sensor.velocity(0.0).x.signum());
+        w.add_movers(duration, |_, out| out.clear());
+        let mine: Vec<_> = w.movers.iter().filter(|m| Arc::ptr_eq(&m.lane, &own)).collect();
+        assert_eq!(mine.len(), w.counts.get("car in the sensor lane").copied().unwrap_or(0), "{}", w.summary());
+        for m in &mine {
+            assert_eq!((m.kind, m.y), (MoverKind::Car, own.y));
+            for k in 0..=400 {
+                let t = 0.05 * k as f64;
+                let s = sensor.position(t).truncate();
+                assert!(!m.overlaps(t, s, movers::EGO_HALF_M), "sequence {index}: a car on the sensor's vehicle at {t} s");
+                assert!(m.velocity(t).x * own.dir >= 0.0);
+            }
+            let d = (m.position(duration).x - sensor.position(duration).x) * own.dir;
+            if d.abs() < 60.0 {
+                if d > 0.0 { ahead += 1 } else { behind += 1 }
+                // Caught up: within a few seconds' gap behind, at the sensor's speed.
+                if d < 0.0 && d > -(movers::EGO_HALF_M.x + m.half.x + 2.0 + 2.0 * sensor.speed_mps) - 4.0 && (m.velocity(duration).x.abs() - sensor.speed_mps).abs() < 0.3 {
+                    following += 1;
+                }
+            }
+        }
+    }
+    assert!(ahead >= 2 && behind >= 2 && following >= 1, "ahead {ahead}, behind {behind}, following {following}");
 }
 
 #[test]
