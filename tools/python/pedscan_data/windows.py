@@ -78,6 +78,89 @@ def widen_people(range_m: np.ndarray, label: np.ndarray, reach_m: float) -> tupl
     return r_out, l_out, src
 
 
+#: What :func:`flank_people` puts beside a person: a patch this wide (m, at the person's range),
+#: standing this far behind the person's front (m), its cells within this depth of the patch's
+#: median (m).
+FLANK_WIDTH_M = (0.2, 1.0)
+FLANK_BEHIND_M = (0.05, 0.5)
+FLANK_DEPTH_M = 1.5
+
+
+def flank_people(range_m: np.ndarray, label: np.ndarray, instance: np.ndarray, p: float,
+                 rng: np.random.Generator, people: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's people, each with probability ``p``, given structure right beside them, as
+    real people stand in stalls, frames and doorways whose returns meet their edges at nearly
+    their range.
+
+    range_m f32 [H,W] (0 = no return), label [H,W] (1 human, 255 not scored), instance [H,W]
+    (the person of each human cell; 0 elsewhere) of a whole turn. For a person chosen, on its
+    left, its right or both sides (a third each), a patch of the frame's own returns from
+    elsewhere (the person's rows, a drawn column, ``FLANK_WIDTH_M`` wide at the person's median
+    range) is moved in range so that its median stands ``FLANK_BEHIND_M`` behind the person's
+    median range, and put against the person's edge row by row: a cell takes the patch's cell
+    if it is background (label 0), holds no return or one farther than the moved one, and the
+    patch's cell is a background return within ``FLANK_DEPTH_M`` of the patch's median. Labels
+    do not change (what is put there is background). The draws come from ``rng``, person by
+    person in the order of ``people`` (the ids to draw for; default: the frame's people, in
+    order), a person absent from the frame drawing as one present: a generator of one state
+    and the ids of all of a window's frames give each person one patch in all of them.
+    Returns the new range and, per cell, the column it was taken from (its own where
+    unchanged), for the arrays that go with the cell (intensity, velocity).
+    """
+    h, w = range_m.shape
+    cols = np.broadcast_to(np.arange(w), (h, w))
+    src = cols.copy()
+    r_out = range_m.copy()
+    ids = np.unique(instance[(label == 1) & (instance > 0)]) if people is None else people
+    column_rad = 2.0 * np.pi / w
+    background = (label == 0) & (range_m > 0)
+    for pid in ids:
+        chosen, side, width_m, behind_m = rng.random() < p, int(rng.integers(3)), rng.uniform(*FLANK_WIDTH_M), rng.uniform(*FLANK_BEHIND_M)
+        starts = rng.integers(w, size=8)
+        cells = (instance == pid) & (label == 1) & (range_m > 0)
+        if not chosen or not cells.any():
+            continue
+        rows, cc = np.nonzero(cells)
+        # A person across the turn's seam is seen from the seam's other side: columns unwrapped.
+        shift = 0
+        if cc.max() - cc.min() > w // 2:
+            shift = w // 2
+            cc = (cc + shift) % w
+        rp = float(np.median(range_m[cells]))
+        k = max(1, int(round(width_m / (rp * column_rad))))
+        r0, r1 = int(rows.min()), int(rows.max()) + 1
+        patch = None
+        for s0 in starts:
+            pc = (int(s0) + np.arange(k)) % w
+            pr = range_m[r0:r1][:, pc]
+            ok = background[r0:r1][:, pc]
+            if ok.mean() < 0.3:
+                continue
+            med = float(np.median(pr[ok]))
+            ok &= np.abs(pr - med) < FLANK_DEPTH_M
+            patch = (pc, np.where(ok, pr - med + rp + behind_m, 0.0))
+            break
+        if patch is None:
+            continue
+        pc, moved = patch
+        for row in range(r0, r1):
+            in_row = cc[rows == row]
+            if in_row.size == 0:
+                continue
+            edges = []
+            if side in (0, 2):  # left: the patch's last column against the person's first
+                edges.append((int(in_row.min()) - k + np.arange(k) - shift) % w)
+            if side in (1, 2):
+                edges.append((int(in_row.max()) + 1 + np.arange(k) - shift) % w)
+            for dst in edges:
+                new = moved[row - r0]
+                cur = r_out[row, dst]
+                take = (new > 0) & (label[row, dst] == 0) & ((cur <= 0) | (cur > new))
+                r_out[row, dst[take]] = new[take]
+                src[row, dst[take]] = pc[take]
+    return r_out, src
+
+
 class WindowDataset:
     """Windows of ``length`` consecutive frames over one sequence file or a pedscan folder.
 

@@ -623,6 +623,9 @@ TRAIN_OPTIONS = [
      "human beams of its frame) to the power P (paper: 1, both classes weigh alike; 0: every beam alike)"),
     (["--widen-m"], float, 0.0, False, None, "M", "make each window's people wider on either side by up to M metres, "
      "drawn per window, as clothes and carried things make real people (not in the paper; default 0)"),
+    (["--flank"], float, 0.0, False, None, "P", "give each person, with probability P, a patch of the frame's own "
+     "structure right beside it, standing 0.05-0.5 m behind the person, as real people stand in stalls and doorways "
+     "(not in the paper; default 0)"),
     (["--init"], Path, None, False, None, "MODEL", "start from the weights of this model file (the same network options; "
      "fine-tuning)"),
     (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
@@ -757,6 +760,46 @@ def test_widened_windows_are_the_drawn_ones_with_wider_people_and_their_velociti
     assert grew >= 4
     assert run_train(sample, "--frames", "1", "--out", sample.parent / "neg", "--widen-m", "-1") == 2
     assert not (sample.parent / "neg").exists()
+
+
+def test_flanked_windows_are_the_widened_ones_with_structure_beside_their_people(sample: Path) -> None:
+    """--flank: the window drawn and its labels are those without it; each frame's range is
+    :func:`flank_people` on the widened frame (the grown cells counted to their person), with one
+    generator state per step and the window's people for all its frames; the velocity follows
+    the cells;
+    reproducible; some windows change; a probability outside 0-1 is refused."""
+    from pedscan_data.model import input_channels
+    from pedscan_data.windows import flank_people, widen_people
+
+    seqs = tr.check_sequences(tr.training_paths([sample]), 2, str(sample), False)
+    wide = tr.StepWindows(seqs, 2, 5, False, widen_m=0.3)
+    flanked = tr.StepWindows(seqs, 2, 5, False, widen_m=0.3, flank=1.0)
+    changed = 0
+    for i in range(8):
+        a, b = wide[i], flanked[i]
+        assert (a["sequence"], a["frame"]) == (b["sequence"], b["frame"])
+        assert torch.equal(a["label"], b["label"])
+        seq, t = seqs[a["sequence"]], a["frame"]
+        reach = float(np.random.default_rng([5, i, 2]).uniform(0.0, 0.3))
+        win = slice(t - 1, t + 1)
+        r, labels, inst = seq.read("range", win), seq.read("label", win), seq.read("instance", win)
+        grown = [widen_people(r[k], labels[k], reach) for k in range(2)]
+        owner = [np.take_along_axis(inst[k], grown[k][2], axis=1) for k in range(2)]
+        people = np.unique(np.concatenate([o[(g[1] == 1) & (o > 0)] for o, g in zip(owner, grown)]))
+        want_r, last_src = [], None
+        for k in range(2):
+            rk, fsrc = flank_people(grown[k][0], grown[k][1], owner[k], 1.0, np.random.default_rng([5, i, 3]), people)
+            want_r.append(rk)
+            last_src = np.take_along_axis(grown[k][2], fsrc, axis=1)
+        np.testing.assert_array_equal(b["x"].numpy(), input_channels(np.stack(want_r)))
+        v = np.take_along_axis(seq.read("velocity", t), last_src[..., None], axis=1)
+        np.testing.assert_array_equal(b["velocity"].numpy(), v.transpose(2, 0, 1))
+        changed += int(not torch.equal(a["x"], b["x"]))
+        assert all(torch.equal(x, y) for x, y in zip(b.values(), flanked[i].values()) if isinstance(x, torch.Tensor))
+    assert changed >= 4
+    for bad in ("1.5", "-0.1", "nan"):
+        assert run_train(sample, "--frames", "1", "--out", sample.parent / "flank", "--flank", bad) == 2
+        assert not (sample.parent / "flank").exists()
 
 
 def test_a_run_can_start_from_a_model_files_weights_and_records_it(sample: Path, tmp_path: Path,

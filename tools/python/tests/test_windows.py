@@ -121,6 +121,61 @@ def test_torch_dataset_batches(sample: Path) -> None:
     np.testing.assert_array_equal(item["instance"].numpy(), WindowDataset(sample, length=2, targets=("instance",))[0]["instance"])
 
 
+def test_flanking_puts_the_frames_own_structure_against_a_persons_sides_moved_to_stand_just_behind() -> None:
+    """Each changed cell is background that held nothing or something farther; a row's changed
+    cells run on from the person's edge, come from one patch's columns in their order and are
+    that patch moved by one range shift, to within the drawn depth behind the person; people
+    and not-scored cells never change; the same generator state gives the same result, and a
+    person the same patch whoever else is in view;
+    probability 0 changes nothing; both sides and each side alone are drawn."""
+    from pedscan_data.windows import FLANK_BEHIND_M, FLANK_DEPTH_M, flank_people
+
+    h, w = 6, 256
+    r = np.full((h, w), 30.0, dtype=np.float32)  # a far wall
+    r[:, 100:140] = 12.0 + 0.02 * np.arange(40)  # a structure with some depth
+    r[:, 180:200] = 60.0  # something far (beyond the patch's depth around its median)
+    r[0, ::7] = 0.0  # some holes
+    label = np.zeros((h, w), dtype=np.uint8)
+    instance = np.zeros((h, w), dtype=np.uint16)
+    r[1:5, 40:43], label[1:5, 40:43], instance[1:5, 40:43] = 10.0, 1, 3  # a person at 10 m
+    r[2:4, 45], label[2:4, 45] = 0.0, 255  # a not-scored cell near it
+    r[1:5, 36] = 5.0  # a post in front of the person's left side
+    sides = set()
+    for seed in range(40):
+        got, src = flank_people(r, label, instance, 1.0, np.random.default_rng(seed))
+        again = flank_people(r, label, instance, 1.0, np.random.default_rng(seed))
+        np.testing.assert_array_equal(got, again[0])
+        np.testing.assert_array_equal(src, again[1])
+        changed = got != r
+        assert not (changed & (label != 0)).any() and not changed[0].any() and not changed[5].any()
+        assert (r[changed] == 0).sum() + (r[changed] > got[changed]).sum() == changed.sum()
+        assert (src[~changed] == np.broadcast_to(np.arange(w), (h, w))[~changed]).all()
+        shift = got[changed] - r[np.nonzero(changed)[0], src[changed]]
+        if changed.any():
+            assert np.ptp(shift) < 1e-4  # one patch, one shift
+            assert (np.abs(got[changed] - 10.0) <= FLANK_BEHIND_M[1] + FLANK_DEPTH_M).all()
+        side = (bool(changed[:, :40].any()), bool(changed[:, 43:].any()))
+        sides.add(side)
+        for row in range(1, 5):
+            c = np.nonzero(changed[row])[0]
+            for run in (c[c < 40], c[c > 42]):
+                if run.size:
+                    assert np.unique((src[row, run] - run) % w).size == 1  # one patch, in its order
+                    assert run.max() == 39 or run.min() in (43, 44)  # against the person (44: past the not-scored cell)
+            assert not changed[row, 36]  # the post in front stays
+    assert {(True, False), (False, True), (True, True)} <= sides
+    np.testing.assert_array_equal(flank_people(r, label, instance, 0.0, np.random.default_rng(1))[0], r)
+    # Drawn for the people asked for: one absent from the frame draws as if present, so a
+    # person's patch does not depend on who else is in view.
+    two_l, two_i = label.copy(), instance.copy()
+    two_l[1:5, 200:202], two_i[1:5, 200:202] = 1, 1
+    ids = np.array([1, 3])
+    alone = flank_people(r, label, instance, 1.0, np.random.default_rng(7), ids)[0]
+    both = flank_people(r, two_l, two_i, 1.0, np.random.default_rng(7), ids)[0]
+    np.testing.assert_array_equal(both[:, :150], alone[:, :150])
+    assert not np.array_equal(alone, flank_people(r, label, instance, 1.0, np.random.default_rng(7))[0])
+
+
 def test_widening_grows_a_person_over_what_lies_behind_it_and_never_over_what_stands_in_front() -> None:
     from pedscan_data.windows import widen_people
 
