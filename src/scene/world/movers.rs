@@ -1,7 +1,8 @@
 //! Other movers: cars driving and cyclists riding the street's oncoming lane, one after the
-//! other, and cars ahead of and behind the sensor's own vehicle in its lane. Each is a rigid mesh of its own (a cyclist's rider and bicycle together), held level
-//! and following the ground under it (the raised crossings' ramps), with its own instance id
-//! and per-beam velocity in the frames.
+//! other, and cars ahead of and behind the sensor's own vehicle in its lane. Each is a rigid
+//! mesh of its own (a cyclist's rider and bicycle together), held level and following the
+//! ground under it (the raised crossings' ramps), with its own instance id and per-beam
+//! velocity in the frames.
 //!
 //! A lane's movers drive by the Intelligent Driver Model (Treiber, Hennecke and Helbing 2000):
 //! each keeps a time gap to the one ahead and stops at a crossing while somebody is on it or
@@ -10,9 +11,9 @@
 //! its velocity are exact derivatives of each other. In the sensor's lane the sensor's vehicle
 //! is one more to keep a time gap to; it keeps its own speed, so a car that it would still run
 //! into (one slower ahead of it) is left out, as is a mover that would still touch a person
-//! (somebody stepping out under its bumper). The lane wraps: a
-//! mover driving off one end of the street comes back in at the other, farther from the sensor
-//! than it sees (`street::MARGIN_M`), so a long sequence keeps its traffic.
+//! (somebody stepping out under its bumper). The lane wraps: a mover driving off one end of
+//! the street comes back in at the other, farther from the sensor than it sees
+//! (`street::MARGIN_M`), so a long sequence keeps its traffic.
 
 use super::shapes::Builder;
 use super::things::{self, class, material};
