@@ -304,7 +304,7 @@ pub fn drive(
     }
     let mut who = Vec::new();
     let steps = (duration_s.max(0.0) / STEP_S).ceil() as usize + 1;
-    let ego_at = |t: f64| ego.map(|e| (lane.u_of(sensor_x(t)), e));
+    let ego_at = |t: f64| ego.map(|e| (ego_u(t), e));
     loop {
         let tables = simulate(specs, &placed, lane, steps, &ego_at, &people);
         // The first mover (in placing order) that touches somebody or the sensor's vehicle is
