@@ -26,31 +26,39 @@ if ! command -v cargo >/dev/null 2>&1; then
 fi
 
 if [ $# -eq 0 ]; then set -- generate; fi
-# The Python tools' tests in the venv $1, installed with the pip flags that follow, on sequences
-# made by the debug pedscan (PyTorch, ONNX Runtime and matplotlib for the networks' tests; PyPI's
-# torch wheel brings its CUDA libraries, a few GB, and runs on the CPU where there is no GPU).
-python_tests() {
+# The Python tools in the venv $1, installed with the pip flags that follow (PyTorch, ONNX Runtime
+# and matplotlib for the networks' tests; PyPI's torch wheel brings its CUDA libraries, a few GB,
+# and runs on the CPU where there is no GPU).
+python_install() {
   local venv=$1
   shift
   [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
   "$venv/bin/pip" install --quiet --disable-pip-version-check "$@" -e "tools/python[test]"
-  PEDSCAN="$PWD/target/debug/pedscan" "$venv/bin/python" -m pytest tools/python/tests
+}
+# Their tests, on sequences made by the debug pedscan.
+python_tests() {
+  PEDSCAN="$PWD/target/debug/pedscan" "$1/bin/python" -m pytest tools/python/tests
 }
 
 case "$1" in
   test)
     shift
+    # The Python packages pinned (tools/python/constraints.txt): the suite does not move when
+    # PyPI serves a new release. They download (a few GB) while cargo compiles: the one waits on
+    # the network, the other on the CPU.
+    python_install tools/python/.venv -c tools/python/constraints.txt &
+    pip_job=$!
     # Lavapipe runs every GPU test; the validation layer is on in each of them.
     cargo test --locked "$@"
-    # The Python packages pinned (tools/python/constraints.txt): the suite does not move when
-    # PyPI serves a new release.
-    python_tests tools/python/.venv -c tools/python/constraints.txt
+    wait "$pip_job"
+    python_tests tools/python/.venv
     ;;
   test-latest)
     # The Python tests against the newest releases PyPI serves, in a venv of their own (the
     # Rust crates stay as Cargo.lock has them).
     cargo build --locked
-    python_tests tools/python/.venv-latest --upgrade --upgrade-strategy eager
+    python_install tools/python/.venv-latest --upgrade --upgrade-strategy eager
+    python_tests tools/python/.venv-latest
     ;;
   *)
     exec cargo run --locked --release --quiet -- "$@"
