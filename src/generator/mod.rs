@@ -199,9 +199,12 @@ impl Generator {
         if let Some(w) = &mut world {
             let humans = &plan.humans;
             let duration = plan.times_s.last().copied().unwrap_or(0.0);
+            // Indoors the sensor's carrier walks where people do: the movers keep clear of it too.
+            let carrier = w.sensor.is_none().then_some(&plan.sensor);
             w.add_movers(duration, |t, out| {
                 out.clear();
                 out.extend(humans.iter().map(|h| h.position_m(t).truncate()));
+                out.extend(carrier.map(|s| s.position(t).truncate()));
             });
         }
         plan.world = world.map(Arc::new);

@@ -5,13 +5,14 @@ use super::Generator;
 use crate::output::semantickitti::{BACKGROUND, MOVING_PERSON, MOVING_SPEED_MPS, PERSON};
 use crate::output::{FrameOutput, NOT_SCORED};
 use crate::scene::sequence::SequencePlan;
-use crate::scene::world::things::class::{BICYCLIST, CAR};
+use crate::scene::world::things::class::{BICYCLIST, CAR, OTHER_VEHICLE};
 use crate::scene::world::{WorldParams, NO_MOVER};
 use std::sync::Arc;
 
-/// SemanticKITTI's moving car and moving bicyclist.
+/// SemanticKITTI's moving car, moving bicyclist and moving other-vehicle.
 const MOVING_CAR: u16 = 252;
 const MOVING_BICYCLIST: u16 = 253;
+const MOVING_OTHER_VEHICLE: u16 = 259;
 
 impl Generator {
     /// Triangles of the environment the frames are drawn in now (0 under a recording).
@@ -61,12 +62,13 @@ impl Generator {
             if out.range[b] <= 0.0 {
                 0
             } else if k > people {
-                // A mover: its mesh's class, a car or a rider moving when it goes faster than a
-                // person walking.
+                // A mover: its mesh's class, a car, a rider or a robot or cart moving when it
+                // goes faster than a person walking.
                 let c = tri.get(b).map_or(0, |&t| meshes.get(bg.mesh_index_of_triangle(t)).map_or(0, |m| m.class));
                 match (c, movers_moving.get(k - people - 1).copied().unwrap_or(false)) {
                     (CAR, true) => MOVING_CAR,
                     (BICYCLIST, true) => MOVING_BICYCLIST,
+                    (OTHER_VEHICLE, true) => MOVING_OTHER_VEHICLE,
                     (c, _) => c,
                 }
             } else if out.label[b] == NOT_SCORED {

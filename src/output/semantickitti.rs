@@ -41,11 +41,12 @@ pub const UNLABELED: u32 = 0;
 /// The class pedscan gives every background point.
 pub const BACKGROUND: u32 = 50;
 /// SemanticKITTI's names and colours (BGR, semantic-kitti.yaml) of the classes pedscan writes.
-pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 22] = [
+pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 24] = [
     (0, "unlabeled", [0, 0, 0]),
     (10, "car", [245, 150, 100]),
     (11, "bicycle", [245, 230, 100]),
     (18, "truck", [180, 30, 80]),
+    (20, "other-vehicle", [255, 0, 0]),
     (30, "person", [30, 30, 255]),
     (31, "bicyclist", [200, 40, 255]),
     (40, "road", [255, 0, 255]),
@@ -64,6 +65,7 @@ pub const CLASS_NAMES: [(u16, &str, [u8; 3]); 22] = [
     (252, "moving-car", [245, 150, 100]),
     (253, "moving-bicyclist", [255, 40, 200]),
     (254, "moving-person", [255, 30, 30]),
+    (259, "moving-other-vehicle", [255, 0, 0]),
 ];
 
 /// A person walking faster than this (horizontal world speed, m/s) is a moving person.

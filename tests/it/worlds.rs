@@ -114,11 +114,22 @@ fn indoor_runs_and_bad_behaviour_shares_are_named() {
     let dir = tmp.path();
     let o = pedscan(&["generate", "--background", "indoor", "--sensor", "vlp16", "--backend", "raycast", "--sequences", "1", "--frames", "2", "--humans", "4", "--outputs", "range,label,instance,class", "--out", "o"], dir);
     ok(&o);
-    assert!(world_of(&dir.join("o/seq_000000.xml")).starts_with("indoor ("));
+    let world = world_of(&dir.join("o/seq_000000.xml"));
+    assert!(world.starts_with("indoor (") && world.contains("service aisle 1"), "{world}");
     let f = hdf5::File::open(dir.join("o/seq_000000.h5")).unwrap();
     let class: Vec<u16> = f.dataset("class").unwrap().read_raw().unwrap();
     assert!(class.contains(&49) && class.contains(&50), "floor and walls");
     assert!(f.dataset("xyz").is_err(), "--outputs leaves xyz out");
+    // Its robots and carts: each a mover with its own instance after the people's, SemanticKITTI's
+    // other-vehicle (20, or 259 while it drives), background to the person label.
+    let kinds: Vec<hdf5::types::VarLenUnicode> = f.dataset("movers/kind").unwrap().read_raw().unwrap();
+    assert!(!kinds.is_empty() && kinds.iter().all(|k| ["robot", "cart"].contains(&k.as_str())), "{kinds:?}");
+    let instance: Vec<u16> = f.dataset("instance").unwrap().read_raw().unwrap();
+    let label: Vec<u8> = f.dataset("label").unwrap().read_raw().unwrap();
+    let people = f.dataset("humans/height_m").unwrap().shape()[0];
+    for g in (0..class.len()).filter(|&g| instance[g] as usize > people) {
+        assert!(instance[g] as usize <= people + kinds.len() && [20, 259].contains(&class[g]) && label[g] == 0, "beam {g}: instance {} class {} label {}", instance[g], class[g], label[g]);
+    }
     std::fs::write(dir.join("bad.toml"), "[humans]\nstanding = 1.5\n").unwrap();
     expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.standing");
     assert!(!dir.join("x").exists(), "nothing written");

@@ -3,8 +3,13 @@
 //! room; walls, floors and ceilings. The rooms are furnished by zone (a shop: shelves, display
 //! cases, mannequins; a café: tables, chairs, plants; a lobby: kiosks, information stands,
 //! benches, coat stands, bins, plants, a counter; storage: crates, shelves), the corridors along
-//! their walls. The sensor walks or rolls through the walkable area as in any environment.
+//! their walls. A service aisle crosses the hall from end wall to end wall, kept clear of
+//! pillars, stairs and furniture, with a strip curtain over a doorway at either end: delivery
+//! robots and motorised carts drive along it, out through one curtain and back in through the
+//! other ([`super::movers`]). The sensor walks or rolls through the walkable area as in any
+//! environment.
 
+use super::movers::{self, Lane, LaneTraffic};
 use super::shapes::Builder;
 use super::things::{self, class, material};
 use super::{chance, pick, uni, WorldParams};
@@ -13,9 +18,18 @@ use glam::{DVec2, DVec3};
 use rand::{Rng, RngExt};
 use std::collections::BTreeMap;
 use std::f64::consts::{FRAC_PI_2, PI};
+use std::sync::Arc;
 
 /// Wall thickness, m.
-const WALL_M: f64 = 0.2;
+pub(super) const WALL_M: f64 = 0.2;
+
+/// Half the service aisle's width, m (a cart's half width and room beside it).
+pub(super) const AISLE_HALF_M: f64 = 0.75;
+/// How far beyond the end walls the aisle's lane runs before it wraps, m (a cart's length and
+/// more: a mover leaves through one curtain wholly before it comes back through the other).
+pub(super) const BEHIND_WALL_M: f64 = 2.5;
+/// The doorways' curtains: width and height, m.
+const CURTAIN_M: (f64, f64) = (2.0, 2.3);
 
 #[derive(Clone, Debug)]
 struct Room {
@@ -45,8 +59,9 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
     *counts.entry(what).or_insert(0) += 1;
 }
 
-/// Builds one floor.
-pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> Environment {
+/// Builds one floor, and the traffic of its service aisle (none where the hall has no room
+/// for one).
+pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Vec<LaneTraffic>) {
     let mut b = Builder::default();
     let (w, d) = (uni(rng, 24.0, 45.0), uni(rng, 16.0, 30.0));
     let mut rooms = vec![Room::new(DVec2::new(-w * 0.5, -d * 0.5), DVec2::new(w * 0.5, d * 0.5), uni(rng, 3.5, 7.0), false)];
@@ -138,10 +153,54 @@ pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'stati
         stairs(&mut b, rng, &hall, &mut placed);
         count(counts, "stairs");
     }
-    for r in &rooms {
-        furnish(&mut b, rng, r, &mut placed, counts);
+    let aisle = service_aisle(&mut b, rng, &hall, &placed);
+    if aisle.is_some() {
+        count(counts, "service aisle");
     }
-    b.finish()
+    for (k, r) in rooms.iter().enumerate() {
+        furnish(&mut b, rng, r, &mut placed, if k == 0 { aisle } else { None }, counts);
+    }
+    // Its robots and carts, drawn last.
+    let traffic = aisle.map_or_else(Vec::new, |(y, dir)| {
+        let lane = Arc::new(Lane {
+            y,
+            dir,
+            x0: hall.lo.x - WALL_M - BEHIND_WALL_M,
+            x1: hall.hi.x + WALL_M + BEHIND_WALL_M,
+            road_z: 0.0,
+            crossings: Vec::new(),
+            ramp_m: 1.0,
+            rise_m: 0.0,
+            half_road_m: AISLE_HALF_M,
+            bike_offset_m: 0.0,
+            yield_m: AISLE_HALF_M + movers::PERSON_RADIUS_M,
+            pass_m: (2.0, 12.0),
+        });
+        let n = 1 + (rng.random::<f64>() * 3.0) as usize;
+        let specs = (0..n).map(|_| if chance(rng, 0.6) { movers::robot(rng) } else { movers::cart(rng) }).collect();
+        vec![LaneTraffic { lane, movers: specs, ego: None, count_as: None }]
+    });
+    (b.finish(), traffic)
+}
+
+/// A service aisle along the hall's length (world x): its centre line's y, 3 m or more from
+/// the long walls (the stairs) and clear of the pillars, where neither end wall has an
+/// opening; a strip curtain over a doorway in each end wall. Returns its y and the way its
+/// movers drive (+1: toward +x), or None where no such line was found.
+fn service_aisle(b: &mut Builder, rng: &mut impl Rng, hall: &Room, pillars: &[(DVec2, f64)]) -> Option<(f64, f64)> {
+    if hall.hi.y - hall.lo.y < 6.0 + 2.0 * AISLE_HALF_M {
+        return None;
+    }
+    let free_end = |edge: usize, y: f64| hall.openings[edge].iter().all(|&(a, z)| y + CURTAIN_M.0 * 0.5 + 0.5 < a || y - CURTAIN_M.0 * 0.5 - 0.5 > z);
+    let y = (0..40).map(|_| uni(rng, hall.lo.y + 3.0, hall.hi.y - 3.0)).find(|&y| {
+        pillars.iter().all(|(c, r)| (c.y - y).abs() > r + AISLE_HALF_M + 0.2) && free_end(1, y) && free_end(3, y)
+    })?;
+    let dir = if chance(rng, 0.5) { 1.0 } else { -1.0 };
+    let m = material(rng, class::OTHER_OBJECT);
+    for x in [hall.lo.x + 0.01, hall.hi.x - 0.01] {
+        b.cuboid(m, DVec3::new(x, y, 0.0), DVec3::new(0.02, CURTAIN_M.0, CURTAIN_M.1), 0.0);
+    }
+    Some((y, dir))
 }
 
 /// The room's walls, outside its rectangle, with its openings left out.
@@ -192,8 +251,9 @@ fn stairs(b: &mut Builder, rng: &mut impl Rng, hall: &Room, placed: &mut Vec<(DV
     placed.push((c, 0.5 * len + 0.5));
 }
 
-/// Things placed in a room: by zone in the halls and rooms, along the walls in corridors.
-fn furnish(b: &mut Builder, rng: &mut impl Rng, r: &Room, placed: &mut Vec<(DVec2, f64)>, counts: &mut BTreeMap<&'static str, usize>) {
+/// Things placed in a room: by zone in the halls and rooms, along the walls in corridors; none
+/// within reach of a service aisle (its centre line's y).
+fn furnish(b: &mut Builder, rng: &mut impl Rng, r: &Room, placed: &mut Vec<(DVec2, f64)>, aisle: Option<(f64, f64)>, counts: &mut BTreeMap<&'static str, usize>) {
     let n = (r.area() / if r.corridor { uni(rng, 4.0, 10.0) } else { uni(rng, 3.0, 6.0) }) as usize;
     // A zone's weights over: shelf, display case, mannequin, table, plant, kiosk, info stand,
     // bench, coat stand, bin, crates, counter.
@@ -221,7 +281,8 @@ fn furnish(b: &mut Builder, rng: &mut impl Rng, r: &Room, placed: &mut Vec<(DVec
             } else {
                 DVec2::new(uni(rng, r.lo.x + 0.7, r.hi.x - 0.7), uni(rng, r.lo.y + 0.7, r.hi.y - 0.7))
             };
-            if placed.iter().any(|(c, rr)| c.distance(q) < rr + 1.1) || near_opening(r, q, 2.0) {
+            let in_aisle = aisle.is_some_and(|(y, _)| (q.y - y).abs() < AISLE_HALF_M + 1.8);
+            if in_aisle || placed.iter().any(|(c, rr)| c.distance(q) < rr + 1.1) || near_opening(r, q, 2.0) {
                 continue;
             }
             // Against a wall things face into the room; elsewhere anywhere.

@@ -8,8 +8,8 @@
 //! A world is built once per sequence ([`World::build`]): its triangles (an [`Environment`],
 //! rendered like a glTF background), its walkable area (sidewalks, crossings, plazas; halls and
 //! corridors) and, in the street, the sensor's path (a vehicle in its lane). Once the
-//! sequence's people are planned, the street's traffic drives around them
-//! ([`World::add_movers`]).
+//! sequence's people are planned, the street's traffic and the hall's robots and carts drive
+//! around them ([`World::add_movers`]).
 
 pub mod indoor;
 pub mod movers;
@@ -23,7 +23,6 @@ use glam::{DVec2, DVec3};
 use rand::RngExt;
 use rand::SeedableRng;
 use std::collections::BTreeMap;
-use std::sync::Arc;
 
 pub use crate::config::WorldKind;
 pub use movers::{Mover, MoverKind};
@@ -71,8 +70,8 @@ pub struct World {
     pub movers: Vec<Mover>,
     /// Per draw: the mover it belongs to, or [`NO_MOVER`].
     pub mover_of_draw: Vec<u32>,
-    /// The traffic drawn with the layout, until it drives.
-    traffic: Option<street::Traffic>,
+    /// The traffic drawn with the layout, lane by lane, until it drives.
+    traffic: Vec<movers::LaneTraffic>,
 }
 
 /// [`World::mover_of_draw`] of a draw of the still world.
@@ -110,11 +109,11 @@ impl World {
         let mut rng = world_rng(seed, index);
         let mut counts = BTreeMap::new();
         let (env, sensor, traffic, places) = match kind {
-            WorldKind::Street => {
-                let (env, sensor, traffic, places) = street::build(&mut rng, p, &mut counts);
-                (env, sensor, Some(traffic), places)
+            WorldKind::Street => street::build(&mut rng, p, &mut counts),
+            WorldKind::Indoor => {
+                let (env, traffic) = indoor::build(&mut rng, p, &mut counts);
+                (env, None, traffic, Vec::new())
             }
-            WorldKind::Indoor => (indoor::build(&mut rng, p, &mut counts), None, None, Vec::new()),
         };
         let what = || format!("scene.background = \"{}\" (sequence {index})", kind.name());
         if env.positions.iter().any(|v| !v.is_finite()) {
@@ -145,44 +144,50 @@ impl World {
     }
 
     /// Drives the world's traffic over `duration_s` around the people at their floor
-    /// positions (`people(t, out)`), on a random stream of its own (the run's seed and the
-    /// sequence's index), and adds the movers kept to the environment. Does nothing in a world
-    /// without traffic or a second time.
+    /// positions (`people(t, out)`; in a world that does not set the sensor's path, the
+    /// sensor's position among them: indoors it walks or rolls where people do), on a random
+    /// stream of its own (the run's seed and the sequence's index), lane by lane, and adds the
+    /// movers kept to the environment. Does nothing in a world without traffic or a second
+    /// time.
     pub fn add_movers(&mut self, duration_s: f64, people: impl Fn(f64, &mut Vec<DVec2>)) {
-        let Some(traffic) = self.traffic.take() else { return };
+        let traffic = std::mem::take(&mut self.traffic);
+        if traffic.is_empty() {
+            return;
+        }
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed ^ MOVERS_STREAM_KEY);
         rng.set_stream(self.index as u64);
         let sensor = self.sensor;
         let sensor_x = |t: f64| sensor.map_or(0.0, |s| s.position(t).x);
-        let oncoming = movers::drive(&mut rng, &traffic.movers, &traffic.lane, duration_s, sensor_x, None, &people);
-        let own = movers::drive(&mut rng, &traffic.own_movers, &traffic.own_lane, duration_s, sensor_x, Some(traffic.ego), &people);
+        let driven: Vec<_> = traffic.iter().map(|lt| movers::drive(&mut rng, &lt.movers, &lt.lane, duration_s, sensor_x, lt.ego, &people)).collect();
         let mut added = Environment::default();
-        let kept = oncoming.into_iter().map(|k| (&traffic.lane, &traffic.movers, k)).chain(own.into_iter().map(|k| (&traffic.own_lane, &traffic.own_movers, k)));
-        for (lane, specs, (i, u0, table)) in kept {
-            let spec = &specs[i];
-            let first = self.env.positions.len();
-            let m = movers::mover(spec, lane, u0, table, first);
-            let mut placed = vec![DVec3::ZERO; m.local.len()];
-            m.place(0.0, &mut placed);
-            self.env.positions.extend_from_slice(&placed);
-            for mesh in &spec.mesh.meshes {
-                let mut mesh = mesh.clone();
-                mesh.indices.iter_mut().for_each(|k| *k += first as u32);
-                mesh.name = format!("mover {} {} {}", self.movers.len(), m.kind.name(), mesh.name);
-                added.meshes.push(mesh.clone());
-                self.env.meshes.push(mesh);
+        for (lt, kept) in traffic.iter().zip(driven) {
+            for (i, u0, table) in kept {
+                let spec = &lt.movers[i];
+                let first = self.env.positions.len();
+                let m = movers::mover(spec, &lt.lane, u0, table, first);
+                let mut placed = vec![DVec3::ZERO; m.local.len()];
+                m.place(0.0, &mut placed);
+                self.env.positions.extend_from_slice(&placed);
+                for mesh in &spec.mesh.meshes {
+                    let mut mesh = mesh.clone();
+                    mesh.indices.iter_mut().for_each(|k| *k += first as u32);
+                    mesh.name = format!("mover {} {} {}", self.movers.len(), m.kind.name(), mesh.name);
+                    added.meshes.push(mesh.clone());
+                    self.env.meshes.push(mesh);
+                }
+                let draws = added.draws();
+                self.mover_of_draw.extend(std::iter::repeat_n(self.movers.len() as u32, draws.len()));
+                self.draws.extend(draws);
+                added.meshes.clear();
+                let what = lt.count_as.unwrap_or(match m.kind {
+                    MoverKind::Car => "car driving",
+                    MoverKind::Cyclist => "cyclist riding",
+                    MoverKind::Robot => "robot driving",
+                    MoverKind::Cart => "cart driving",
+                });
+                *self.counts.entry(what).or_insert(0) += 1;
+                self.movers.push(m);
             }
-            let draws = added.draws();
-            self.mover_of_draw.extend(std::iter::repeat_n(self.movers.len() as u32, draws.len()));
-            self.draws.extend(draws);
-            added.meshes.clear();
-            let what = match m.kind {
-                _ if Arc::ptr_eq(lane, &traffic.own_lane) => "car in the sensor lane",
-                MoverKind::Car => "car driving",
-                MoverKind::Cyclist => "cyclist riding",
-            };
-            *self.counts.entry(what).or_insert(0) += 1;
-            self.movers.push(m);
         }
     }
 

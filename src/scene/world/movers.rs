@@ -1,5 +1,6 @@
 //! Other movers: cars driving and cyclists riding the street's oncoming lane, one after the
-//! other, and cars ahead of and behind the sensor's own vehicle in its lane. Each is a rigid
+//! other, and cars ahead of and behind the sensor's own vehicle in its lane; delivery robots and
+//! motorised carts along the indoor hall's service aisle. Each is a rigid
 //! mesh of its own (a cyclist's rider and bicycle together), held level and following the
 //! ground under it (the raised crossings' ramps), with its own instance id and per-beam
 //! velocity in the frames.
@@ -8,7 +9,8 @@
 //! each keeps a time gap to the one ahead and stops at a crossing while somebody is on it or
 //! about to step on it; the people's plans are known before the movers drive. Speeds and
 //! positions come from one table per mover of constant-acceleration steps, so a position and
-//! its velocity are exact derivatives of each other. In the sensor's lane the sensor's vehicle
+//! its velocity are exact derivatives of each other. Indoors (a lane with [`Lane::yield_m`])
+//! a mover also stops behind anybody in its path, the sensor's carrier included. In the sensor's lane the sensor's vehicle
 //! is one more to keep a time gap to; it keeps its own speed, so a car that it would still run
 //! into (one slower ahead of it) is left out, as is a mover that would still touch a person
 //! (somebody stepping out under its bumper). The lane wraps: a mover driving off one end of
@@ -17,7 +19,7 @@
 
 use super::shapes::Builder;
 use super::things::{self, class, material};
-use super::uni;
+use super::{chance, uni};
 use crate::scene::Environment;
 use glam::{DVec2, DVec3};
 use rand::{Rng, RngExt};
@@ -28,6 +30,10 @@ use std::sync::Arc;
 pub enum MoverKind {
     Car,
     Cyclist,
+    /// A delivery robot (SemanticKITTI's other-vehicle, 20).
+    Robot,
+    /// A motorised service cart with its load (other-vehicle, 20).
+    Cart,
 }
 
 impl MoverKind {
@@ -35,6 +41,8 @@ impl MoverKind {
         match self {
             MoverKind::Car => "car",
             MoverKind::Cyclist => "cyclist",
+            MoverKind::Robot => "robot",
+            MoverKind::Cart => "cart",
         }
     }
 }
@@ -59,6 +67,13 @@ pub struct Lane {
     pub half_road_m: f64,
     /// Where cyclists ride: this far beside the lane's centre (toward its curb), m.
     pub bike_offset_m: f64,
+    /// Indoors: somebody within this distance of the lane's centre line ahead of a mover is
+    /// an obstacle it stops behind (0: nobody, as in the street, where people cross at the
+    /// crossings), m.
+    pub yield_m: f64,
+    /// How far from the sensor, along the lane, the first mover of each kind passes it
+    /// halfway through the sequence (in a lane without the sensor's vehicle), m.
+    pub pass_m: (f64, f64),
 }
 
 /// How far beside a crossing or its curbs a person counts as about to step on it, m.
@@ -140,6 +155,16 @@ pub struct MoverSpec {
     /// Half its length and half its width, m.
     pub half: DVec2,
     pub driver: Driver,
+}
+
+/// A lane's traffic before it drives: the lane, the movers for it in placing order, the
+/// sensor's vehicle where the lane is the sensor's, and what the sequence's XML counts its
+/// movers as (None: by kind, "car driving", "robot driving").
+pub struct LaneTraffic {
+    pub lane: Arc<Lane>,
+    pub movers: Vec<MoverSpec>,
+    pub ego: Option<Ego>,
+    pub count_as: Option<&'static str>,
 }
 
 /// A mover of a sequence.
@@ -249,6 +274,84 @@ pub fn cyclist(rng: &mut impl Rng) -> MoverSpec {
     MoverSpec { kind: MoverKind::Cyclist, mesh: b.finish(), half: DVec2::new(0.95, 0.35), driver }
 }
 
+/// How robots and carts drive indoors: at walking pace, keeping a second to the one ahead,
+/// stopping 0.6 m short of somebody in their path.
+fn indoor_driver(rng: &mut impl Rng, lo: f64, hi: f64) -> Driver {
+    Driver { speed_mps: uni(rng, lo, hi), accel: 0.8, decel: 1.5, headway_s: 1.0, min_gap_m: 0.6 }
+}
+
+/// A delivery robot: a rounded box on wheels 0.6-0.8 m long, 0.5-0.6 m wide and 0.7-1.25 m
+/// tall (a lidded cargo bay, a screen or a mast with a flag on the tall ones) and its pace,
+/// 0.8-1.5 m/s.
+pub fn robot(rng: &mut impl Rng) -> MoverSpec {
+    let mut b = Builder::default();
+    let m = material(rng, class::OTHER_VEHICLE);
+    let (l, w, h) = (uni(rng, 0.6, 0.8), uni(rng, 0.5, 0.6), uni(rng, 0.7, 1.25));
+    let clearance = 0.08;
+    b.cuboid(m, DVec3::new(0.0, 0.0, clearance), DVec3::new(l, w, h - clearance - 0.06), 0.0);
+    // A lid, a little narrower.
+    b.cuboid(m, DVec3::new(0.0, 0.0, h - 0.06), DVec3::new(l - 0.06, w - 0.06, 0.06), 0.0);
+    let tyre = material(rng, class::OTHER_VEHICLE);
+    for (x, y) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        b.cylinder(tyre, DVec3::new(x * (l * 0.5 - 0.1), y * (w * 0.5 - 0.05), 0.0), 0.07, clearance + 0.02, 8);
+    }
+    if chance(rng, 0.5) {
+        // A screen leaning back at the front, or a mast with a flag.
+        if chance(rng, 0.5) {
+            b.cuboid(material(rng, class::OTHER_VEHICLE), DVec3::new(l * 0.3, 0.0, h), DVec3::new(0.05, w * 0.7, uni(rng, 0.2, 0.35)), 0.0);
+        } else {
+            let top = DVec3::new(-l * 0.35, 0.0, h + uni(rng, 0.5, 0.9));
+            b.rod(tyre, DVec3::new(-l * 0.35, 0.0, h), top, 0.01, 4);
+            b.cuboid(material(rng, class::OTHER_VEHICLE), top - DVec3::new(0.12, 0.0, 0.2), DVec3::new(0.22, 0.01, 0.18), 0.0);
+        }
+    }
+    MoverSpec { kind: MoverKind::Robot, mesh: b.finish(), half: DVec2::new(l * 0.5, w * 0.5), driver: indoor_driver(rng, 0.8, 1.5) }
+}
+
+/// A motorised service cart: a low platform 1.2-1.9 m long and 0.7-0.9 m wide with a push
+/// handle, a stack of boxes or a cage of goods on it (0.9-1.7 m tall in all); 0.6-1.2 m/s.
+pub fn cart(rng: &mut impl Rng) -> MoverSpec {
+    let mut b = Builder::default();
+    let m = material(rng, class::OTHER_VEHICLE);
+    let (l, w) = (uni(rng, 1.2, 1.9), uni(rng, 0.7, 0.9));
+    let deck = uni(rng, 0.25, 0.4);
+    b.cuboid(m, DVec3::new(0.0, 0.0, deck - 0.08), DVec3::new(l, w, 0.08), 0.0);
+    let tyre = material(rng, class::OTHER_VEHICLE);
+    for (x, y) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        b.cylinder(tyre, DVec3::new(x * (l * 0.5 - 0.12), y * (w * 0.5 - 0.08), 0.0), 0.09, deck - 0.08, 8);
+    }
+    // The handle at the back.
+    let handle = deck + uni(rng, 0.75, 0.95);
+    for y in [-1.0, 1.0] {
+        b.rod(tyre, DVec3::new(-l * 0.5 + 0.03, y * (w * 0.5 - 0.04), deck), DVec3::new(-l * 0.5 + 0.03, y * (w * 0.5 - 0.04), handle), 0.015, 6);
+    }
+    b.rod(tyre, DVec3::new(-l * 0.5 + 0.03, -(w * 0.5 - 0.04), handle), DVec3::new(-l * 0.5 + 0.03, w * 0.5 - 0.04, handle), 0.015, 6);
+    let load = l - 0.15;
+    if chance(rng, 0.5) {
+        // Boxes stacked in two or three layers.
+        let layers = if chance(rng, 0.5) { 2 } else { 3 };
+        let mut z = deck;
+        for _ in 0..layers {
+            let hz = uni(rng, 0.25, 0.45);
+            let n = if chance(rng, 0.5) { 1 } else { 2 };
+            for k in 0..n {
+                let bl = load / n as f64;
+                let x = 0.05 - load * 0.5 + bl * (k as f64 + 0.5);
+                b.cuboid(material(rng, class::OTHER_VEHICLE), DVec3::new(x, 0.0, z), DVec3::new(bl * uni(rng, 0.85, 0.98), w * uni(rng, 0.8, 0.98), hz), uni(rng, -0.05, 0.05));
+            }
+            z += hz;
+        }
+    } else {
+        // A roll cage: a box of goods inside four posts.
+        let top = deck + uni(rng, 1.1, 1.4);
+        for (x, y) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+            b.rod(tyre, DVec3::new(0.05 + x * load * 0.45, y * (w * 0.5 - 0.05), deck), DVec3::new(0.05 + x * load * 0.45, y * (w * 0.5 - 0.05), top), 0.015, 4);
+        }
+        b.cuboid(material(rng, class::OTHER_VEHICLE), DVec3::new(0.05, 0.0, deck), DVec3::new(load * 0.85, w * 0.8, (top - deck) * uni(rng, 0.4, 0.9)), 0.0);
+    }
+    MoverSpec { kind: MoverKind::Cart, mesh: b.finish(), half: DVec2::new(l * 0.5, w * 0.5), driver: indoor_driver(rng, 0.6, 1.2) }
+}
+
 /// Places the movers in their lane and drives them over `duration_s`. In a lane of its own
 /// (`ego` None) the first car and the first cyclist pass the sensor (at `sensor_x(t)`) 8-40 m
 /// from it halfway through the sequence and the others start anywhere along the lane; in the
@@ -281,7 +384,7 @@ pub fn drive(
         placed.iter().all(|&(j, v)| apart(u, v, half + specs[j].half.x + gap.max(specs[j].driver.min_gap_m) + 2.0))
             && ego.is_none_or(|e| apart(u, ego_u(0.0), half + e.half.x + gap + 2.0))
     };
-    let mut firsts = [false; 2];
+    let mut firsts = [false; 4];
     for (i, sp) in specs.iter().enumerate() {
         let kind = sp.kind as usize;
         for _ in 0..40 {
@@ -290,7 +393,7 @@ pub fn drive(
                 ego_u(0.0) + side * uni(rng, 10.0, 60.0)
             } else if !firsts[kind] {
                 let side = if rng.random::<f64>() < 0.5 { -1.0 } else { 1.0 };
-                let x = sensor_x(mid) + side * uni(rng, 8.0, 40.0);
+                let x = sensor_x(mid) + side * uni(rng, lane.pass_m.0, lane.pass_m.1);
                 lane.u_of(x) - sp.driver.speed_mps * mid
             } else {
                 uni(rng, 0.0, len)
@@ -373,6 +476,15 @@ fn simulate(
                 let g = (u - e.half.x - front[a]).rem_euclid(len);
                 if g < gap {
                     (gap, lead_v) = (g, e.speed_mps);
+                }
+            }
+            // Indoors, anybody in its path ahead (within half the lane).
+            if lane.yield_m > 0.0 {
+                for p in who.iter().filter(|p| (p.y - lane.y).abs() < lane.yield_m) {
+                    let g = (lane.u_of(p.x) - PERSON_RADIUS_M - front[a]).rem_euclid(len);
+                    if g < len * 0.5 && g < gap {
+                        (gap, lead_v) = (g, 0.0);
+                    }
                 }
             }
             for (c, _) in lane.crossings.iter().zip(&blocked).filter(|(_, &b)| b) {

@@ -10,7 +10,7 @@
 //! The sensor drives in a lane, in either direction, along the whole street; cars and cyclists
 //! come the other way, and cars drive ahead of and behind it in its lane ([`super::movers`]).
 
-use super::movers::{self, Ego, Lane, MoverSpec};
+use super::movers::{self, Ego, Lane, LaneTraffic};
 use super::shapes::Builder;
 use super::things::{self, class, material};
 use super::{chance, pick, uni, WorldParams};
@@ -62,15 +62,6 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
     *counts.entry(what).or_insert(0) += 1;
 }
 
-/// What the street's traffic is drawn from: the oncoming lane and the movers for it, the
-/// sensor's lane, the cars for it and the sensor's vehicle there.
-pub struct Traffic {
-    pub lane: Arc<Lane>,
-    pub movers: Vec<MoverSpec>,
-    pub own_lane: Arc<Lane>,
-    pub own_movers: Vec<MoverSpec>,
-    pub ego: Ego,
-}
 
 /// Builds one street; the sensor's trajectory along it, its traffic: 2-6 cars and 1-3
 /// cyclists for the oncoming lane and 1-3 cars for the sensor's (drawn after everything else,
@@ -79,7 +70,7 @@ pub struct Traffic {
 /// ([`World::places`]).
 ///
 /// [`World::places`]: super::World::places
-pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Traffic, Vec<super::Place>) {
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Vec<LaneTraffic>, Vec<super::Place>) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
     let run = speed * p.duration_s.max(0.0);
@@ -131,6 +122,8 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         rise_m: -ROAD_Z,
         half_road_m: road_w * 0.5,
         bike_offset_m: curb_side * (half_lane - 0.6).max(0.0),
+        yield_m: 0.0,
+        pass_m: (8.0, 40.0),
     });
     let cars = 2 + (rng.random::<f64>() * 5.0) as usize;
     let cyclists = 1 + (rng.random::<f64>() * 3.0) as usize;
@@ -154,7 +147,11 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         .collect();
     let ego = Ego { half: movers::EGO_HALF_M, speed_mps: speed };
     let places = std::mem::take(&mut b.places);
-    (b.finish(), Some(sensor), Traffic { lane, movers, own_lane, own_movers, ego }, places)
+    let traffic = vec![
+        LaneTraffic { lane, movers, ego: None, count_as: None },
+        LaneTraffic { lane: own_lane, movers: own_movers, ego: Some(ego), count_as: Some("car in the sensor lane") },
+    ];
+    (b.finish(), Some(sensor), traffic, places)
 }
 
 /// Length of a raised crossing's ramps, m.

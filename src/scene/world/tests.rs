@@ -1,5 +1,6 @@
 use super::street::ROAD_Z;
 use std::path::Path;
+use std::sync::Arc;
 use super::*;
 
 fn params() -> WorldParams {
@@ -208,7 +209,7 @@ fn world_names_are_exact() {
 fn street_with_a_person_on_a_crossing(seed: u64, index: usize, duration: f64) -> (World, DVec2) {
     let p = WorldParams { duration_s: duration, ..params() };
     let mut w = World::build(WorldKind::Street, seed, index, &p).unwrap();
-    let lane = w.traffic.as_ref().unwrap().lane.clone();
+    let lane = w.traffic[0].lane.clone();
     let s = w.sensor.unwrap().position(0.5 * duration).x;
     // The crossing nearest the sensor halfway through.
     let c = lane.crossings.iter().min_by(|a, b| (a.0 - s).abs().total_cmp(&(b.0 - s).abs())).unwrap();
@@ -220,13 +221,32 @@ fn street_with_a_person_on_a_crossing(seed: u64, index: usize, duration: f64) ->
     (w, person)
 }
 
+/// An indoor world with a service aisle, its hall's x range and a person standing in the
+/// aisle in the middle of the hall for the whole of `duration` s, the movers driven; None for
+/// a hall without an aisle.
+fn hall_with_a_person_in_the_aisle(seed: u64, index: usize, duration: f64) -> Option<(World, (f64, f64), DVec2)> {
+    let p = WorldParams { duration_s: duration, ..params() };
+    let mut w = World::build(WorldKind::Indoor, seed, index, &p).unwrap();
+    let lane = w.traffic.first()?.lane.clone();
+    let end = indoor::WALL_M + indoor::BEHIND_WALL_M;
+    let hall = (lane.x0 + end, lane.x1 - end);
+    let person = DVec2::new(0.5 * (hall.0 + hall.1), lane.y);
+    w.add_movers(duration, |_, out| {
+        out.clear();
+        out.push(person);
+    });
+    Some((w, hall, person))
+}
+
 #[test]
 fn movers_velocities_are_the_derivatives_of_their_positions() {
     let (w, _) = street_with_a_person_on_a_crossing(4, 1, 30.0);
     assert!(w.movers.len() >= 2, "{}", w.summary());
+    let (indoor, _, _) = hall_with_a_person_in_the_aisle(4, 0, 30.0).unwrap();
+    assert!(!indoor.movers.is_empty(), "{}", indoor.summary());
     let h = 1e-4;
     let mut checked = 0;
-    for m in &w.movers {
+    for m in w.movers.iter().chain(&indoor.movers) {
         for k in 0..600 {
             let t = 0.05 * k as f64 + 0.0123;
             let (a, b) = (m.position(t - h), m.position(t + h));
@@ -285,7 +305,7 @@ fn cars_in_the_sensors_lane_keep_clear_of_its_vehicle() {
     for index in 0..8 {
         let duration = 20.0;
         let mut w = World::build(WorldKind::Street, 21, index, &WorldParams { duration_s: duration, ..params() }).unwrap();
-        let own = w.traffic.as_ref().unwrap().own_lane.clone();
+        let own = w.traffic[1].lane.clone();
         let sensor = w.sensor.unwrap();
         assert_eq!(own.y, sensor.position(0.0).y);
         assert_eq!(own.dir, sensor.velocity(0.0).x.signum());
@@ -424,4 +444,53 @@ fn booths_are_huts_open_above_their_counters() {
     // In a street of markets, booths stand in rows of them.
     let w = World::build(WorldKind::Street, 3, 0, &WorldParams { markets: 1.0, ..params() }).unwrap();
     assert!(w.counts.get("booth").is_some_and(|&n| n >= 4), "{}", w.summary());
+}
+
+/// Indoors, robots and carts drive the hall's service aisle: nothing of the still world stands
+/// in it between the end walls, they stay on its centre line, never run into each other or
+/// into somebody standing in it (they queue behind them), and carry SemanticKITTI's
+/// other-vehicle class.
+#[test]
+fn robots_and_carts_keep_to_the_aisle_and_stop_for_people() {
+    let (mut aisles, mut queued, mut kinds) = (0, 0, std::collections::BTreeSet::new());
+    for index in 0..8 {
+        let Some((w, hall, person)) = hall_with_a_person_in_the_aisle(5, index, 30.0) else { continue };
+        aisles += 1;
+        let lane = w.movers.first().map(|m| m.lane.clone()).expect("a hall with an aisle keeps a mover");
+        // The still world (built again, without its movers): nothing in the aisle.
+        let bare = World::build(WorldKind::Indoor, 5, index, &WorldParams { duration_s: 30.0, ..params() }).unwrap();
+        for t in obstacles(&bare.env) {
+            let (lo, hi) = t.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+            let inside = hi.x > hall.0 + 0.05 && lo.x < hall.1 - 0.05 && hi.y > lane.y - indoor::AISLE_HALF_M && lo.y < lane.y + indoor::AISLE_HALF_M;
+            assert!(!inside, "hall {index}: an obstacle in the aisle: {t:?}");
+        }
+        assert_eq!(w.movers.len(), ["robot driving", "cart driving"].iter().map(|k| w.counts.get(k).copied().unwrap_or(0)).sum::<usize>(), "{}", w.summary());
+        for k in 0..=600 {
+            let t = 0.05 * k as f64;
+            for (i, m) in w.movers.iter().enumerate() {
+                assert!(Arc::ptr_eq(&m.lane, &lane) && m.y == lane.y);
+                assert!(!m.touches(t, person), "hall {index}: {:?} {i} on the person at {t} s", m.kind);
+                let c = m.position(t).truncate();
+                for o in &w.movers[i + 1..] {
+                    let gap = (lane.u_of(o.position(t).x) - lane.u_of(c.x)).rem_euclid(lane.length());
+                    assert!(gap.min(lane.length() - gap) > m.half.x + o.half.x, "hall {index}: movers into each other at {t} s");
+                }
+            }
+        }
+        // The one nearest behind the person has stopped there by the end.
+        let behind = |m: &Mover| (lane.u_of(person.x) - lane.u_of(m.position(30.0).x)).rem_euclid(lane.length());
+        let first = w.movers.iter().min_by(|a, b| behind(a).total_cmp(&behind(b))).unwrap();
+        if first.velocity(30.0).length() == 0.0 && behind(first) < first.half.x + movers::PERSON_RADIUS_M + 1.5 {
+            queued += 1;
+        }
+        for (d, &k) in w.draws.iter().zip(&w.mover_of_draw) {
+            if k != NO_MOVER {
+                kinds.insert(w.movers[k as usize].kind);
+                assert_eq!(d.class, things::class::OTHER_VEHICLE);
+            }
+        }
+    }
+    assert!(aisles >= 6, "{aisles} of 8 halls with a service aisle");
+    assert!(queued * 2 >= aisles, "{queued} of {aisles} halls with a mover stopped behind the person");
+    assert_eq!(kinds.into_iter().collect::<Vec<_>>(), [MoverKind::Robot, MoverKind::Cart]);
 }

@@ -14,6 +14,8 @@ pub mod class {
     pub const CAR: u16 = 10;
     pub const BICYCLE: u16 = 11;
     pub const TRUCK: u16 = 18;
+    /// Indoor robots and carts.
+    pub const OTHER_VEHICLE: u16 = 20;
     /// A person riding a bicycle (the bicycle itself is [`BICYCLE`]).
     pub const BICYCLIST: u16 = 31;
     pub const ROAD: u16 = 40;
