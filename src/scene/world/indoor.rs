@@ -251,8 +251,13 @@ fn stairs(b: &mut Builder, rng: &mut impl Rng, hall: &Room, placed: &mut Vec<(DV
     placed.push((c, 0.5 * len + 0.5));
 }
 
-/// Things placed in a room: by zone in the halls and rooms, along the walls in corridors; none
-/// within reach of a service aisle (its centre line's y).
+/// The farthest each kind of [`furnish`]'s things reaches from where it stands, m (shelf,
+/// display case, mannequin, table, plant, kiosk, info stand, bench, coat stand, bin, crates,
+/// counter: half their longest diagonal at the largest size drawn, a table with its chairs).
+const REACH_M: [f64; 12] = [1.3, 0.95, 0.35, 1.25, 0.85, 0.65, 0.55, 1.15, 0.25, 0.4, 0.6, 1.55];
+
+/// Things placed in a room: by zone in the halls and rooms, along the walls in corridors; along
+/// a service aisle (its centre line's y) up to its edge, none reaching into it.
 fn furnish(b: &mut Builder, rng: &mut impl Rng, r: &Room, placed: &mut Vec<(DVec2, f64)>, aisle: Option<(f64, f64)>, counts: &mut BTreeMap<&'static str, usize>) {
     let n = (r.area() / if r.corridor { uni(rng, 4.0, 10.0) } else { uni(rng, 3.0, 6.0) }) as usize;
     // A zone's weights over: shelf, display case, mannequin, table, plant, kiosk, info stand,
@@ -281,13 +286,17 @@ fn furnish(b: &mut Builder, rng: &mut impl Rng, r: &Room, placed: &mut Vec<(DVec
             } else {
                 DVec2::new(uni(rng, r.lo.x + 0.7, r.hi.x - 0.7), uni(rng, r.lo.y + 0.7, r.hi.y - 0.7))
             };
-            let in_aisle = aisle.is_some_and(|(y, _)| (q.y - y).abs() < AISLE_HALF_M + 1.8);
-            if in_aisle || placed.iter().any(|(c, rr)| c.distance(q) < rr + 1.1) || near_opening(r, q, 2.0) {
+            if placed.iter().any(|(c, rr)| c.distance(q) < rr + 1.1) || near_opening(r, q, 2.0) {
                 continue;
             }
             // Against a wall things face into the room; elsewhere anywhere.
             let yaw = if r.corridor { wall_facing(r, q) } else { (rng.random::<f64>() * 4.0).floor() * FRAC_PI_2 + uni(rng, -0.2, 0.2) };
-            let (what, rad) = match pick(rng, &zone) {
+            let kind = pick(rng, &zone);
+            // Things line the aisle, none reaching into it.
+            if aisle.is_some_and(|(y, _)| (q.y - y).abs() < AISLE_HALF_M + REACH_M[kind] + 0.1) {
+                continue;
+            }
+            let (what, rad) = match kind {
                 0 => ("shelf", things::shelf(b, rng, q, 0.0, yaw + FRAC_PI_2)),
                 1 => ("display case", things::display_case(b, rng, q, 0.0, yaw)),
                 2 => ("mannequin", things::mannequin(b, rng, q, 0.0, yaw)),
