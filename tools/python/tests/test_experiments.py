@@ -11,7 +11,7 @@ import pytest
 
 from pedscan_data import experiments as exp
 
-from conftest import SENSOR_TOML
+from conftest import SENSOR_TOML, generate
 
 
 def experiments(tmp_path: Path, *flags: str) -> dict[str, exp.Experiment]:
@@ -195,6 +195,23 @@ def test_the_paper_experiments_run_in_a_world_beside_the_hall(tmp_path: Path) ->
     rows = table4_rows((work / "results.md").read_text())
     assert [r.split(" | ")[0] for r in rows] == ["| hall"] * 4 + ["| street"] * 4
     assert all(r.split(" | ")[2] != "— / 0.4358" for r in rows if r.split(" | ")[1] == "0-inf m")
+    # With a recording, the street's network is scored on the hall's recorded test set too (made
+    # once, in the hall's folder), and the report has a row for each world's network there.
+    rec = generate(tmp_path / "rec", "--sequences", "1", "--frames", "18", "--humans", "0..0",
+                   "--sensor", str(tmp_path / "sensor.toml"), "--formats", "semantickitti")
+    velodyne = rec / "semantickitti" / "sequences" / "00" / "velodyne"
+    assert exp.main([*common, "--world", "street,hall", "--recorded", str(velodyne)]) == 0
+    assert not (street / "data" / "test-recorded").exists()
+    hall_score = json.loads((work / "scores" / "frames1--test-recorded.json").read_text())
+    street_score = json.loads((street / "scores" / "frames1--test-recorded.json").read_text())
+    assert street_score["overall"]["human_beams"] == hall_score["overall"]["human_beams"] > 0
+    from pedscan_data.netio import load_file
+
+    for folder, score in ((street, street_score), (work, hall_score)):
+        assert score["human_threshold"] == load_file(folder / "runs" / "frames1" / "model.pt")["human_threshold"]
+    md = (work / "results.md").read_text()
+    recorded = md[md.index("## A recorded background"):].split("\n\n")[2].splitlines()[2:]
+    assert [r.split(" | ")[:2] for r in recorded] == [["| hall", "1"], ["| street", "1"]], recorded
 
 
 def test_a_training_run_is_a_process_of_its_own_and_its_failure_names_the_command(tmp_path: Path) -> None:
