@@ -185,7 +185,8 @@ pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'stati
 
 /// A service aisle along the hall's length (world x): its centre line's y, 3 m or more from
 /// the long walls (the stairs) and clear of the pillars, where neither end wall has an
-/// opening; a strip curtain over a doorway in each end wall. Returns its y and the way its
+/// opening; a strip curtain over a doorway in each end wall (opaque to the sensor, so the wall
+/// behind it stays whole: the movers pass through both out of sight). Returns its y and the way its
 /// movers drive (+1: toward +x), or None where no such line was found.
 fn service_aisle(b: &mut Builder, rng: &mut impl Rng, hall: &Room, pillars: &[(DVec2, f64)]) -> Option<(f64, f64)> {
     if hall.hi.y - hall.lo.y < 6.0 + 2.0 * AISLE_HALF_M {

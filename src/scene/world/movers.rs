@@ -9,11 +9,11 @@
 //! each keeps a time gap to the one ahead and stops at a crossing while somebody is on it or
 //! about to step on it; the people's plans are known before the movers drive. Speeds and
 //! positions come from one table per mover of constant-acceleration steps, so a position and
-//! its velocity are exact derivatives of each other. Indoors (a lane with [`Lane::yield_m`])
-//! a mover also stops behind anybody in its path, the sensor's carrier included. In the sensor's lane the sensor's vehicle
-//! is one more to keep a time gap to; it keeps its own speed, so a car that it would still run
-//! into (one slower ahead of it) is left out, as is a mover that would still touch a person
-//! (somebody stepping out under its bumper). The lane wraps: a mover driving off one end of
+//! its velocity are exact derivatives of each other. Indoors (a lane with [`Lane::yield_m`]) a
+//! mover also stops behind anybody in its path, the sensor's carrier included. In the sensor's
+//! lane the sensor's vehicle is one more to keep a time gap to; it keeps its own speed, so a
+//! car that it would still run into (one slower ahead of it) is left out, as is a mover that
+//! would still touch a person (somebody stepping out under its bumper). The lane wraps: a mover driving off one end of
 //! the street comes back in at the other, farther from the sensor than it sees
 //! (`street::MARGIN_M`), so a long sequence keeps its traffic.
 
@@ -280,9 +280,8 @@ fn indoor_driver(rng: &mut impl Rng, lo: f64, hi: f64) -> Driver {
     Driver { speed_mps: uni(rng, lo, hi), accel: 0.8, decel: 1.5, headway_s: 1.0, min_gap_m: 0.6 }
 }
 
-/// A delivery robot: a rounded box on wheels 0.6-0.8 m long, 0.5-0.6 m wide and 0.7-1.25 m
-/// tall (a lidded cargo bay, a screen or a mast with a flag on the tall ones) and its pace,
-/// 0.8-1.5 m/s.
+/// A delivery robot: a lidded box on wheels 0.6-0.8 m long, 0.5-0.6 m wide and 0.7-1.25 m
+/// tall, half of them with a screen or a mast with a flag on top, and its pace, 0.8-1.5 m/s.
 pub fn robot(rng: &mut impl Rng) -> MoverSpec {
     let mut b = Builder::default();
     let m = material(rng, class::OTHER_VEHICLE);
@@ -309,7 +308,7 @@ pub fn robot(rng: &mut impl Rng) -> MoverSpec {
 }
 
 /// A motorised service cart: a low platform 1.2-1.9 m long and 0.7-0.9 m wide with a push
-/// handle, a stack of boxes or a cage of goods on it (0.9-1.7 m tall in all); 0.6-1.2 m/s.
+/// handle, a stack of boxes or a roll cage of goods on it (1-1.8 m tall in all); 0.6-1.2 m/s.
 pub fn cart(rng: &mut impl Rng) -> MoverSpec {
     let mut b = Builder::default();
     let m = material(rng, class::OTHER_VEHICLE);
