@@ -223,6 +223,17 @@ const OBSTACLE_Z: (f64, f64) = (0.05, 2.0);
 /// A triangle whose vertices are all within this of z = 0 is floor.
 const FLOOR_Z_TOLERANCE: f64 = 0.05;
 
+/// Which connected regions of walkable cells a grid keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Regions {
+    /// The largest only (an environment: the rest is floor nobody can reach, inside closed
+    /// things).
+    Largest,
+    /// Every region of at least this many cells (a recording: its floor is what the sensor
+    /// saw, parked cars and fences split it, and people stand on every side of them).
+    AtLeast(usize),
+}
+
 /// The walkable area as a grid of clearances: distance (m) from each cell centre to the nearest
 /// obstacle or non-floor cell; 0 where one cannot stand.
 #[derive(Clone, Debug)]
@@ -310,10 +321,15 @@ impl WalkableGrid {
     }
 
     /// The walkable area from per-cell observations: `floor` cells one can stand on, minus
-    /// `blocked` cells. Cell (i, j) has its corner at `origin + cell_m * (i, j)`, index j * nx + i.
-    pub fn from_cells(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], mut blocked: Vec<bool>) -> WalkableGrid {
-        // Only the largest connected walkable region counts: the hollow inside of a closed
-        // obstacle (a box, a pillar) is floor but nobody can get there.
+    /// `blocked` cells, its largest connected region only (the hollow inside of a closed
+    /// obstacle, a box or a pillar, is floor but nobody can get there). Cell (i, j) has its
+    /// corner at `origin + cell_m * (i, j)`, index j * nx + i.
+    pub fn from_cells(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], blocked: Vec<bool>) -> WalkableGrid {
+        Self::from_cells_keeping(lo, cell_m, nx, ny, floor, blocked, Regions::Largest)
+    }
+
+    /// As [`WalkableGrid::from_cells`], keeping the connected regions `keep` says.
+    pub fn from_cells_keeping(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], mut blocked: Vec<bool>, keep: Regions) -> WalkableGrid {
         let open: Vec<bool> = (0..nx * ny).map(|k| floor[k] && !blocked[k]).collect();
         let mut component = vec![u32::MAX; nx * ny];
         let mut sizes: Vec<usize> = Vec::new();
@@ -342,8 +358,12 @@ impl WalkableGrid {
             sizes.push(size);
         }
         let largest = (0..sizes.len()).max_by_key(|&c| (sizes[c], std::cmp::Reverse(c))).map(|c| c as u32);
+        let kept = |c: u32| match keep {
+            Regions::Largest => Some(c) == largest,
+            Regions::AtLeast(n) => sizes[c as usize] >= n,
+        };
         for k in 0..nx * ny {
-            if open[k] && Some(component[k]) != largest {
+            if open[k] && !kept(component[k]) {
                 blocked[k] = true;
             }
         }

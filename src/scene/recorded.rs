@@ -5,7 +5,9 @@
 //! of the returns within 5 cm of it. The walkable area is a 10 cm grid: cells with a floor
 //! return within 50 m of its sensor, grown to bridge the gaps between rings, minus cells with a
 //! return between 25 cm and 2 m above the floor (anything standing there at any frame of the
-//! window, moving objects included), largest connected region only.
+//! window, moving objects included), each connected region of 4 m² or more (parked cars,
+//! fences and kerbs split a street's floor, and people stand on every side of them: the
+//! largest region alone can be a far one, with no floor left near the sensor).
 //!
 //! **Far floor.** The rings on the floor spread with the square of their distance (a ring gap
 //! of angle a seen from height h lands d² a / h apart at distance d: 0.4 deg from 1.73 m, an
@@ -15,7 +17,7 @@
 //! floor stays one region with the near floor, where people can stand at the distances a street
 //! shows them (without this, people composited into KITTI streets stood at a median 6 m).
 
-use super::{WalkableGrid, WALKABLE_CELL_M};
+use super::{Regions, WalkableGrid, WALKABLE_CELL_M};
 use crate::error::{Error, Result};
 use crate::input::Recording;
 use glam::{DVec2, DVec3};
@@ -48,6 +50,8 @@ const FLOOR_TOLERANCE_SLOPE: f64 = 0.006;
 const FLOOR_GROW_M: f64 = 1.0;
 /// ... and by d² / this at a distance d (m), the gap of rings 0.4 deg apart seen from 1.73 m.
 const FLOOR_GROW_DIVISOR_M: f64 = 500.0;
+/// The smallest connected floor region kept, m² (room for somebody to stand and step about).
+const MIN_REGION_M2: f64 = 4.0;
 
 /// The height band (± m) of a floor return at horizontal distance `d_m` from its sensor.
 fn floor_tolerance_m(d_m: f64) -> f64 {
@@ -151,7 +155,8 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
     if !floor_cells.iter().zip(&blocked).any(|(f, b)| *f && !*b) {
         return Err(none());
     }
-    Ok(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor_cells, blocked))
+    let min_cells = (MIN_REGION_M2 / (cell_m * cell_m)).ceil() as usize;
+    Ok(WalkableGrid::from_cells_keeping(lo, cell_m, nx, ny, &floor_cells, blocked, Regions::AtLeast(min_cells)))
 }
 
 /// Along the line `first + k * stride` (k < n): every cell within `src - 1` cells of a cell
@@ -175,17 +180,18 @@ fn grow_line(src: &[u16], dst: &mut [u16], first: usize, stride: usize, n: usize
 mod tests {
     use super::*;
 
+    /// Returns of a flat floor at z = -1.7 every 10 cm, cells `xs` x `ys` (in tenths of a
+    /// metre), seen by a sensor at the origin.
+    fn flat_floor(xs: std::ops::Range<i32>, ys: std::ops::Range<i32>) -> Vec<(DVec3, DVec3)> {
+        let ys = &ys;
+        xs.flat_map(|i| ys.clone().map(move |j| (DVec3::new(i as f64 * 0.1, j as f64 * 0.1, -1.7), DVec3::ZERO))).collect()
+    }
+
     /// Points of a flat floor at z = -1.7 around a sensor at the origin, with a 1 x 1 m pillar
     /// at (5, 0).
     fn floor_scene() -> Vec<(DVec3, DVec3)> {
         let o = DVec3::ZERO;
-        let mut pts = Vec::new();
-        for i in -150..150 {
-            for j in -150..150 {
-                let (x, y) = (i as f64 * 0.1, j as f64 * 0.1);
-                pts.push((DVec3::new(x, y, -1.7), o));
-            }
-        }
+        let mut pts = flat_floor(-150..150, -150..150);
         for k in 0..20 {
             for z in 0..10 {
                 let (x, y) = (4.5 + k as f64 * 0.05, -0.5 + k as f64 * 0.05);
@@ -217,6 +223,49 @@ mod tests {
         assert!(g.clearance(DVec2::new(3.5, 0.0)) > 0.7 && g.clearance(DVec2::new(3.5, 0.0)) < 1.1);
         assert!(g.clearance(DVec2::new(-5.0, 0.0)) > 3.0, "open floor");
         assert_eq!(g.clearance(DVec2::new(40.0, 0.0)), 0.0, "never seen");
+    }
+
+    /// A street's floor split by a row of parked cars: a small floor by the sensor and a larger
+    /// one beyond them both stay walkable (the largest region alone left the sensor's side
+    /// without floor: people could only stand 30 m away); a patch smaller than 4 m² does not.
+    #[test]
+    fn floor_split_by_obstacles_stays_walkable_on_every_side() {
+        let o = DVec3::ZERO;
+        let mut pts = flat_floor(-250..250, -100..300);
+        // A wall of cars across the whole width at y = 5-7 m; a 1.6 x 1.6 m square of floor
+        // walled in at (-20, -8).
+        for i in -620..620 {
+            for k in 0..40 {
+                pts.push((DVec3::new(i as f64 * 0.05, 5.0 + k as f64 * 0.05, -1.0), o));
+            }
+        }
+        for k in 0..=32 {
+            let t = k as f64 * 0.05;
+            for (x, y) in [(-20.8 + t, -8.8), (-20.8 + t, -7.2), (-20.8, -8.8 + t), (-19.2, -8.8 + t)] {
+                pts.push((DVec3::new(x, y, -1.0), o));
+            }
+        }
+        let g = walkable_from_points(&pts, -1.7, 0.1).unwrap();
+        // Two regions: no walkable cell of the sensor's side reaches one of the far side.
+        let cell = |p: DVec2| {
+            let q = ((p - g.origin) / g.cell_m).floor();
+            q.y as usize * g.nx + q.x as usize
+        };
+        let mut seen = vec![false; g.nx * g.ny];
+        let mut queue = vec![cell(DVec2::ZERO)];
+        while let Some(k) = queue.pop() {
+            if seen[k] || g.clearance_m[k] <= 0.0 {
+                continue;
+            }
+            seen[k] = true;
+            let (i, j) = (k % g.nx, k / g.nx);
+            queue.extend([(i > 0).then(|| k - 1), (i + 1 < g.nx).then(|| k + 1), (j > 0).then(|| k - g.nx), (j + 1 < g.ny).then(|| k + g.nx)].into_iter().flatten());
+        }
+        assert!(!seen[cell(DVec2::new(0.0, 20.0))], "the cars part the floor");
+        assert!(g.clearance(DVec2::new(0.0, 0.0)) > 2.0, "the sensor's side of the cars");
+        assert!(g.clearance(DVec2::new(0.0, 20.0)) > 2.0, "the far side, the larger");
+        assert_eq!(g.clearance(DVec2::new(0.0, 6.0)), 0.0, "the cars");
+        assert_eq!(g.clearance(DVec2::new(-20.0, -8.0)), 0.0, "a patch walled in, under 4 m²");
     }
 
     #[test]
