@@ -685,7 +685,8 @@ def test_the_zero_velocity_baseline_is_the_evaluators_error_of_zero_predictions(
     work = tmp_path / "work"
     (work / "data").mkdir(parents=True)
     (work / "data" / "test").symlink_to(sample)
-    epe = exp.Experiment.zero_epe(types.SimpleNamespace(work=work), "test")
+    stand_in = types.SimpleNamespace(work=work, test_data=lambda ts: work / "data" / ts)
+    epe = exp.Experiment.zero_epe(stand_in, "test")
     # The evaluator on predictions that get every label right and every velocity zero.
     preds = tmp_path / "pred"
     preds.mkdir()
