@@ -221,6 +221,17 @@ fn street_with_a_person_on_a_crossing(seed: u64, index: usize, duration: f64) ->
     (w, person)
 }
 
+/// Mover `i` and each later one in its lane have their footprints apart along it at `t_s`.
+fn assert_apart_in_lane(movers: &[Mover], i: usize, t_s: f64, sequence: usize) {
+    let m = &movers[i];
+    let lane = &m.lane;
+    for o in movers[i + 1..].iter().filter(|o| Arc::ptr_eq(&o.lane, lane)) {
+        let gap = (lane.u_of(o.position(t_s).x) - lane.u_of(m.position(t_s).x)).rem_euclid(lane.length());
+        let gap = gap.min(lane.length() - gap);
+        assert!(gap > m.half.x + o.half.x, "sequence {sequence}: movers {gap:.2} m apart at {t_s} s");
+    }
+}
+
 /// An indoor world with a service aisle, its hall's x range and a person standing in the
 /// aisle in the middle of the hall for the whole of `duration` s, the movers driven; None for
 /// a hall without an aisle.
@@ -280,12 +291,7 @@ fn movers_stop_for_a_person_on_a_crossing_and_keep_their_distance() {
                 let d = (person - c).abs();
                 assert!(d.x >= m.half.x + movers::PERSON_RADIUS_M || d.y >= m.half.y + movers::PERSON_RADIUS_M, "sequence {index}: {:?} {i} on the person at {t} s", m.kind);
                 // Never into the one ahead in its lane: footprints apart along the lane.
-                for o in w.movers[i + 1..].iter().filter(|o| Arc::ptr_eq(&o.lane, &m.lane)) {
-                    let lane = &m.lane;
-                    let gap = (lane.u_of(o.position(t).x) - lane.u_of(c.x)).rem_euclid(lane.length());
-                    let gap = gap.min(lane.length() - gap);
-                    assert!(gap > m.half.x + o.half.x, "sequence {index}: movers {gap:.2} m apart at {t} s");
-                }
+                assert_apart_in_lane(&w.movers, i, t, index);
             }
         }
         // Traffic queues before the blocked crossing: somebody stands still there at the end.
@@ -470,11 +476,7 @@ fn robots_and_carts_keep_to_the_aisle_and_stop_for_people() {
             for (i, m) in w.movers.iter().enumerate() {
                 assert!(Arc::ptr_eq(&m.lane, &lane) && m.y == lane.y);
                 assert!(!m.touches(t, person), "hall {index}: {:?} {i} on the person at {t} s", m.kind);
-                let c = m.position(t).truncate();
-                for o in &w.movers[i + 1..] {
-                    let gap = (lane.u_of(o.position(t).x) - lane.u_of(c.x)).rem_euclid(lane.length());
-                    assert!(gap.min(lane.length() - gap) > m.half.x + o.half.x, "hall {index}: movers into each other at {t} s");
-                }
+                assert_apart_in_lane(&w.movers, i, t, index);
             }
         }
         // The one nearest behind the person has stopped there by the end.

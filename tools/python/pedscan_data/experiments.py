@@ -575,10 +575,15 @@ def _f(x: float | None, d: int = 4) -> str:
     return "—" if x is None else f"{x:.{d}f}"
 
 
+def world_scores(res: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """(world, scores) of every world, the hall (``results.json``'s top level) first."""
+    return [("hall", res["scores"])] + [(w, v["scores"]) for w, v in res.get("worlds", {}).items()]
+
+
 def table4_worlds(res: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
-    """(world, scores) of each world with a Table 4 network scored, the hall (``results.json``'s
-    top level) first; the hall alone when none has, so the table still shows the paper's row."""
-    every = [("hall", res["scores"])] + [(w, v["scores"]) for w, v in res.get("worlds", {}).items()]
+    """(world, scores) of each world with a Table 4 network scored, the hall first; the hall
+    alone when none has, so the table still shows the paper's row."""
+    every = world_scores(res)
     scored = [(w, sc) for w, sc in every if any(f"frames{n}--test" in sc for n in TABLE4_FRAMES)]
     return scored or every[:1]
 
@@ -653,8 +658,7 @@ def render_markdown(res: dict[str, Any]) -> str:
                      ("in-place", "+ walking model (in place)"), ("full", "+ both (full)")):
         key = "frames16--test" if m == "full" else f"motion-{m}--test"
         lines.append(f"| {label} | {_f(_iou(sc, key)[0])} | {PAPER_TABLE5[m]:.4f} |")
-    every = [("hall", sc)] + [(w, v["scores"]) for w, v in res.get("worlds", {}).items()]
-    on_rec = [(w, wsc) for w, wsc in every if any(k.endswith("--test-recorded") for k in wsc)]
+    on_rec = [(w, wsc) for w, wsc in world_scores(res) if any(k.endswith("--test-recorded") for k in wsc)]
     if on_rec:
         lines += ["", "## A recorded background", "",
                   "Each world's networks on the hall's recorded test set (people composited into the "
