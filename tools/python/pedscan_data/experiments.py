@@ -68,7 +68,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -105,6 +107,24 @@ RECORDED_FRAMES_N = (16, 1)
 TRAIN_PRELOAD = ["pedscan_data.train", "torch._dynamo"]
 
 
+#: The processes this command waits on now (a training run, ``generate``'s shards): a SIGTERM
+#: to the command reaches them too (:func:`_on_sigterm`), where it would otherwise leave them
+#: running on their own.
+_CHILDREN: set[int] = set()
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    """SIGTERM stops the command as Ctrl-C does: each child it waits on gets the signal (a
+    training run stops as on Ctrl-C, its last checkpoint kept, exit 130) and the command waits
+    for it, then exits 130; the same command continues."""
+    for pid in list(_CHILDREN):
+        try:
+            os.kill(pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    raise KeyboardInterrupt
+
+
 def _train_process(argv: list[str]) -> None:
     from .train import main
 
@@ -126,12 +146,17 @@ def run_train(argv: list[str]) -> int:
     target = importlib.import_module("pedscan_data.experiments")._train_process
     proc = ctx.Process(target=target, args=(argv,))
     proc.start()
+    assert proc.pid is not None
+    _CHILDREN.add(proc.pid)
     try:
         proc.join()
     except KeyboardInterrupt:
-        # The run saw Ctrl-C too (one terminal): it checkpoints and ends with 130.
+        # The run saw Ctrl-C too (one terminal), or SIGTERM from :func:`_on_sigterm`: it
+        # checkpoints and ends with 130.
         proc.join()
         raise
+    finally:
+        _CHILDREN.discard(proc.pid)
     # As subprocess's: -N when a signal N ended it.
     return int(proc.exitcode if proc.exitcode is not None else 1)
 
@@ -252,12 +277,15 @@ class Experiment:
         """``cmd`` as ``--jobs`` processes, one ``--shard I/J`` each, at once; every one must end well."""
         print(f"[{what}] {self.jobs} x {' '.join(cmd)} --shard I/{self.jobs}", file=sys.stderr, flush=True)
         procs = [subprocess.Popen([*cmd, "--shard", f"{i}/{self.jobs}"]) for i in range(self.jobs)]
+        _CHILDREN.update(p.pid for p in procs)
         try:
             codes = [p.wait() for p in procs]
         except KeyboardInterrupt:
             for p in procs:
                 p.wait()
             raise
+        finally:
+            _CHILDREN.difference_update(p.pid for p in procs)
         if 130 in codes:
             raise KeyboardInterrupt
         bad = [(i, c) for i, c in enumerate(codes) if c != 0]
@@ -758,6 +786,14 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    old_term = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return _main(args)
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
+
+
+def _main(args: argparse.Namespace) -> int:
     stages = [s.strip() for s in args.only.split(",") if s.strip()]
     bad = [s for s in stages if s not in STAGES]
     try:

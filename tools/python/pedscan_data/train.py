@@ -27,7 +27,7 @@ RUN gets ``run.json`` (configuration, data, device and versions), ``checkpoint.p
 ``--checkpoint-every`` steps (model, optimizer, step), ``model.pt`` (the weights, for
 ``predict``), ``metrics.jsonl`` (training loss; with ``--val``, IoU per distance bin and the
 human velocity end-point error) and ``curves.png``. Exit 0 done, 2 bad input, 130 stopped by
-Ctrl-C (the last checkpoint stays).
+Ctrl-C or SIGTERM (the last checkpoint stays).
 
 ``--max-minutes M`` bounds one sitting (a batch system's wall-clock limit, a lent GPU): after
 the first step that ends past M minutes of training the run checkpoints, validates and
@@ -539,7 +539,9 @@ def train(args: argparse.Namespace) -> int:
 
     stop: list[int] = []
     timed_out = False
-    old_handler = signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+    # Ctrl-C, or SIGTERM (a batch system's, or `experiments` passing its own on): exit 130, the last
+    # checkpoint kept.
+    old_handlers = {sig: signal.signal(sig, lambda *_: stop.append(1)) for sig in (signal.SIGINT, signal.SIGTERM)}
     net.train()
     step = start
     t_start = time.perf_counter()
@@ -615,7 +617,8 @@ def train(args: argparse.Namespace) -> int:
               f"{load_file(ckpt_path)['step'] if ckpt_path.exists() else 0} stays (--resume continues)", file=sys.stderr)
         return 130
     finally:
-        signal.signal(signal.SIGINT, old_handler)
+        for sig, handler in old_handlers.items():
+            signal.signal(sig, handler)
     if start == args.steps and not (run / "model.pt").exists():
         save(step)
     if val_seqs and not args.no_calibrate and start < args.steps:

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from pedscan_data import experiments as exp
+from pedscan_data.netio import load_file
 
 from conftest import SENSOR_TOML, generate
 
@@ -205,13 +206,53 @@ def test_the_paper_experiments_run_in_a_world_beside_the_hall(tmp_path: Path) ->
     hall_score = json.loads((work / "scores" / "frames1--test-recorded.json").read_text())
     street_score = json.loads((street / "scores" / "frames1--test-recorded.json").read_text())
     assert street_score["overall"]["human_beams"] == hall_score["overall"]["human_beams"] > 0
-    from pedscan_data.netio import load_file
 
     for folder, score in ((street, street_score), (work, hall_score)):
         assert score["human_threshold"] == load_file(folder / "runs" / "frames1" / "model.pt")["human_threshold"]
     md = (work / "results.md").read_text()
     recorded = md[md.index("## A recorded background"):].split("\n\n")[2].splitlines()[2:]
     assert [r.split(" | ")[:2] for r in recorded] == [["| hall", "1"], ["| street", "1"]], recorded
+
+
+def test_sigterm_reaches_the_training_run_and_leaves_nothing_running(sample: Path, tmp_path: Path) -> None:
+    """A batch system's SIGTERM to ``experiments`` stops it as Ctrl-C does: the training run it
+    waits on (a process of the fork server, not of the command) gets the signal too, stops
+    with its last checkpoint kept, and the command waits for it before it exits 130."""
+    import os
+    import subprocess
+    import sys
+
+    run = tmp_path / "run"
+    argv = [str(sample), "--out", str(run), "--frames", "2", "--width", "4", "--steps", "1000000",
+            "--checkpoint-every", "2", "--workers", "0", "--quiet"]
+    script = f"""
+import os, signal, sys, threading, time
+from pathlib import Path
+from pedscan_data import experiments as exp
+from pedscan_data.netio import load_file
+signal.signal(signal.SIGTERM, exp._on_sigterm)  # as main() does
+def poke():
+    while not Path({str(run / "checkpoint.pt")!r}).exists():
+        time.sleep(0.05)
+    print("training", *exp._CHILDREN, flush=True)
+    os.kill(os.getpid(), signal.SIGTERM)
+threading.Thread(target=poke, daemon=True).start()
+try:
+    exp.run_train({argv!r})
+except KeyboardInterrupt:
+    print("left", *exp._CHILDREN, flush=True)
+    sys.exit(130)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 130, done.stderr
+    lines = done.stdout.splitlines()
+    pids = [int(p) for p in lines[0].split()[1:]]
+    assert lines[0].startswith("training ") and len(pids) == 1, done.stdout
+    assert lines[1] == "left", done.stdout  # waited for, and forgotten
+    assert "stopped at step" in done.stderr and "stays (--resume continues)" in done.stderr, done.stderr
+    assert 2 <= load_file(run / "checkpoint.pt")["step"] < 1000000
+    with pytest.raises(ProcessLookupError):
+        os.kill(pids[0], 0)
 
 
 def test_a_training_run_is_a_process_of_its_own_and_its_failure_names_the_command(tmp_path: Path) -> None:
