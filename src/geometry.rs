@@ -237,7 +237,12 @@ impl FrameGeometry {
 
     /// Global triangles sharing a vertex with global triangle `t` (empty without adjacency).
     pub fn neighbours(&self, t: u32) -> impl Iterator<Item = u32> + '_ {
-        let k = self.mesh_index_of_triangle(t);
+        self.neighbours_in_mesh(self.mesh_index_of_triangle(t), t)
+    }
+
+    /// [`FrameGeometry::neighbours`] of triangle `t` of mesh `k` (its
+    /// [`FrameGeometry::mesh_index_of_triangle`], known to the caller).
+    pub fn neighbours_in_mesh(&self, k: usize, t: u32) -> impl Iterator<Item = u32> + '_ {
         let first = self.meshes[k].first_triangle;
         let ring: &[u32] = match self.adjacency.get(k) {
             Some(Some(a)) => a.of(t - first),

@@ -87,7 +87,11 @@ pub struct EnvWorld<'a> {
 /// world, relative to `origin`, from the environment's f64 `positions`; and whether its back
 /// face is culled.
 fn world_triangle(background: &FrameGeometry, positions: &[DVec3], env_meshes: &[EnvDraw], t: u32, origin: DVec3) -> ([DVec3; 3], bool) {
-    let k = background.mesh_index_of_triangle(t);
+    world_triangle_in_mesh(background, positions, env_meshes, background.mesh_index_of_triangle(t), t, origin)
+}
+
+/// [`world_triangle`] of triangle `t` of mesh `k` (its mesh index, known to the caller).
+fn world_triangle_in_mesh(background: &FrameGeometry, positions: &[DVec3], env_meshes: &[EnvDraw], k: usize, t: u32, origin: DVec3) -> ([DVec3; 3], bool) {
     let mesh = &background.meshes[k];
     let first = env_meshes[k].first_vertex as u32;
     let idx = &background.indices[3 * t as usize..3 * t as usize + 3];
@@ -107,6 +111,83 @@ fn nearest_hit(triangles: &[(u32, [DVec3; 3], bool)], dir: DVec3) -> Option<(f64
         }
     }
     (best.1 != u32::MAX).then_some(best)
+}
+
+/// The background near a beam ([`SceneSurfaces::near_background`]): nothing, a recorded
+/// return, or the plane (unit normal `n`, zero for a degenerate triangle; `n_dot_hit` its
+/// offset through the beam's hit at range `r`) of the triangle `t` it meets.
+#[derive(Clone, Copy, Debug)]
+enum NearBackground {
+    Nothing,
+    Recorded(f64),
+    Plane { n: DVec3, n_dot_hit: f64, r: f64, t: u32 },
+}
+
+impl NearBackground {
+    /// Where a ray along `dir` meets it: the plane's range along the ray (the beam's own
+    /// range where the ray runs along the plane), None where the plane lies behind the ray.
+    fn meet(self, dir: DVec3) -> Option<(f64, u32)> {
+        match self {
+            NearBackground::Nothing => None,
+            NearBackground::Recorded(r) => Some((r, crate::backend::NO_TRIANGLE)),
+            NearBackground::Plane { n, n_dot_hit, r, t } => {
+                let denom = n.dot(dir);
+                if n == DVec3::ZERO || denom.abs() <= 1e-12 {
+                    return Some((r, t));
+                }
+                let along = n_dot_hit / denom;
+                (along > 0.0).then_some((along, t))
+            }
+        }
+    }
+}
+
+/// Per thread, the footprints' candidate lists, reused from beam to beam.
+#[derive(Default)]
+struct Scratch {
+    /// Seed triangles and their one-rings, each with its mesh.
+    triangles: Vec<(u32, usize)>,
+    people: Vec<(u32, [DVec3; 3], bool)>,
+    env: Vec<(u32, [DVec3; 3], bool)>,
+    /// The one-ring of [`SceneSurfaces::footprint_on_own_surface`].
+    surface: Vec<(u32, [DVec3; 3], bool)>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// The candidates of one layer for a footprint: the triangles `hits` gives for `beams` and
+/// their one-rings, each once and in triangle order, with their corners from `corners` (sensor
+/// frame), those the footprint's pyramid may hold (`outside` false), into `out`.
+fn footprint_candidates(
+    geom: &FrameGeometry,
+    hits: &BeamHits,
+    beams: &[usize],
+    outside: &dyn Fn(&[DVec3; 3]) -> bool,
+    corners: &dyn Fn(usize, u32) -> [DVec3; 3],
+    triangles: &mut Vec<(u32, usize)>,
+    out: &mut Vec<(u32, [DVec3; 3], bool)>,
+) {
+    triangles.clear();
+    out.clear();
+    for &nb in beams {
+        let t = hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
+        if t != crate::backend::NO_TRIANGLE && t < geom.triangle_count() {
+            // A one-ring lies in its triangle's mesh.
+            let k = geom.mesh_index_of_triangle(t);
+            triangles.push((t, k));
+            triangles.extend(geom.neighbours_in_mesh(k, t).map(|n| (n, k)));
+        }
+    }
+    triangles.sort_unstable();
+    triangles.dedup();
+    for &(t, k) in triangles.iter() {
+        let tri = corners(k, t);
+        if !outside(&tri) {
+            out.push((t, tri, !geom.meshes[k].double_sided));
+        }
+    }
 }
 
 /// |cos| of the angle between `dir` and the normal of triangle `t` (1 for a degenerate one),
@@ -171,14 +252,26 @@ impl SceneSurfaces<'_> {
     /// pose (the placed triangles are interpolated between their vertices' times, centimetres
     /// off across a wall), else as placed.
     fn env_triangle(&self, t: u32, col: usize) -> ([DVec3; 3], bool) {
-        match &self.env_world {
-            Some(e) => {
-                let pose = e.column_pose[col];
-                let (tri, cull) = world_triangle(self.background, e.positions, e.meshes, t, pose.w_axis.truncate());
-                let rot_t = DMat3::from_mat4(pose).transpose();
-                (tri.map(|p| rot_t * p), cull)
-            }
-            None => (self.background.triangle_f64(t), !self.background.mesh_of_triangle(t).double_sided),
+        let k = self.background.mesh_index_of_triangle(t);
+        (self.env_corners(self.column_frame(col), k, t), !self.background.meshes[k].double_sided)
+    }
+
+    /// Under a sensor that moves during the sweep: column `col`'s pose as the rotation from
+    /// the world into its sensor frame and its origin (once per beam, for
+    /// [`SceneSurfaces::env_corners`]).
+    fn column_frame(&self, col: usize) -> Option<(DMat3, DVec3)> {
+        self.env_world.as_ref().map(|e| {
+            let pose = e.column_pose[col];
+            (DMat3::from_mat4(pose).transpose(), pose.w_axis.truncate())
+        })
+    }
+
+    /// [`SceneSurfaces::env_triangle`]'s corners of triangle `t` of mesh `k`, in the sensor
+    /// frame of the column whose [`SceneSurfaces::column_frame`] is `frame`.
+    fn env_corners(&self, frame: Option<(DMat3, DVec3)>, k: usize, t: u32) -> [DVec3; 3] {
+        match (&self.env_world, frame) {
+            (Some(e), Some((rot_t, origin))) => world_triangle_in_mesh(self.background, e.positions, e.meshes, k, t, origin).0.map(|p| rot_t * p),
+            _ => self.background.triangle_f64(t),
         }
     }
 
@@ -214,19 +307,23 @@ impl SceneSurfaces<'_> {
         if t == crate::backend::NO_TRIANGLE || t >= geom.triangle_count() {
             return false;
         }
-        let col = b % self.columns;
-        let surface: Vec<(u32, [DVec3; 3], bool)> = std::iter::once(t)
-            .chain(geom.neighbours(t))
-            .map(|c| {
-                let (tri, cull) = if person { (geom.triangle_f64(c), !geom.mesh_of_triangle(c).double_sided) } else { self.env_triangle(c, col) };
+        // The one-ring is of the triangle's own mesh.
+        let k = geom.mesh_index_of_triangle(t);
+        let cull = !geom.meshes[k].double_sided;
+        let frame = if person { None } else { self.column_frame(b % self.columns) };
+        let found = SCRATCH.with_borrow_mut(|s| {
+            s.surface.clear();
+            s.surface.extend(std::iter::once(t).chain(geom.neighbours_in_mesh(k, t)).map(|c| {
+                let tri = if person { geom.triangle_f64(c) } else { self.env_corners(frame, k, c) };
                 (c, tri, cull)
-            })
-            .collect();
-        let mut hits = [(0.0, 0u32); FOOTPRINT_RAYS];
-        for (hit, &dir) in hits.iter_mut().zip(dirs).skip(1) {
-            let Some(best) = nearest_hit(&surface, dir) else { return false };
-            *hit = best;
-        }
+            }));
+            let mut hits = [(0.0, 0u32); FOOTPRINT_RAYS];
+            for (hit, &dir) in hits.iter_mut().zip(dirs).skip(1) {
+                *hit = nearest_hit(&s.surface, dir)?;
+            }
+            Some(hits)
+        });
+        let Some(hits) = found else { return false };
         for ((o, &dir), &(h, c)) in out.iter_mut().zip(dirs).zip(&hits).skip(1) {
             *o = Some(if person { self.human_surface(c, h, dir) } else { self.background_surface(b, c, h, dir) });
         }
@@ -237,14 +334,20 @@ impl SceneSurfaces<'_> {
     /// background triangle beam `b` meets, through its exact hit (its footprint is millimetres
     /// across; under a moving sensor the triangle's normal from the world, at the column's
     /// pose), or its recorded return. None where the plane lies behind the ray.
+    #[cfg(test)]
     fn background_near(&self, b: usize, dir: DVec3) -> Option<(f64, u32)> {
+        self.near_background(b).meet(dir)
+    }
+
+    /// What [`SceneSurfaces::background_near`] needs of beam `b`, once for all its rays.
+    fn near_background(&self, b: usize) -> NearBackground {
         if let Some(r) = self.recorded {
-            return (r[b] > 0.0).then(|| (r[b] as f64, crate::backend::NO_TRIANGLE));
+            return if r[b] > 0.0 { NearBackground::Recorded(r[b] as f64) } else { NearBackground::Nothing };
         }
         let t = self.bg_hits.triangle.get(b).copied().unwrap_or(crate::backend::NO_TRIANGLE);
         let r = self.bg_hits.range_m.get(b).copied().unwrap_or(0.0) as f64;
         if t == crate::backend::NO_TRIANGLE || t >= self.background.triangle_count() || r <= 0.0 {
-            return None;
+            return NearBackground::Nothing;
         }
         let n = match &self.env_world {
             Some(_) => {
@@ -253,12 +356,7 @@ impl SceneSurfaces<'_> {
             }
             None => cos_incidence(self.background, t, self.dirs[b]).1.as_dvec3(),
         };
-        let denom = n.dot(dir);
-        if n == DVec3::ZERO || denom.abs() <= 1e-12 {
-            return Some((r, t));
-        }
-        let along = n.dot(self.dirs[b] * r) / denom;
-        (along > 0.0).then_some((along, t))
+        NearBackground::Plane { n, n_dot_hit: n.dot(self.dirs[b] * r), r, t }
     }
 }
 
@@ -292,7 +390,7 @@ fn outside_footprint(dirs: &[DVec3; FOOTPRINT_RAYS]) -> impl Fn(&[DVec3; 3]) -> 
 /// so its surfaces are there but for a limb, a post or a table's edge thinner than the beam
 /// spacing that no neighbour hits. Where the environment is continuous around the beam (the
 /// beam and its neighbours meet one triangle and its one-ring) or is a recording, a ray's
-/// background is the plane the beam itself meets ([`SceneSurfaces::background_near`]); else
+/// background is the plane the beam itself meets ([`SceneSurfaces::near_background`]); else
 /// only the candidates count, and a ray that meets none of them meets nothing (past a wall's
 /// top, say).
 impl FootprintScene for SceneSurfaces<'_> {
@@ -305,26 +403,7 @@ impl FootprintScene for SceneSurfaces<'_> {
         let mut beams = [b; 5];
         beams[1..1 + across.len().min(4)].copy_from_slice(&across[..across.len().min(4)]);
         let outside = outside_footprint(dirs);
-        // The candidates of one layer: the triangles the beams hit and their one-rings, those
-        // the pyramid may hold, each as `corners` gives it in the sensor frame.
-        let candidates = |geom: &FrameGeometry, hits: &BeamHits, corners: &dyn Fn(u32) -> [DVec3; 3]| -> Vec<(u32, [DVec3; 3], bool)> {
-            let mut ts: Vec<u32> = Vec::with_capacity(64);
-            for &nb in &beams {
-                let t = hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
-                if t != crate::backend::NO_TRIANGLE && t < geom.triangle_count() {
-                    ts.push(t);
-                    ts.extend(geom.neighbours(t));
-                }
-            }
-            ts.sort_unstable();
-            ts.dedup();
-            ts.iter()
-                .map(|&t| (t, corners(t)))
-                .filter(|(_, tri)| !outside(tri))
-                .map(|(t, tri)| (t, tri, !geom.mesh_of_triangle(t).double_sided))
-                .collect()
-        };
-        let people = candidates(self.humans, self.human_hits, &|t| self.humans.triangle_f64(t));
+        let frame = self.column_frame(col);
         // A rendered environment's candidates. Under a moving sensor they are taken from the
         // world into the sensor frame of the beam's column (the placed triangles are
         // interpolated between their vertices' times, centimetres off across a wall).
@@ -332,23 +411,31 @@ impl FootprintScene for SceneSurfaces<'_> {
         // continuous there and the beam's own plane holds the footprint.
         let bg_triangle = |nb: usize| self.bg_hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
         let own = bg_triangle(b);
-        let continuous = own != crate::backend::NO_TRIANGLE
-            && own < self.background.triangle_count()
-            && beams.iter().all(|&nb| {
+        let continuous = own != crate::backend::NO_TRIANGLE && own < self.background.triangle_count() && {
+            let k = self.background.mesh_index_of_triangle(own);
+            beams.iter().all(|&nb| {
                 let t = bg_triangle(nb);
-                t == own || self.background.neighbours(own).any(|n| n == t)
-            });
+                t == own || self.background.neighbours_in_mesh(k, own).any(|n| n == t)
+            })
+        };
         let searched = self.recorded.is_none() && !continuous;
-        let env = if searched { candidates(self.background, self.bg_hits, &|t| self.env_triangle(t, col).0) } else { Vec::new() };
-        for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
-            let human = nearest_hit(&people, dir);
-            let background = if searched { nearest_hit(&env, dir) } else { self.background_near(b, dir) };
-            *o = match (human, background) {
-                (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
-                (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
-                _ => None,
-            };
-        }
+        let near = if searched { NearBackground::Nothing } else { self.near_background(b) };
+        SCRATCH.with_borrow_mut(|s| {
+            let Scratch { triangles, people, env, .. } = s;
+            footprint_candidates(self.humans, self.human_hits, &beams, &outside, &|_, t| self.humans.triangle_f64(t), triangles, people);
+            if searched {
+                footprint_candidates(self.background, self.bg_hits, &beams, &outside, &|k, t| self.env_corners(frame, k, t), triangles, env);
+            }
+            for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
+                let human = nearest_hit(people, dir);
+                let background = if searched { nearest_hit(env, dir) } else { near.meet(dir) };
+                *o = match (human, background) {
+                    (Some((h, t)), bg) if bg.is_none_or(|(r, _)| h < r) => Some(self.human_surface(t, h, dir)),
+                    (_, Some((r, t))) => Some(self.background_surface(b, t, r, dir)),
+                    _ => None,
+                };
+            }
+        });
     }
 }
 
