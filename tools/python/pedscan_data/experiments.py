@@ -152,7 +152,7 @@ def run_train(argv: list[str]) -> int:
         proc.join()
     except KeyboardInterrupt:
         # The run saw Ctrl-C too (one terminal), or SIGTERM from :func:`_on_sigterm`: it
-        # checkpoints and ends with 130.
+        # stops, its last checkpoint kept, and ends with 130.
         proc.join()
         raise
     finally:
