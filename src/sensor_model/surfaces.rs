@@ -33,15 +33,17 @@ pub fn refine_rolling_background(env: &EnvWorld, background: &FrameGeometry, dir
         let origin = pose.w_axis.truncate();
         let dir = DMat3::from_mat4(pose) * dirs[b];
         let Some(ray) = crate::backend::triangle::RayPre::new(dir) else { return };
+        // The triangle the cast found, and its one-ring, lie in one mesh.
+        let k = background.mesh_index_of_triangle(*t);
         let test = |cand: u32| -> Option<f64> {
-            let (tri, cull) = world_triangle(background, env.positions, env_meshes, cand, origin);
+            let (tri, cull) = world_triangle_in_mesh(background, env.positions, env_meshes, k, cand, origin);
             crate::backend::triangle::intersect_pre(&ray, &tri, cull)
         };
         // The triangle the cast found holds the exact hit but near its edges; there, its
         // one-ring.
         let mut best = test(*t).map_or((f64::INFINITY, u32::MAX), |h| (h, *t));
         if best.1 == u32::MAX {
-            for cand in background.neighbours(*t) {
+            for cand in background.neighbours_in_mesh(k, *t) {
                 if let Some(h) = test(cand) {
                     if crate::backend::triangle::better(h, cand, best.0, best.1) {
                         best = (h, cand);
@@ -83,14 +85,9 @@ pub struct EnvWorld<'a> {
     pub column_pose: &'a [DMat4],
 }
 
-/// Background triangle `t` (global in `background`, whose meshes are `env_meshes`) in the
-/// world, relative to `origin`, from the environment's f64 `positions`; and whether its back
-/// face is culled.
-fn world_triangle(background: &FrameGeometry, positions: &[DVec3], env_meshes: &[EnvDraw], t: u32, origin: DVec3) -> ([DVec3; 3], bool) {
-    world_triangle_in_mesh(background, positions, env_meshes, background.mesh_index_of_triangle(t), t, origin)
-}
-
-/// [`world_triangle`] of triangle `t` of mesh `k` (its mesh index, known to the caller).
+/// Background triangle `t` of mesh `k` (global in `background`, whose meshes are
+/// `env_meshes`) in the world, relative to `origin`, from the environment's f64 `positions`;
+/// and whether its back face is culled.
 fn world_triangle_in_mesh(background: &FrameGeometry, positions: &[DVec3], env_meshes: &[EnvDraw], k: usize, t: u32, origin: DVec3) -> ([DVec3; 3], bool) {
     let mesh = &background.meshes[k];
     let first = env_meshes[k].first_vertex as u32;
