@@ -46,6 +46,10 @@ pub struct Flags {
     /// Sensor preset (`hdl32e`, `vlp16`, `hdl64e`, `vlp32c`, `os1-64`, `os1-128`, `os0-128`, `pandar64`), a sensor file (TOML, Ouster metadata JSON), or `background`: the recorded background's own grid (a ROS 2 bag's rings, an Ouster capture's metadata).
     #[arg(long)]
     pub sensor: Option<String>,
+    /// The sensor's height over the floor in metres (`scene.sensor_height_m`) in a built
+    /// world: the hall, `street`, `indoor`, an environment. A recording keeps its own.
+    #[arg(long, allow_hyphen_values = true)]
+    pub sensor_height: Option<f64>,
     /// Background: `street` or `indoor` (built-in worlds, a new layout per sequence), an
     /// environment glTF (.glb/.gltf, rendered), a Velodyne .pcap, or a folder of KITTI .bin /
     /// PCD frames, a ROS 2 bag (.mcap or its folder) (recorded); `none` for an empty world.
@@ -196,6 +200,12 @@ impl Flags {
         cfg.render.keep_holes |= a.keep_holes;
         if let Some(v) = &a.sensor {
             cfg.sensor = v.clone();
+        }
+        if let Some(v) = a.sensor_height {
+            if !(v.is_finite() && v.abs() < 1000.0) {
+                return Err(Error::input("--sensor-height", format!("{v} is not a usable height (metres over the floor)")));
+            }
+            cfg.scene.sensor_height_m = v;
         }
         if let Some(v) = &a.background {
             cfg.scene.background = if v.as_os_str() == "none" { PathBuf::new() } else { v.clone() };

@@ -82,6 +82,18 @@ fn an_ouster_captures_metadata_is_recorded_only_when_given_and_hashed_either_way
 }
 
 #[test]
+fn the_sensor_height_flag_replaces_the_key_and_refuses_what_is_no_height() {
+    use crate::config::flags::Flags;
+    let at = |h: f64| Flags { sensor_height: Some(h), ..Default::default() }.config();
+    assert_eq!(Config::default().scene.sensor_height_m, 0.8);
+    assert_eq!(at(2.33).unwrap().scene.sensor_height_m, 2.33);
+    for h in [f64::NAN, f64::INFINITY, 1e4] {
+        let e = at(h).unwrap_err().to_string();
+        assert!(e.contains("--sensor-height"), "{e}");
+    }
+}
+
+#[test]
 fn the_host_share_is_recorded_only_when_set_and_bounded() {
     // The default is left out of the record: every earlier run's hash stays the same.
     assert!(!Config::default().to_recorded_toml().contains("host_cast_beams"));

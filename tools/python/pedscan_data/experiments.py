@@ -47,6 +47,11 @@ sitting's training (counted from when training begins; data generation is not co
 run gets what is left of M (``train --max-minutes``), and when it is spent the command stops
 training, tests what is complete and writes the results so far; the same command continues.
 ``--pedscan-flag`` passes a flag to every ``pedscan generate`` (``--pedscan-flag=--sensor=vlp16``).
+``--sensor-height M`` puts the sensor M metres over the floor in every generated set of every
+world (``generate --sensor-height``; the recorded sets keep the recording's own);
+``--sensor-height recorded`` takes M from the ``--recorded`` recording (the median floor of its
+test set, made first), so that the worlds' networks meet the recording's people on the rows
+where they stand in it (a network trained at 0.8 m sees them nowhere near there from 2.3 m).
 
 Worlds (``--world``, default ``hall``; several, comma separated, run one after another):
 ``hall`` is the bundled environment, everything above, in ``DIR`` itself as before worlds
@@ -69,6 +74,7 @@ import argparse
 import importlib
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -230,6 +236,9 @@ class Experiment:
         self.workers: int = args.workers
         self.python = sys.executable
         self.extra: list[str] = list(args.pedscan_flag or [])
+        #: The sensor's height over the floor for every generated (not recorded) set, in metres;
+        #: None: each world's own. ``--sensor-height recorded`` is resolved by :func:`recorded_height`.
+        self.sensor_height: float | None = args.sensor_height if isinstance(args.sensor_height, float) else None
         self.jobs: int = args.jobs
         if self.jobs < 1:
             raise PedscanError(f"--jobs {self.jobs}: at least one process")
@@ -297,6 +306,8 @@ class Experiment:
         sc = self.scale
         # Another world: the hall's sets but for the background, so that their rows compare.
         world = [] if self.world == "hall" else ["--background", self.world]
+        if self.sensor_height is not None:
+            world += ["--sensor-height", f"{self.sensor_height:g}"]
         sets: dict[str, dict[str, Any]] = {
             "train": {"sequences": sc.train, "seed": SEEDS["train"], "flags": list(world)},
             "val": {"sequences": sc.val, "seed": SEEDS["val"], "flags": list(world)},
@@ -305,7 +316,7 @@ class Experiment:
         if self.world != "hall":
             return sets
         for m in ABLATIONS:
-            sets[f"train-{m}"] = {"sequences": sc.train, "seed": SEEDS["train"], "flags": ["--motion", m]}
+            sets[f"train-{m}"] = {"sequences": sc.train, "seed": SEEDS["train"], "flags": ["--motion", m, *world]}
         if self.recorded is not None:
             rec = ["--background", str(self.recorded.resolve()), "--frames", str(RECORDED_FRAMES)]
             sets["test-recorded"] = {"sequences": sc.recorded, "seed": SEEDS["recorded"], "flags": rec}
@@ -334,24 +345,28 @@ class Experiment:
     def data(self, only: set[str] | None = None) -> None:
         needed = self.needed_sets(only)
         for name in self.datasets():
-            if name not in needed:
-                continue
-            out = self.work / "data" / name
-            marker = out / ".complete"
-            cmd = self.generate_command(name)
-            if marker.is_file():
-                if marker.read_text() != " ".join(cmd[1:]) + "\n":
-                    raise PedscanError(f"{out}: made by another command ({marker.read_text().strip()}); "
-                                       "remove the folder to make it again, or give another --work")
-                continue
-            t0 = time.perf_counter()
-            what = f"data {name}" if self.world == "hall" else f"data {self.world}/{name}"
-            if self.jobs == 1:
-                self.run(cmd, what)
-            else:
-                self.run_shards(cmd, what)
-            marker.write_text(" ".join(cmd[1:]) + "\n")
-            self.add_time("data", time.perf_counter() - t0)
+            if name in needed:
+                self.make_set(name)
+
+    def make_set(self, name: str) -> None:
+        """Generates the data set ``name`` unless it is complete (then checks it was made by
+        the same command)."""
+        out = self.work / "data" / name
+        marker = out / ".complete"
+        cmd = self.generate_command(name)
+        if marker.is_file():
+            if marker.read_text() != " ".join(cmd[1:]) + "\n":
+                raise PedscanError(f"{out}: made by another command ({marker.read_text().strip()}); "
+                                   "remove the folder to make it again, or give another --work")
+            return
+        t0 = time.perf_counter()
+        what = f"data {name}" if self.world == "hall" else f"data {self.world}/{name}"
+        if self.jobs == 1:
+            self.run(cmd, what)
+        else:
+            self.run_shards(cmd, what)
+        marker.write_text(" ".join(cmd[1:]) + "\n")
+        self.add_time("data", time.perf_counter() - t0)
 
     # ---- stage 2: training -------------------------------------------------------------
     def runs(self) -> dict[str, dict[str, Any]]:
@@ -629,6 +644,11 @@ def render_markdown(res: dict[str, Any]) -> str:
         "## Table 4: IoU of the human class by distance",
         "",
     ]
+    heights = {f[i + 1] for d in res.get("datasets", {}).values() for f in [d["flags"]]
+               for i in range(len(f) - 1) if f[i] == "--sensor-height"}
+    if heights:
+        lines[-2:-2] = [f"Every generated set's sensor stands {', '.join(sorted(heights))} m over the floor "
+                        "(`--sensor-height`; the recorded sets: the recording's own).", ""]
     if any(w != "hall" for w, _ in worlds):
         lines += ["One block of rows per world: `hall` the bundled environment; `street` and `indoor` "
                   "pedscan's built-in worlds (`--background`, a new layout per sequence), with the hall's "
@@ -763,6 +783,40 @@ def world_list(text: str) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+def sensor_height_arg(text: str) -> float | str:
+    """``--sensor-height``: metres over the floor, or ``recorded``."""
+    if text == "recorded":
+        return text
+    try:
+        h = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: metres over the floor, or recorded") from None
+    if not (0.0 < h < 100.0):
+        raise argparse.ArgumentTypeError(f"{text}: not a sensor height (metres over the floor, 0-100)")
+    return h
+
+
+def recorded_height(hall: Experiment, make: bool) -> float:
+    """The recording's sensor height over its floor: the median of ``floor_z_m`` (the floor in
+    the sensor's frame) over the recorded test set's sequences, to the centimetre. The set is
+    made first when ``make`` (the data stage runs) and it is not complete."""
+    folder = hall.work / "data" / "test-recorded"
+    if not (folder / ".complete").is_file():
+        if not make:
+            raise PedscanError(f"--sensor-height recorded: {folder} is not made yet; run the data stage")
+        hall.make_set("test-recorded")
+    floors = []
+    for xml in sorted(folder.glob("*.xml")):
+        m = re.search(r'\bfloor_z_m="([-+0-9.eE]+)"', xml.read_text(errors="replace"))
+        if m:
+            floors.append(float(m.group(1)))
+    floors.sort()
+    h = -floors[len(floors) // 2] if floors else float("nan")
+    if not (0.0 < h < 100.0):
+        raise PedscanError(f"--sensor-height recorded: {folder}: no floor below the sensor in the sequences' XML")
+    return round(h, 2)
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m pedscan_data.experiments", description=__doc__.split("\n\n")[0])
     p.add_argument("experiment", choices=("paper",))
@@ -777,6 +831,9 @@ def parser() -> argparse.ArgumentParser:
                    "and test sets, and their training")
     p.add_argument("--jobs", type=int, default=1, help="pedscan generate processes per data set (--shard I/J)")
     p.add_argument("--max-minutes", type=float, metavar="M", help="end this sitting's training after M minutes")
+    p.add_argument("--sensor-height", type=sensor_height_arg, metavar="M|recorded",
+                   help="the sensor's height over the floor in every generated set of every world (pedscan "
+                   "generate --sensor-height); recorded: the --recorded recording's (default: each world's own)")
     p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
     p.add_argument("--world", type=world_list, default=["hall"], metavar="NAME[,NAME...]",
                    help=f"run Table 4 in these worlds, one after another (of {', '.join(WORLDS)}; default hall): "
@@ -801,6 +858,8 @@ def _main(args: argparse.Namespace) -> int:
             raise PedscanError(f"--only: unknown stage {', '.join(bad)} (of {', '.join(STAGES)})")
         if args.recorded is not None and "hall" not in args.world:
             raise PedscanError("--recorded: a recording is the hall's experiment; add hall to --world")
+        if args.sensor_height == "recorded" and args.recorded is None:
+            raise PedscanError("--sensor-height recorded: give the recording (--recorded FILE)")
         backgrounds = [f for f in args.pedscan_flag or [] if f.split("=")[0] in ("--background", "--environment")]
         if backgrounds and args.world != ["hall"]:
             raise PedscanError(f"--pedscan-flag {backgrounds[0]}: --world {','.join(args.world)} gives the background")
@@ -814,6 +873,14 @@ def _main(args: argparse.Namespace) -> int:
             raise PedscanError(f"--runs: unknown run {', '.join(unknown)} (of {', '.join(known)})")
         for ex in chosen:
             ex.check_scale()
+        if args.sensor_height == "recorded":
+            # The recording's height, from its test set (made first): every world's generated
+            # sets put their sensor there, so its people fall on the rows they do in the recording.
+            h = recorded_height(every["hall"], "data" in stages)
+            print(f"[data] the recording's sensor stands {h:.2f} m over its floor: every generated set's sensor too",
+                  file=sys.stderr, flush=True)
+            for ex in every.values():
+                ex.sensor_height = h
         if "data" in stages:
             for ex in chosen:
                 ex.data(only)

@@ -73,6 +73,51 @@ def test_experiments_another_world_is_the_halls_table4_with_its_background(tmp_p
     assert other.needed_sets({"frames1"}) == {"train", "val", "test"}
 
 
+def test_experiments_put_every_generated_sensor_at_the_given_height(tmp_path: Path) -> None:
+    """``--sensor-height M``: every generated set of every world, the ablations' too, is made
+    with ``generate --sensor-height M``; the recorded sets keep the recording's own; without
+    the flag no command carries it (the hall's commands above stay those of old folders)."""
+    rec = tmp_path / "rec.pcap"
+    rec.write_text("")
+    every = experiments(tmp_path, "--world", "hall,street", "--recorded", str(rec), "--sensor-height", "2.33")
+    for world, ex in every.items():
+        for name in ex.datasets():
+            cmd = ex.generate_command(name)
+            if name.endswith("-recorded"):
+                assert "--sensor-height" not in cmd, (world, name)
+            else:
+                assert cmd[cmd.index("--sensor-height") + 1] == "2.33", (world, name)
+    plain = experiments(tmp_path, "--world", "hall,street")
+    assert not any("--sensor-height" in ex.generate_command(n) for ex in plain.values() for n in ex.datasets())
+
+
+def test_the_recordings_height_is_the_median_floor_of_its_test_set(tmp_path: Path, capsys) -> None:
+    """``--sensor-height recorded`` reads the floor each recorded test sequence's XML gives
+    (in the sensor's frame); without the set and without the data stage, or without a
+    recording, it refuses, exit 2."""
+    rec = tmp_path / "rec.pcap"
+    rec.write_text("")
+    hall = experiments(tmp_path, "--recorded", str(rec))["hall"]
+    with pytest.raises(exp.PedscanError, match="not made yet"):
+        exp.recorded_height(hall, make=False)
+    folder = tmp_path / "work" / "data" / "test-recorded"
+    folder.mkdir(parents=True)
+    (folder / ".complete").write_text("made\n")
+    for i, z in enumerate((-2.3318, -2.2, -2.41)):
+        (folder / f"seq_{i:06d}.xml").write_text(f'<sequence><provenance background="recording" floor_z_m="{z}"/></sequence>')
+    assert exp.recorded_height(hall, make=False) == 2.33
+    for i, z in enumerate((0.5, 1.5, 2.0), start=3):
+        (folder / f"seq_{i:06d}.xml").write_text(f'<sequence><provenance floor_z_m="{z}"/></sequence>')
+    with pytest.raises(exp.PedscanError, match="no floor below the sensor"):
+        exp.recorded_height(hall, make=False)  # the median floor lies above the sensor
+    base = ["paper", "--work", str(tmp_path / "w2"), "--scale", "smoke", "--pedscan", str(rec)]
+    assert exp.main([*base, "--sensor-height", "recorded"]) == 2
+    assert "give the recording (--recorded FILE)" in capsys.readouterr().err
+    for bad in ("tall", "0", "nan", "-1"):
+        with pytest.raises(SystemExit):
+            exp.parser().parse_args([*base, "--sensor-height", bad])
+
+
 def test_experiments_refuse_an_unknown_world_naming_the_known_ones(tmp_path: Path, capsys) -> None:
     fake = tmp_path / "pedscan"
     fake.write_text("")
@@ -212,6 +257,35 @@ def test_the_paper_experiments_run_in_a_world_beside_the_hall(tmp_path: Path) ->
     md = (work / "results.md").read_text()
     recorded = md[md.index("## A recorded background"):].split("\n\n")[2].splitlines()[2:]
     assert [r.split(" | ")[:2] for r in recorded] == [["| hall", "1"], ["| street", "1"]], recorded
+
+
+def test_the_worlds_sets_are_made_at_the_recordings_height(tmp_path: Path, capsys) -> None:
+    """The real data stage with ``--sensor-height recorded``: a recording made with its sensor
+    1.5 m up gives every world's generated sets a sensor 1.5 m over their floor."""
+    import h5py
+    import numpy as np
+
+    from conftest import find_pedscan
+
+    (tmp_path / "sensor.toml").write_text(SENSOR_TOML)
+    rec = generate(tmp_path / "rec", "--sequences", "1", "--frames", "18", "--humans", "0..0", "--sensor-height", "1.5",
+                   "--sensor", str(tmp_path / "sensor.toml"), "--formats", "semantickitti")
+    velodyne = rec / "semantickitti" / "sequences" / "00" / "velodyne"
+    work = tmp_path / "work"
+    assert exp.main(["paper", "--work", str(work), "--scale", "smoke", "--pedscan", str(find_pedscan()),
+                     "--only", "data", "--runs", "frames1", "--world", "street,hall", "--recorded", str(velodyne),
+                     "--sensor-height", "recorded", f"--pedscan-flag=--sensor={tmp_path / 'sensor.toml'}",
+                     "--pedscan-flag=--humans=1..1"]) == 0
+    said = capsys.readouterr().err
+    h = float(said.split("sensor stands ")[1].split(" m")[0])
+    assert abs(h - 1.5) <= 0.02, said
+    assert "--sensor-height" not in (work / "data" / "test-recorded" / ".complete").read_text()
+    for folder in (work / "data", work / "worlds" / "street" / "data"):
+        for name in ("train", "val", "test"):
+            assert f"--sensor-height {h:g} " in (folder / name / ".complete").read_text() + " ", (folder, name)
+    with h5py.File(work / "data" / "train" / "seq_000000.h5", "r") as f:
+        z = np.asarray(f["/sensor/world_from_sensor"])[:, 2, 3]
+    np.testing.assert_allclose(z, h, atol=1e-6)  # the hall's floor is z = 0
 
 
 def test_sigterm_reaches_the_training_run_and_leaves_nothing_running(sample: Path, tmp_path: Path) -> None:
