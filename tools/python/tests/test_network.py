@@ -402,7 +402,7 @@ def test_the_ego_motion_pools_over_beams_that_returned_in_the_last_frame_and_an_
 
 def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matches_its_onnx(tmp_path: Path) -> None:
     """data/models/hdl64e.pt: trained for the HDL-64E on pedscan data alone, it says so (its
-    grid, its generated backgrounds and their licence); its ONNX twin gives the same outputs on that grid;
+    grid, its backgrounds and the licence they carry); its ONNX twin gives the same outputs on that grid;
     predict takes real-layout scans with it out of the box (no --sensor)."""
     from pedscan_data.netio import load_net
     from pedscan_data.predict import main as predict_main
@@ -412,9 +412,12 @@ def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matche
     sensor = obj["training"]["sensor"]
     assert sensor["name"] == "hdl64e" and len(sensor["elevation_deg"]) == 64 and sensor["columns"] == 2048
     assert 0 < obj["human_threshold"] < 1
-    # Generated data alone: the built-in street world and the bundled people, so CC0.
-    assert obj["licence"].startswith("CC0") and obj["provenance"]["backgrounds"]
-    assert all("street world" in b for b in obj["provenance"]["backgrounds"])
+    # pedscan data alone: the built-in street world, and pedscan people composited into
+    # unlabeled KITTI scans, whose licence (CC BY-NC-SA) the network carries.
+    backgrounds = obj["provenance"]["backgrounds"]
+    assert backgrounds and all("street world" in b or "composited into the unlabeled KITTI" in b for b in backgrounds)
+    recorded = any("KITTI" in b for b in backgrounds)
+    assert obj["licence"].startswith("CC BY-NC-SA" if recorded else "CC0"), obj["licence"]
     assert obj["provenance"]["labeled_real_scans_used"].startswith("none")
     onnx_matches(net, obj, models / "hdl64e.onnx", 64, 2048, 60.0)
     # A scan folder in SemanticKITTI's layout: one label per point back.
