@@ -202,7 +202,7 @@ impl Flags {
             cfg.sensor = v.clone();
         }
         if let Some(v) = a.sensor_height {
-            if !(v.is_finite() && v.abs() < 1000.0) {
+            if !super::usable_sensor_height(v) {
                 return Err(Error::input("--sensor-height", format!("{v} is not a usable height (metres over the floor)")));
             }
             cfg.scene.sensor_height_m = v;

@@ -910,7 +910,7 @@ impl Config {
         non_negative("humans.min_separation_m", self.humans.min_separation_m)?;
         non_negative("humans.clearance_m", self.humans.clearance_m)?;
         non_negative("scene.sensor_clearance_m", self.scene.sensor_clearance_m)?;
-        if !(self.scene.sensor_height_m.is_finite() && self.scene.sensor_height_m.abs() < 1000.0) {
+        if !usable_sensor_height(self.scene.sensor_height_m) {
             return bad("scene.sensor_height_m", format!("{} is not a usable height", self.scene.sensor_height_m));
         }
         if !(self.render.oversample.is_finite() && self.render.oversample >= 0.25 && self.render.oversample <= 16.0) {
@@ -946,6 +946,12 @@ impl Config {
         }
         Ok(())
     }
+}
+
+/// A sensor height over the floor that a scene can be built with (`scene.sensor_height_m`,
+/// `--sensor-height`): finite and within a kilometre.
+pub(crate) fn usable_sensor_height(h: f64) -> bool {
+    h.is_finite() && h.abs() < 1000.0
 }
 
 fn range_ok(key: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<()> {
