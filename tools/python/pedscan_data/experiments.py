@@ -3,7 +3,7 @@ resumable command.
 
     python -m pedscan_data.experiments paper --work DIR [--scale small|full]
         [--pedscan BIN] [--recorded FILE] [--device auto|cpu|cuda] [--only STAGE,...]
-        [--jobs J] [--max-minutes M] [--world hall|street|indoor[,...]]
+        [--jobs J] [--max-minutes M] [--world hall|street|indoor[,...]] [--seeds S,...]
 
 Stages, each skipped when done (so the table survives interruptions and several sittings;
 run the same command again):
@@ -53,6 +53,13 @@ world (``generate --sensor-height``; the recorded sets keep the recording's own)
 test set, made first), so that the worlds' networks meet the recording's people on the rows
 where they stand in it (a network trained at 0.8 m sees them nowhere near there from 2.3 m).
 
+``--seeds S[,S...]`` trains only the 1- and 16-frame networks, once per training seed (``train
+--seed S``; seed 0 is ``frames1`` and ``frames16``, another ``frames1-seedS`` and
+``frames16-seedS``, on the same data and steps), and the results add the 16-frame network's lead
+per distance bin: each seed's, the mean and the spread, and each world's lead against the
+hall's (the paper's finding is a lead on far people; whether a world shows it more than the
+hall takes the spread over seeds to tell).
+
 Worlds (``--world``, default ``hall``; several, comma separated, run one after another):
 ``hall`` is the bundled environment, everything above, in ``DIR`` itself as before worlds
 existed; ``street`` and ``indoor`` are pedscan's built-in worlds (``generate --background
@@ -85,6 +92,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .leads import BIN_NAMES, SEED_FRAMES, fmt, iou_row, render_leads, seed_leads, seed_run
 from .netio import atomic_write_text, save_figure
 from .reader import PedscanError
 
@@ -239,6 +247,9 @@ class Experiment:
         #: The sensor's height over the floor for every generated (not recorded) set, in metres;
         #: None: each world's own. ``--sensor-height recorded`` is resolved by :func:`recorded_height`.
         self.sensor_height: float | None = args.sensor_height if isinstance(args.sensor_height, float) else None
+        #: The training seeds of the 1- and 16-frame networks (``--seeds``): seed 0 is the plain
+        #: ``frames1``/``frames16`` runs, another seed S ``frames1-seedS``/``frames16-seedS``.
+        self.seeds: list[int] = list(getattr(args, "seeds", None) or [0])
         self.jobs: int = args.jobs
         if self.jobs < 1:
             raise PedscanError(f"--jobs {self.jobs}: at least one process")
@@ -371,6 +382,14 @@ class Experiment:
     # ---- stage 2: training -------------------------------------------------------------
     def runs(self) -> dict[str, dict[str, Any]]:
         r: dict[str, dict[str, Any]] = {f"frames{n}": {"frames": n, "data": "train", "val": "val"} for n in TABLE4_FRAMES}
+        # The sequence's lead over seeds: N = 1 and 16 again from other training seeds, those
+        # asked for and those a command before left in the folder.
+        found = {int(m.group(1)) for p in (self.work / "runs").glob("frames*-seed*")
+                 if (m := re.fullmatch(r"frames(?:1|16)-seed(\d+)", p.name))} if (self.work / "runs").is_dir() else set()
+        for seed in sorted(set(self.seeds) | found):
+            if seed != 0:
+                for n in SEED_FRAMES:
+                    r[seed_run(n, seed)] = {"frames": n, "data": "train", "val": "val", "flags": ["--seed", str(seed)]}
         if self.world != "hall":
             return r  # Table 4 only: the rest is about the hall's data and the recording
         for m in ABLATIONS:
@@ -546,6 +565,7 @@ class Experiment:
             got = ex.world_results()
             if got["runs"] or got["scores"]:
                 res["worlds"][ex.world] = {"folder": ex.work.relative_to(self.root).as_posix(), **got}
+        res["leads"] = {w: lead for w, wsc in world_scores(res) if (lead := seed_leads(wsc)) is not None}
         atomic_write_text(self.root / "results.json", json.dumps(res, indent=2) + "\n")
         atomic_write_text(self.root / "results.md", render_markdown(res))
         plot_results(res, self.root / "results.png")
@@ -605,19 +625,6 @@ class Experiment:
         return True
 
 
-def _iou(scores: dict[str, Any], key: str, argmax: bool = False) -> list[float | None]:
-    s = scores.get(key)
-    if s is None:
-        return [None] * 4
-    if argmax:
-        s = s["argmax"]
-    return [s["overall"]["iou"]] + [b["iou"] for b in s["bins"]]
-
-
-def _f(x: float | None, d: int = 4) -> str:
-    return "—" if x is None else f"{x:.{d}f}"
-
-
 def world_scores(res: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     """(world, scores) of every world, the hall (``results.json``'s top level) first."""
     return [("hall", res["scores"])] + [(w, v["scores"]) for w, v in res.get("worlds", {}).items()]
@@ -659,11 +666,11 @@ def render_markdown(res: dict[str, Any]) -> str:
 
     def table4(argmax: bool) -> None:
         for world, wsc in worlds:
-            for k, name in enumerate(("0-inf m", "0-4 m", "4-8 m", "8+ m")):
+            for k, name in enumerate(BIN_NAMES):
                 row = []
                 for n in (1, 2, 4, 8, 16):
-                    ours = _iou(wsc, f"frames{n}--test", argmax)[k]
-                    row.append(f"{_f(ours)} / {PAPER_TABLE4[n][k]:.4f}")
+                    ours = iou_row(wsc, f"frames{n}--test", argmax)[k]
+                    row.append(f"{fmt(ours)} / {PAPER_TABLE4[n][k]:.4f}")
                 lines.append(f"| {world} | {name} | " + " | ".join(row) + " |")
 
     table4(False)
@@ -678,16 +685,16 @@ def render_markdown(res: dict[str, Any]) -> str:
             s = wsc.get(f"frames{n}--test")
             if s is not None:
                 o, a = s["overall"], s["argmax"]["overall"]
-                lines.append(f"| {world} | {n} | {s['human_threshold']:.3f} | {_f(o['precision'])} | "
-                             f"{_f(o['recall'])} | {_f(a['precision'])} | {_f(a['recall'])} |")
+                lines.append(f"| {world} | {n} | {s['human_threshold']:.3f} | {fmt(o['precision'])} | "
+                             f"{fmt(o['recall'])} | {fmt(a['precision'])} | {fmt(a['recall'])} |")
     lines += ["", "Velocity end-point error on human beams (m/s), and predicting zero:", "",
               "| world | N | EPE | zero | ms per frame (streaming) |", "|---|---|---|---|---|"]
     for world, wsc in worlds:
         for n in (1, 2, 4, 8, 16):
             s = wsc.get(f"frames{n}--test")
             if s is not None:
-                lines.append(f"| {world} | {n} | {_f(s['overall'].get('epe_mps'), 3)} | "
-                             f"{_f(s.get('zero_epe_mps'), 3)} | {_f(s.get('ms_per_frame'), 1)} |")
+                lines.append(f"| {world} | {n} | {fmt(s['overall'].get('epe_mps'), 3)} | "
+                             f"{fmt(s.get('zero_epe_mps'), 3)} | {fmt(s.get('ms_per_frame'), 1)} |")
     if "frames16-change--test" in sc:
         lines += ["", "## Beyond the paper: range-change channels (N = 16)", "",
                   "`train --range-change`: the decoder also sees each beam's range change against the "
@@ -697,15 +704,16 @@ def render_markdown(res: dict[str, Any]) -> str:
         for run in ("frames1", "frames16", "frames16-change"):
             s = sc.get(f"{run}--test")
             if s is not None:
-                lines.append(f"| {run} | " + " | ".join(_f(v) for v in _iou(sc, f"{run}--test"))
-                             + f" | {_f(s['overall'].get('epe_mps'), 3)} | {_f(s.get('zero_epe_mps'), 3)} |")
+                lines.append(f"| {run} | " + " | ".join(fmt(v) for v in iou_row(sc, f"{run}--test"))
+                             + f" | {fmt(s['overall'].get('epe_mps'), 3)} | {fmt(s.get('zero_epe_mps'), 3)} |")
     # The rest is the hall's (Table 5's ablations, range change and the recording are its own).
     lines += ["", "## Table 5: what the data's motion teaches (N = 16)", "",
               "| training data | IoU ours (generated test set) | paper (its real data) |", "|---|---|---|"]
     for m, label in (("static", "human model only (static)"), ("sliding", "+ trajectory (sliding)"),
                      ("in-place", "+ walking model (in place)"), ("full", "+ both (full)")):
         key = "frames16--test" if m == "full" else f"motion-{m}--test"
-        lines.append(f"| {label} | {_f(_iou(sc, key)[0])} | {PAPER_TABLE5[m]:.4f} |")
+        lines.append(f"| {label} | {fmt(iou_row(sc, key)[0])} | {PAPER_TABLE5[m]:.4f} |")
+    lines += render_leads(res.get("leads") or {})
     on_rec = [(w, wsc) for w, wsc in world_scores(res) if any(k.endswith("--test-recorded") for k in wsc)]
     if on_rec:
         lines += ["", "## A recorded background", "",
@@ -714,10 +722,10 @@ def render_markdown(res: dict[str, Any]) -> str:
                   "| world | N | IoU generated test | IoU recorded test | ratio |", "|---|---|---|---|---|"]
         for world, wsc in on_rec:
             for n in (1, 2, 4, 8, 16):
-                g, r = _iou(wsc, f"frames{n}--test")[0], _iou(wsc, f"frames{n}--test-recorded")[0]
+                g, r = iou_row(wsc, f"frames{n}--test")[0], iou_row(wsc, f"frames{n}--test-recorded")[0]
                 if g is None and r is None:
                     continue
-                lines.append(f"| {world} | {n} | {_f(g)} | {_f(r)} | {_f(r / g if g and r is not None else None, 3)} |")
+                lines.append(f"| {world} | {n} | {fmt(g)} | {fmt(r)} | {fmt(r / g if g and r is not None else None, 3)} |")
     if any(k.startswith("recorded-") for k in sc):
         lines += ["", "## Trained on the recording (the paper's setting)", "",
                   "People composited into the recording, from other seeds than its test set's "
@@ -732,9 +740,9 @@ def render_markdown(res: dict[str, Any]) -> str:
                     if s is None:
                         continue
                     o = s["overall"]
-                    lines.append(f"| {run} | {ts} | " + " | ".join(_f(v) for v in _iou(sc, f"{run}--{ts}"))
-                                 + f" | {_f(o['precision'])} | {_f(o['recall'])} | {_f(o.get('epe_mps'), 3)}"
-                                 f" | {_f(s.get('zero_epe_mps'), 3)} |")
+                    lines.append(f"| {run} | {ts} | " + " | ".join(fmt(v) for v in iou_row(sc, f"{run}--{ts}"))
+                                 + f" | {fmt(o['precision'])} | {fmt(o['recall'])} | {fmt(o.get('epe_mps'), 3)}"
+                                 f" | {fmt(s.get('zero_epe_mps'), 3)} |")
     lines += ["", "## Time (this machine)", "", "| stage | minutes |", "|---|---|"]
     for k, v in sorted(res["seconds"].items()):
         lines.append(f"| {k} | {v / 60:.1f} |")
@@ -759,7 +767,7 @@ def plot_results(res: dict[str, Any], path: Path) -> None:
         x = np.arange(len(ns))
         ax.bar(x - 0.4 + width / 2, [PAPER_TABLE4[n][k] for n in ns], width, label="paper", color="#bbb")
         for i, (world, wsc) in enumerate(worlds):
-            ours = [_iou(wsc, f"frames{n}--test")[k] for n in ns]
+            ours = [iou_row(wsc, f"frames{n}--test")[k] for n in ns]
             ax.bar(x - 0.4 + width * (i + 1.5), [v if v is not None else 0 for v in ours], width,
                    label=f"pedscan {world}", color=colors[i % len(colors)])
         ax.set_xticks(x, [f"N={n}" for n in ns])
@@ -781,6 +789,17 @@ def world_list(text: str) -> list[str]:
     if bad or not names:
         raise argparse.ArgumentTypeError(f"unknown world {', '.join(bad) or repr(text)} (of {', '.join(WORLDS)})")
     return list(dict.fromkeys(names))
+
+
+def seed_list(text: str) -> list[int]:
+    """``--seeds``: training seeds, comma separated, each once, in the order given."""
+    try:
+        seeds = [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: training seeds, comma separated (0,1,2)") from None
+    if not seeds or any(s < 0 for s in seeds):
+        raise argparse.ArgumentTypeError(f"{text!r}: training seeds, comma separated, none negative")
+    return list(dict.fromkeys(seeds))
 
 
 def sensor_height_arg(text: str) -> float | str:
@@ -834,6 +853,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--sensor-height", type=sensor_height_arg, metavar="M|recorded",
                    help="the sensor's height over the floor in every generated set of every world (pedscan "
                    "generate --sensor-height); recorded: the --recorded recording's (default: each world's own)")
+    p.add_argument("--seeds", type=seed_list, metavar="S[,S...]",
+                   help="train the 1- and 16-frame networks once per training seed (train --seed S; 0 is "
+                   "frames1/frames16, S the runs frames1-seedS/frames16-seedS) and report the 16-frame lead "
+                   "per distance bin over the seeds; only these runs (of them, --runs picks frames1 or frames16)")
     p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
     p.add_argument("--world", type=world_list, default=["hall"], metavar="NAME[,NAME...]",
                    help=f"run Table 4 in these worlds, one after another (of {', '.join(WORLDS)}; default hall): "
@@ -871,6 +894,13 @@ def _main(args: argparse.Namespace) -> int:
         unknown = sorted(only - set(known)) if only else []
         if unknown:
             raise PedscanError(f"--runs: unknown run {', '.join(unknown)} (of {', '.join(known)})")
+        if args.seeds:
+            # One pair a seed: the runs are frames1 and frames16 (or the one of them --runs names).
+            base = only if only is not None else {f"frames{n}" for n in SEED_FRAMES}
+            other = sorted(base - {f"frames{n}" for n in SEED_FRAMES})
+            if other:
+                raise PedscanError(f"--seeds: trains frames1 and frames16 once per seed; not {', '.join(other)}")
+            only = {seed_run(n, s) for n in SEED_FRAMES if f"frames{n}" in base for s in args.seeds}
         for ex in chosen:
             ex.check_scale()
         if args.sensor_height == "recorded":

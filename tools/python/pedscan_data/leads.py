@@ -1,0 +1,105 @@
+"""The sequence's lead over training seeds: the paper's finding (16 frames beat one on far
+people) measured as ``experiments paper --seeds`` trains it, the 16-frame network's IoU minus
+the single frame's per distance bin, per seed, with its mean and spread, and each world's lead
+against the hall's."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+#: The networks ``--seeds`` trains once per seed: the sequence's lead is N = 16 over N = 1.
+SEED_FRAMES = (16, 1)
+#: The distance bins of a score's IoU row (:func:`iou_row`): overall, then the paper's three.
+BIN_NAMES = ("0-inf m", "0-4 m", "4-8 m", "8+ m")
+
+
+def iou_row(scores: dict[str, Any], key: str, argmax: bool = False) -> list[float | None]:
+    """The IoU of score ``key`` over all and per bin (:data:`BIN_NAMES`); Nones when unscored."""
+    s = scores.get(key)
+    if s is None:
+        return [None] * 4
+    if argmax:
+        s = s["argmax"]
+    return [s["overall"]["iou"]] + [b["iou"] for b in s["bins"]]
+
+
+def fmt(x: float | None, d: int = 4) -> str:
+    """``x`` to ``d`` places, or a dash when missing."""
+    return "—" if x is None else f"{x:.{d}f}"
+
+
+def seed_run(frames: int, seed: int) -> str:
+    """The run of the ``frames``-frame network trained with ``train --seed seed``."""
+    return f"frames{frames}" if seed == 0 else f"frames{frames}-seed{seed}"
+
+
+def seed_leads(scores: dict[str, Any]) -> dict[str, Any] | None:
+    """The 16-frame network's IoU minus the single frame's on the generated test set, per
+    distance bin, for every training seed with both scored: each seed's, their mean and their
+    spread (largest minus smallest; None with one seed). None when no seed has both."""
+    seeds = sorted({0} | {int(m.group(1)) for k in scores
+                          if (m := re.fullmatch(r"frames(?:1|16)-seed(\d+)--test", k))})
+    per: dict[int, list[float | None]] = {}
+    for seed in seeds:
+        one, many = f"{seed_run(1, seed)}--test", f"{seed_run(16, seed)}--test"
+        if one in scores and many in scores:
+            per[seed] = [b - a if a is not None and b is not None else None
+                         for a, b in zip(iou_row(scores, one), iou_row(scores, many))]
+    if not per:
+        return None
+    bins = {}
+    for k, name in enumerate(BIN_NAMES):
+        vals = {s: v[k] for s, v in per.items() if v[k] is not None}
+        got = list(vals.values())
+        bins[name] = {"per_seed": {str(s): v for s, v in vals.items()},
+                      "mean": sum(got) / len(got) if got else None,
+                      "spread": max(got) - min(got) if len(got) > 1 else None}
+    return {"seeds": sorted(per), "bins": bins}
+
+
+def render_leads(leads: dict[str, Any]) -> list[str]:
+    """The sequence's lead over training seeds (``results.json``'s ``leads``), each world's, and
+    each world's against the hall's: shown when some world has two seeds or two worlds have one."""
+    if not leads or (len(leads) < 2 and all(len(v["seeds"]) < 2 for v in leads.values())):
+        return []
+
+    def cell(b: dict[str, Any]) -> str:
+        vals = list(b["per_seed"].values())
+        if b["mean"] is None:
+            return "—"
+        if b["spread"] is None:
+            return f"{b['mean']:+.4f}"
+        return f"{b['mean']:+.4f} ({min(vals):+.4f} to {max(vals):+.4f})"
+
+    lines = ["", "## The sequence's lead over training seeds (N = 16 minus N = 1)", "",
+             "IoU of the 16-frame network minus the single frame's on the generated test set, each pair "
+             "trained with the same seed (`--seeds`: `train --seed S`, the same data and steps); the mean "
+             "over the seeds and, with two or more, the smallest and largest:", "",
+             "| world | seeds | " + " | ".join(BIN_NAMES) + " |", "|---|---|" + "---|" * len(BIN_NAMES)]
+    for world, lead in leads.items():
+        lines.append(f"| {world} | {', '.join(map(str, lead['seeds']))} | "
+                     + " | ".join(cell(lead["bins"][b]) for b in BIN_NAMES) + " |")
+    hall = leads.get("hall")
+    others = [(w, v) for w, v in leads.items() if w != "hall"]
+    if hall is not None and others:
+        lines += ["", "Each world's mean lead minus the hall's, against the spread (the larger of the two "
+                  "worlds' largest-minus-smallest): the world's lead is larger than the hall's when the "
+                  "difference exceeds it.", "",
+                  "| world | " + " | ".join(BIN_NAMES) + " |", "|---|" + "---|" * len(BIN_NAMES)]
+        for world, lead in others:
+            row = []
+            for b in BIN_NAMES:
+                mine, theirs = lead["bins"][b], hall["bins"][b]
+                if mine["mean"] is None or theirs["mean"] is None:
+                    row.append("—")
+                    continue
+                diff = mine["mean"] - theirs["mean"]
+                if mine["spread"] is None or theirs["spread"] is None:
+                    row.append(f"{diff:+.4f} (no spread: one seed)")
+                    continue
+                spread = max(mine["spread"], theirs["spread"])
+                verdict = "larger" if diff > spread else "not larger"
+                row.append(f"{diff:+.4f} against {spread:.4f}: {verdict}")
+            lines.append(f"| {world} | " + " | ".join(row) + " |")
+    return lines
