@@ -56,7 +56,7 @@ import numpy as np
 
 from .evaluate import NOT_SCORED
 from .reader import PedscanError, Sequence, sequence_paths
-from .windows import flank_people, widen_people
+from .windows import backdrop_people, flank_people, widen_people
 
 #: The paper's loss weights: cross-entropy, background velocity, human velocity.
 PAPER_LOSS_WEIGHTS = (10_000.0, 1.0, 1_001.0)
@@ -89,6 +89,9 @@ class TrainConfig:
     flank: float = 0.0
     """each person of a window is given, with this probability, a patch of the frame's own structure
     right beside it (:func:`~pedscan_data.windows.flank_people`); 0: never"""
+    backdrop: float = 0.0
+    """each person of a window is given, with this probability, a wall 0.5-2 m behind it
+    (:func:`~pedscan_data.windows.backdrop_people`); 0: never"""
     init: dict[str, Any] | None = None
     """the model file the weights started from (name, SHA-256, its step), or None"""
     data: list[dict[str, Any]] = field(default_factory=list)
@@ -124,7 +127,7 @@ class StepWindows:
 
     def __init__(
         self, sequences: list[Sequence], frames: int, seed: int, intensity: bool, crop_columns: int = 0, widen_m: float = 0.0,
-        flank: float = 0.0,
+        flank: float = 0.0, backdrop: float = 0.0,
     ) -> None:
         self.sequences = sequences
         self.frames = frames
@@ -133,6 +136,7 @@ class StepWindows:
         self.crop_columns = crop_columns
         self.widen_m = widen_m
         self.flank = flank
+        self.backdrop = backdrop
 
     def pick(self, i: int) -> tuple[int, int]:
         rng = np.random.default_rng([self.seed, i])
@@ -154,7 +158,7 @@ class StepWindows:
         r = seq.read("range", window)
         intensity = seq.read("intensity", window) if self.intensity else None
         velocity = seq.read("velocity", t)
-        if self.widen_m <= 0 and self.flank <= 0:
+        if self.widen_m <= 0 and self.flank <= 0 and self.backdrop <= 0:
             label = seq.read("label", t)
         else:
             # One reach and one patch a person for the window's frames (streams of their own:
@@ -162,7 +166,7 @@ class StepWindows:
             # one's the target.
             reach = float(np.random.default_rng([self.seed, i, 2]).uniform(0.0, self.widen_m)) if self.widen_m > 0 else 0.0
             labels = seq.read("label", window)
-            instances = seq.read("instance", window) if self.flank > 0 else None
+            instances = seq.read("instance", window) if self.flank > 0 or self.backdrop > 0 else None
             srcs = []
             for k in range(r.shape[0]):
                 r[k], labels[k], src = widen_people(r[k], labels[k], reach)
@@ -173,9 +177,13 @@ class StepWindows:
             if instances is not None:
                 people = np.unique(instances[(labels == 1) & (instances > 0)])
                 for k in range(r.shape[0]):
-                    r[k], flanked = flank_people(r[k], labels[k], instances[k], self.flank,
-                                                 np.random.default_rng([self.seed, i, 3]), people)
-                    srcs[k] = np.take_along_axis(srcs[k], flanked, axis=1)
+                    if self.flank > 0:
+                        r[k], flanked = flank_people(r[k], labels[k], instances[k], self.flank,
+                                                     np.random.default_rng([self.seed, i, 3]), people)
+                        srcs[k] = np.take_along_axis(srcs[k], flanked, axis=1)
+                    if self.backdrop > 0:
+                        r[k], labels[k] = backdrop_people(r[k], labels[k], instances[k], self.backdrop,
+                                                          np.random.default_rng([self.seed, i, 4]), people)
             src = srcs[-1]
             if intensity is not None:
                 for k in range(r.shape[0]):
@@ -415,7 +423,7 @@ def train(args: argparse.Namespace) -> int:
         frames=args.frames, width=args.width, intensity=args.intensity, range_change=args.range_change, seed=args.seed,
         batch=args.batch, crop_columns=args.crop_columns,
         lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights), class_weight_power=args.class_weight_power,
-        height=args.height, widen_m=args.widen_m, flank=args.flank,
+        height=args.height, widen_m=args.widen_m, flank=args.flank, backdrop=args.backdrop,
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
@@ -425,8 +433,9 @@ def train(args: argparse.Namespace) -> int:
         raise PedscanError("--range-change needs --frames 2 or more (a single frame has no range change)")
     if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, cfg.class_weight_power, cfg.widen_m, *cfg.loss_weights)):
         raise PedscanError("--lr, --decay, --loss-weights, --class-weight-power and --widen-m must be finite and not negative")
-    if not 0.0 <= cfg.flank <= 1.0:
-        raise PedscanError(f"--flank {cfg.flank}: a probability, 0 to 1")
+    for flag, value in (("--flank", cfg.flank), ("--backdrop", cfg.backdrop)):
+        if not 0.0 <= value <= 1.0:
+            raise PedscanError(f"{flag} {value}: a probability, 0 to 1")
     paths = training_paths(args.data)
     seqs = check_sequences(paths, cfg.frames, ", ".join(map(str, args.data)), cfg.intensity)
     val_seqs = check_sequences(sequence_paths(args.val), 1, str(args.val), cfg.intensity) if args.val else []
@@ -514,7 +523,7 @@ def train(args: argparse.Namespace) -> int:
                 metrics.append(m)
     atomic_write_text(metrics_path, "".join(json.dumps(m) + "\n" for m in metrics))
 
-    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns, cfg.widen_m, cfg.flank)
+    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns, cfg.widen_m, cfg.flank, cfg.backdrop)
     sampler = range(start * cfg.batch, args.steps * cfg.batch)
     loader = torch.utils.data.DataLoader(
         data, batch_size=cfg.batch, sampler=sampler, num_workers=args.workers,
@@ -695,6 +704,9 @@ def parser() -> argparse.ArgumentParser:
                    help="give each person, with probability P, a patch of the frame's own structure right beside it, "
                    "standing 0.05-0.5 m behind the person, as real people stand in stalls and doorways (not in the "
                    "paper; default 0)")
+    p.add_argument("--backdrop", type=float, default=0.0, metavar="P",
+                   help="give each person, with probability P, a wall 0.5-2 m behind it reaching past its sides, as "
+                   "real people stand before stalls, shop fronts and parked cars (not in the paper; default 0)")
     p.add_argument("--init", type=Path, default=None, metavar="MODEL",
                    help="start from the weights of this model file (the same network options; fine-tuning)")
     p.add_argument("--workers", type=int, default=1, help="data-loading processes (default 1; 0: in the trainer)")

@@ -161,6 +161,72 @@ def flank_people(range_m: np.ndarray, label: np.ndarray, instance: np.ndarray, p
     return r_out, src
 
 
+#: What :func:`backdrop_people` puts behind a person: a wall this far behind the person's median
+#: range (m), reaching this far past each of its sides (m, at its range) and up to this share of
+#: the person's rows above its head, turned so that its range changes by up to this much per
+#: metre across, with this range noise (m, one sigma).
+BACKDROP_BEHIND_M = (0.5, 2.0)
+BACKDROP_SIDE_M = (0.3, 1.5)
+BACKDROP_ABOVE = 1.0
+BACKDROP_SLOPE = 0.3
+BACKDROP_NOISE_M = 0.02
+
+
+def backdrop_people(range_m: np.ndarray, label: np.ndarray, instance: np.ndarray, p: float,
+                    rng: np.random.Generator, people: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's people, each with probability ``p``, given a wall close behind them, as real
+    people stand before stalls, shop fronts, parked cars and hedges: a real person's rows hold
+    returns 0.5-2 m behind it on either side far more often than a generated person's.
+
+    range_m f32 [H,W] (0 = no return), label [H,W] (1 human, 255 not scored), instance [H,W]
+    (the person of each human cell) of a whole turn. For a person chosen, a wall stands
+    ``BACKDROP_BEHIND_M`` behind its median range, from ``BACKDROP_SIDE_M`` left of its first
+    column to as far right of its last (each side drawn), over its rows and up to
+    ``BACKDROP_ABOVE`` of its height in rows above its head, its range turning by up to
+    ``BACKDROP_SLOPE`` m per metre across and noisy by ``BACKDROP_NOISE_M``. A cell takes the
+    wall where it is not the person's own, not "not scored", and holds no return or one farther
+    than the wall (what stands in front stays; another person behind it is hidden: label 0).
+    The draws come from ``rng``, person by person in the order of ``people`` (default: the
+    frame's people), a person absent from the frame drawing as one present: a generator of one
+    state and the ids of all of a window's frames give each person one wall in all of them.
+    Returns the new range and label; the cells keep their own velocity and intensity (a wall
+    stands still, as the background behind it).
+    """
+    h, w = range_m.shape
+    r_out, l_out = range_m.copy(), label.copy()
+    ids = np.unique(instance[(label == 1) & (instance > 0)]) if people is None else people
+    column_rad = 2.0 * np.pi / w
+    for pid in ids:
+        chosen, behind_m = rng.random() < p, rng.uniform(*BACKDROP_BEHIND_M)
+        left_m, right_m = rng.uniform(*BACKDROP_SIDE_M, size=2)
+        above, slope = rng.uniform(0.0, BACKDROP_ABOVE), rng.uniform(-BACKDROP_SLOPE, BACKDROP_SLOPE)
+        noise_seed = int(rng.integers(2**31))
+        cells = (instance == pid) & (label == 1) & (range_m > 0)
+        if not chosen or not cells.any():
+            continue
+        rows, cc = np.nonzero(cells)
+        # A person across the turn's seam: its columns unwrapped from the seam's other side.
+        shift = w // 2 if cc.max() - cc.min() > w // 2 else 0
+        cc = (cc + shift) % w
+        rp = float(np.median(range_m[cells]))
+        c0 = int(cc.min()) - int(round(left_m / (rp * column_rad)))
+        c1 = int(cc.max()) + int(round(right_m / (rp * column_rad)))
+        half = w // 2 - (int(cc.max()) - int(cc.min())) // 2
+        c0, c1 = max(c0, int(cc.min()) - half), min(c1, int(cc.max()) + half)  # never round the turn
+        r1 = int(rows.max()) + 1
+        r0 = max(0, int(rows.min()) - int(round(above * (r1 - int(rows.min())))))
+        offsets = np.arange(c0, c1 + 1)
+        across_m = (offsets - 0.5 * (c0 + c1)) * rp * column_rad
+        noise = np.random.default_rng(noise_seed).normal(0.0, BACKDROP_NOISE_M, size=(r1 - r0, offsets.size))
+        wall = (rp + behind_m + slope * across_m)[None, :] + noise
+        dst = (offsets - shift) % w
+        cur, lab, own = r_out[r0:r1][:, dst], l_out[r0:r1][:, dst], (instance[r0:r1][:, dst] == pid) & (label[r0:r1][:, dst] == 1)
+        take = ~own & (lab != NOT_SCORED) & ((cur <= 0) | (cur > wall)) & (wall > 0)
+        r_out[r0:r1, dst] = np.where(take, wall, cur).astype(r_out.dtype)
+        l_out[r0:r1, dst] = np.where(take, 0, lab).astype(l_out.dtype)
+    return r_out, l_out
+
+
 class WindowDataset:
     """Windows of ``length`` consecutive frames over one sequence file or a pedscan folder.
 

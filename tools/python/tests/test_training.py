@@ -7,6 +7,7 @@ import json
 import shutil
 import warnings
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -626,6 +627,9 @@ TRAIN_OPTIONS = [
     (["--flank"], float, 0.0, False, None, "P", "give each person, with probability P, a patch of the frame's own "
      "structure right beside it, standing 0.05-0.5 m behind the person, as real people stand in stalls and doorways "
      "(not in the paper; default 0)"),
+    (["--backdrop"], float, 0.0, False, None, "P", "give each person, with probability P, a wall 0.5-2 m behind it "
+     "reaching past its sides, as real people stand before stalls, shop fronts and parked cars (not in the paper; "
+     "default 0)"),
     (["--init"], Path, None, False, None, "MODEL", "start from the weights of this model file (the same network options; "
      "fine-tuning)"),
     (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
@@ -763,6 +767,45 @@ def test_widened_windows_are_the_drawn_ones_with_wider_people_and_their_velociti
     assert not (sample.parent / "neg").exists()
 
 
+def widened_windows_and(sample: Path, **option: float) -> tuple[list, Any, list[tuple[int, dict, dict]]]:
+    """The sample's 2-frame training windows of seed 5 widened by up to 0.3 m, without and with
+    ``option`` (a StepWindows keyword): the sequences, the windows with it, and steps 0-7 as
+    (step, without, with), each pair checked to be the same sequence and frame."""
+    seqs = tr.check_sequences(tr.training_paths([sample]), 2, str(sample), False)
+    wide = tr.StepWindows(seqs, 2, 5, False, widen_m=0.3)
+    other = tr.StepWindows(seqs, 2, 5, False, widen_m=0.3, **option)
+    pairs = [(i, wide[i], other[i]) for i in range(8)]
+    assert all((a["sequence"], a["frame"]) == (b["sequence"], b["frame"]) for _, a, b in pairs)
+    return seqs, other, pairs
+
+
+def changed_reproducibly_and_refused(sample: Path, flag: str, windows: Any, pairs: list[tuple[int, dict, dict]]) -> None:
+    """At least half the windows changed by the option ``flag``, each the same when drawn again,
+    and ``flag`` with a value outside 0-1 refused (exit 2, no run folder)."""
+    assert sum(not torch.equal(a["x"], b["x"]) for _, a, b in pairs) >= 4
+    for i, _, b in pairs:
+        assert all(torch.equal(x, y) for x, y in zip(b.values(), windows[i].values()) if isinstance(x, torch.Tensor))
+    for bad in ("1.5", "-0.1", "nan"):
+        out = sample.parent / flag.strip("-")
+        assert run_train(sample, "--frames", "1", "--out", out, flag, bad) == 2
+        assert not out.exists()
+
+
+def widened_window(seq, t: int, i: int) -> tuple[list, list, np.ndarray]:
+    """What step ``i`` of ``StepWindows(..., 2, seed 5, widen_m=0.3)`` makes of the 2-frame window
+    ending at ``t``: each frame widened (range, label, source column), each cell's person (the
+    grown cells counted to the person they grew from), and the window's people."""
+    from pedscan_data.windows import widen_people
+
+    reach = float(np.random.default_rng([5, i, 2]).uniform(0.0, 0.3))
+    win = slice(t - 1, t + 1)
+    r, labels, inst = seq.read("range", win), seq.read("label", win), seq.read("instance", win)
+    grown = [widen_people(r[k], labels[k], reach) for k in range(2)]
+    owner = [np.take_along_axis(inst[k], grown[k][2], axis=1) for k in range(2)]
+    people = np.unique(np.concatenate([o[(g[1] == 1) & (o > 0)] for o, g in zip(owner, grown)]))
+    return grown, owner, people
+
+
 def test_flanked_windows_are_the_widened_ones_with_structure_beside_their_people(sample: Path) -> None:
     """--flank: the window drawn and its labels are those without it; each frame's range is
     :func:`flank_people` on the widened frame (the grown cells counted to their person), with one
@@ -770,23 +813,13 @@ def test_flanked_windows_are_the_widened_ones_with_structure_beside_their_people
     the cells;
     reproducible; some windows change; a probability outside 0-1 is refused."""
     from pedscan_data.model import input_channels
-    from pedscan_data.windows import flank_people, widen_people
+    from pedscan_data.windows import flank_people
 
-    seqs = tr.check_sequences(tr.training_paths([sample]), 2, str(sample), False)
-    wide = tr.StepWindows(seqs, 2, 5, False, widen_m=0.3)
-    flanked = tr.StepWindows(seqs, 2, 5, False, widen_m=0.3, flank=1.0)
-    changed = 0
-    for i in range(8):
-        a, b = wide[i], flanked[i]
-        assert (a["sequence"], a["frame"]) == (b["sequence"], b["frame"])
+    seqs, flanked, pairs = widened_windows_and(sample, flank=1.0)
+    for i, a, b in pairs:
         assert torch.equal(a["label"], b["label"])
         seq, t = seqs[a["sequence"]], a["frame"]
-        reach = float(np.random.default_rng([5, i, 2]).uniform(0.0, 0.3))
-        win = slice(t - 1, t + 1)
-        r, labels, inst = seq.read("range", win), seq.read("label", win), seq.read("instance", win)
-        grown = [widen_people(r[k], labels[k], reach) for k in range(2)]
-        owner = [np.take_along_axis(inst[k], grown[k][2], axis=1) for k in range(2)]
-        people = np.unique(np.concatenate([o[(g[1] == 1) & (o > 0)] for o, g in zip(owner, grown)]))
+        grown, owner, people = widened_window(seq, t, i)
         want_r, last_src = [], None
         for k in range(2):
             rk, fsrc = flank_people(grown[k][0], grown[k][1], owner[k], 1.0, np.random.default_rng([5, i, 3]), people)
@@ -795,12 +828,29 @@ def test_flanked_windows_are_the_widened_ones_with_structure_beside_their_people
         np.testing.assert_array_equal(b["x"].numpy(), input_channels(np.stack(want_r)))
         v = np.take_along_axis(seq.read("velocity", t), last_src[..., None], axis=1)
         np.testing.assert_array_equal(b["velocity"].numpy(), v.transpose(2, 0, 1))
-        changed += int(not torch.equal(a["x"], b["x"]))
-        assert all(torch.equal(x, y) for x, y in zip(b.values(), flanked[i].values()) if isinstance(x, torch.Tensor))
-    assert changed >= 4
-    for bad in ("1.5", "-0.1", "nan"):
-        assert run_train(sample, "--frames", "1", "--out", sample.parent / "flank", "--flank", bad) == 2
-        assert not (sample.parent / "flank").exists()
+    changed_reproducibly_and_refused(sample, "--flank", flanked, pairs)
+
+
+def test_backdrop_windows_are_the_widened_ones_with_a_wall_behind_their_people(sample: Path) -> None:
+    """--backdrop: the window drawn is the one without it; each frame's range and labels are
+    :func:`backdrop_people` on the widened frame (the grown cells counted to their person), with
+    one generator state per step and the window's people for all its frames; the last frame's
+    labels are the target, the velocity stays the cells' own; reproducible; some windows change;
+    a probability outside 0-1 is refused."""
+    from pedscan_data.model import input_channels
+    from pedscan_data.windows import backdrop_people
+
+    seqs, walled, pairs = widened_windows_and(sample, backdrop=1.0)
+    for i, a, b in pairs:
+        seq, t = seqs[a["sequence"]], a["frame"]
+        grown, owner, people = widened_window(seq, t, i)
+        want = [backdrop_people(grown[k][0], grown[k][1], owner[k], 1.0, np.random.default_rng([5, i, 4]), people)
+                for k in range(2)]
+        np.testing.assert_array_equal(b["x"].numpy(), input_channels(np.stack([w[0] for w in want])))
+        np.testing.assert_array_equal(b["label"].numpy(), want[1][1])
+        v = np.take_along_axis(seq.read("velocity", t), grown[1][2][..., None], axis=1)
+        np.testing.assert_array_equal(b["velocity"].numpy(), v.transpose(2, 0, 1))
+    changed_reproducibly_and_refused(sample, "--backdrop", walled, pairs)
 
 
 def test_a_run_can_start_from_a_model_files_weights_and_records_it(sample: Path, tmp_path: Path,

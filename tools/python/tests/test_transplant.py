@@ -11,7 +11,7 @@ import torch
 
 from conftest import generate_test16, net_for, save_model
 from pedscan_data.reader import Sequence
-from pedscan_data.transplant import main, transplant
+from pedscan_data.transplant import BACKDROP_COLUMNS, backdrop, main, transplant
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +34,8 @@ def test_a_person_moved_with_its_whole_turn_is_what_it_was(scans: tuple[Path, Pa
     s = d["settings"]
     assert s["real"]["people"] >= 8 and s["real"] == s["generated"] == s["real in generated"] == s["generated in real"]
     assert 0.0 <= s["real"]["found"] <= 1.0
+    assert s["real, backdrop pushed back"] == s["generated, backdrop pushed back"]
+    assert d["backdrop_share"]["real"] == d["backdrop_share"]["generated"]
     # With no surroundings moved, people land among other scans' beams: other margins.
     near = transplant(model, folder, folder, columns=0, band=(0.0, 100.0))["settings"]
     assert near["real"] == s["real"] and near["real in generated"] != s["real in generated"]
@@ -49,3 +51,19 @@ def test_the_command_writes_its_figures_and_refuses_a_band_without_people(scans:
     assert main([str(model), str(folder), str(folder), "--range", "500", "600"]) == 2
     assert f"{folder}: no person at 500-600 m" in capsys.readouterr().err
     assert main([str(model), str(folder), str(folder), "--columns", "-1"]) == 2
+
+
+def test_a_backdrop_is_what_stands_0_to_2_m_behind_a_person_in_its_rows_beside_it() -> None:
+    import numpy as np
+
+    image = np.full((8, 512), 30.0, dtype=np.float32)
+    rows, cols = np.repeat([2, 3, 4], 3), np.tile([100, 101, 102], 3)
+    image[rows, cols] = 10.0  # the person
+    image[2:5, 90:100] = 11.0  # a wall 1 m behind, left of it
+    image[3, 103] = 5.0  # a post in front
+    image[4, 104] = 0.0  # no return
+    image[6, 95:100] = 11.0  # below its rows: not looked at
+    image[2, 101 + BACKDROP_COLUMNS + 1] = 11.0  # beyond the columns looked at
+    mask, looked = backdrop(image, rows, cols, 10.0)
+    assert looked == 3 * (2 * BACKDROP_COLUMNS + 1) - 9
+    assert set(zip(*np.nonzero(mask))) == {(r, c) for r in (2, 3, 4) for c in range(90, 100)}

@@ -205,3 +205,57 @@ def test_widening_grows_a_person_over_what_lies_behind_it_and_never_over_what_st
         np.testing.assert_array_equal(same[0], r)
         np.testing.assert_array_equal(same[1], lab)
         np.testing.assert_array_equal(same[2], np.broadcast_to(np.arange(w), (2, w)))
+
+
+def test_a_backdrop_is_a_wall_close_behind_a_person_that_hides_only_what_lies_beyond_it() -> None:
+    """Each changed cell held nothing or something farther than the wall, now 0.5-2 m behind the
+    person (within its tilt and noise); the person, what stands in front of it and not-scored
+    cells never change; a person behind the wall is hidden (label 0); the wall reaches past both
+    sides and over the person's rows, and across the turn's seam; the same generator state
+    gives the same wall, whoever else is in view; probability 0 changes nothing."""
+    from pedscan_data.windows import BACKDROP_BEHIND_M, BACKDROP_SIDE_M, BACKDROP_SLOPE, backdrop_people
+
+    h, w = 8, 512
+    col = 2 * np.pi / w
+    r = np.full((h, w), 40.0, dtype=np.float32)  # a far facade
+    r[0] = 0.0  # the sky
+    label = np.zeros((h, w), dtype=np.uint8)
+    instance = np.zeros((h, w), dtype=np.uint16)
+    r[3:7, 100:104], label[3:7, 100:104], instance[3:7, 100:104] = 10.0, 1, 3  # a person at 10 m
+    r[3:7, 97] = 6.0  # a post in front of its left side
+    r[5, 106], label[5, 106] = 0.0, 255  # not scored
+    r[4:6, 108:110], label[4:6, 108:110], instance[4:6, 108:110] = 30.0, 1, 8  # a person far behind
+    reach = max(BACKDROP_SIDE_M) + 0.5 * 4 * 10.0 * col * BACKDROP_SLOPE
+    for seed in range(30):
+        got, lab = backdrop_people(r, label, instance, 1.0, np.random.default_rng(seed), np.array([3]))
+        again = backdrop_people(r, label, instance, 1.0, np.random.default_rng(seed), np.array([3]))
+        np.testing.assert_array_equal(got, again[0])
+        np.testing.assert_array_equal(lab, again[1])
+        changed = got != r
+        assert changed.any()
+        assert not changed[3:7, 100:104].any() and not changed[3:7, 97].any() and not changed[5, 106]
+        assert ((r[changed] == 0) | (r[changed] > got[changed])).all()
+        behind = got[changed] - 10.0
+        assert (behind > BACKDROP_BEHIND_M[0] - BACKDROP_SLOPE * reach - 0.1).all()
+        assert (behind < BACKDROP_BEHIND_M[1] + BACKDROP_SLOPE * reach + 0.1).all()
+        cols = np.nonzero(changed.any(axis=0))[0]
+        assert cols.min() < 100 and cols.max() > 103  # past both sides
+        assert cols.min() >= 100 - int(np.ceil(max(BACKDROP_SIDE_M) / (10.0 * col))) - 1
+        assert changed[3:7].any(axis=1).all() and not changed[7].any()  # its rows, not below it
+        # The person behind the wall, where the wall covers it, is background now.
+        hidden = changed[4:6, 108:110]
+        assert (lab[4:6, 108:110][hidden] == 0).all() and (lab[4:6, 108:110][~hidden] == 1).all()
+        assert ((lab != label) == (changed & (label == 1))).all()
+    np.testing.assert_array_equal(backdrop_people(r, label, instance, 0.0, np.random.default_rng(1))[0], r)
+    # A person absent from the frame draws as one present: another in view changes no wall.
+    ids = np.array([1, 3])
+    alone = backdrop_people(r, label, instance, 1.0, np.random.default_rng(7), ids)[0]
+    two_l, two_i = label.copy(), instance.copy()
+    two_l[3:7, 400:402], two_i[3:7, 400:402] = 1, 1
+    both = backdrop_people(r, two_l, two_i, 1.0, np.random.default_rng(7), ids)[0]
+    np.testing.assert_array_equal(both[:, :300], alone[:, :300])
+    # Across the seam: the person at columns w-2 .. 1 gets a wall on both sides of it.
+    rs, ls, iss = (np.roll(a, -101, axis=1) for a in (r, label, instance))
+    got = backdrop_people(rs, ls, iss, 1.0, np.random.default_rng(2), np.array([3]))[0]
+    changed = np.nonzero((got != rs).any(axis=0))[0]
+    assert (changed > w // 2).any() and (changed < w // 2).any() and changed.size < w // 4
