@@ -378,6 +378,17 @@ UNLABELED_CLASSES: tuple[int, ...] = (0, 1, 52, 99)
 RIDER_CLASSES: tuple[int, ...] = (31, 32, 253, 255)
 
 
+#: SemanticKITTI's class names (its semantic-kitti.yaml), for the false alarms by class.
+CLASS_NAMES: dict[int, str] = {
+    0: "unlabeled", 1: "outlier", 10: "car", 11: "bicycle", 13: "bus", 15: "motorcycle", 16: "on-rails", 18: "truck",
+    20: "other-vehicle", 30: "person", 31: "bicyclist", 32: "motorcyclist", 40: "road", 44: "parking", 48: "sidewalk",
+    49: "other-ground", 50: "building", 51: "fence", 52: "other-structure", 60: "lane-marking", 70: "vegetation",
+    71: "trunk", 72: "terrain", 80: "pole", 81: "traffic-sign", 99: "other-object", 252: "moving-car",
+    253: "moving-bicyclist", 254: "moving-person", 255: "moving-motorcyclist", 256: "moving-on-rails", 257: "moving-bus",
+    258: "moving-truck", 259: "moving-other-vehicle",
+}
+
+
 @dataclass
 class PointCounts:
     """Point counts of one distance bin (or of all points)."""
@@ -424,6 +435,8 @@ class ScanReport:
     rider_points: int = 0
     overall: PointCounts = field(default_factory=PointCounts)
     bins: list[PointCounts] = field(default_factory=lambda: [PointCounts() for _ in BINS + STREET_BINS])
+    #: False-alarm points by their true SemanticKITTI class.
+    false_alarm_classes: dict[int, int] = field(default_factory=dict)
 
     def add_scan(self, range_m: np.ndarray, truth_labels: np.ndarray, predicted: np.ndarray) -> None:
         """One scan: its points' ranges (m), ground-truth and predicted SemanticKITTI labels."""
@@ -439,6 +452,8 @@ class ScanReport:
         self.overall.add(scored, truth, human)
         for (lo, hi), c in zip(BINS + STREET_BINS, self.bins):
             c.add(scored & (range_m >= lo) & (range_m < hi), truth, human)
+        for k, n in zip(*np.unique(cls[human & ~truth], return_counts=True)):
+            self.false_alarm_classes[int(k)] = self.false_alarm_classes.get(int(k), 0) + int(n)
         instance = truth_labels >> 16
         person = truth & (instance != 0)
         ids, which = np.unique(instance[person], return_inverse=True)
@@ -472,6 +487,10 @@ class ScanReport:
             "overall": self.overall.scores(self.scans),
             "bins": binned(BINS, self.bins[: len(BINS)]),
             "street_bins": binned(STREET_BINS, self.bins[len(BINS):]),
+            "false_alarms_by_class": [
+                {"class": k, "name": CLASS_NAMES.get(k, str(k)), "points": n, "share": n / self.overall.fp}
+                for k, n in sorted(self.false_alarm_classes.items(), key=lambda kv: (-kv[1], kv[0]))
+            ],
         }
 
 
@@ -592,6 +611,9 @@ def format_scan_report(d: dict[str, Any]) -> str:
         people = f"{b['people_found']}/{b['people']}"
         lines.append(f"{name:<10}{_fmt(b['iou']):>8}{_fmt(b['precision']):>11}{_fmt(b['recall']):>8}"
                      f"{b['person_points']:>15}{people:>14}{_fmt(b['false_alarm_points_per_scan'], 1):>9}")
+    if d["false_alarms_by_class"]:
+        lines.append("false alarms by true class: " + ", ".join(f"{c['name']} {100 * c['share']:.0f} %"
+                                                                for c in d["false_alarms_by_class"][:8]))
     return "\n".join(lines)
 
 

@@ -167,7 +167,11 @@ def test_bins_false_alarms_and_people_found_by_instance(tmp_path: Path, capsys: 
     assert "people found 2 of 3 (half or more of their points)" in lines[3]
     assert lines[5].split() == ["distance", "IoU", "precision", "recall", "person", "points", "people", "found", "FA/scan"]
     assert lines[7].split() == ["4-8", "m", "0.6000", "1.0000", "0.6000", "10", "1/1", "0.0"]
-    assert [ln.split()[0] for ln in lines[6:]] == ["0-4", "4-8", "8+", "8-16", "16-32", "32+"]
+    assert [ln.split()[0] for ln in lines[6:12]] == ["0-4", "4-8", "8+", "8-16", "16-32", "32+"]
+    # The false alarms by their true class: a building at 3 m and road at 40 m (scan 0).
+    assert d["false_alarms_by_class"] == [{"class": 40, "name": "road", "points": 1, "share": 0.5},
+                                          {"class": 50, "name": "building", "points": 1, "share": 0.5}]
+    assert lines[12] == "false alarms by true class: road 50 %, building 50 %"
 
 
 def test_mismatched_or_bad_files_exit_2_naming_each_and_write_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
