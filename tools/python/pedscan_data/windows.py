@@ -211,7 +211,7 @@ def backdrop_people(range_m: np.ndarray, label: np.ndarray, instance: np.ndarray
         rp = float(np.median(range_m[cells]))
         c0 = int(cc.min()) - int(round(left_m / (rp * column_rad)))
         c1 = int(cc.max()) + int(round(right_m / (rp * column_rad)))
-        half = w // 2 - (int(cc.max()) - int(cc.min())) // 2
+        half = (w - 1 - (int(cc.max()) - int(cc.min()))) // 2
         c0, c1 = max(c0, int(cc.min()) - half), min(c1, int(cc.max()) + half)  # never round the turn
         r1 = int(rows.max()) + 1
         r0 = max(0, int(rows.min()) - int(round(above * (r1 - int(rows.min())))))
