@@ -92,7 +92,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .leads import BIN_NAMES, SEED_FRAMES, fmt, iou_row, render_leads, seed_leads, seed_run
+from .leads import BIN_NAMES, SEED_FRAMES, fmt, iou_row, render_leads, run_seed, seed_leads, seed_run
 from .netio import atomic_write_text, save_figure
 from .reader import PedscanError
 
@@ -249,7 +249,7 @@ class Experiment:
         self.sensor_height: float | None = args.sensor_height if isinstance(args.sensor_height, float) else None
         #: The training seeds of the 1- and 16-frame networks (``--seeds``): seed 0 is the plain
         #: ``frames1``/``frames16`` runs, another seed S ``frames1-seedS``/``frames16-seedS``.
-        self.seeds: list[int] = list(getattr(args, "seeds", None) or [0])
+        self.seeds: list[int] = list(args.seeds or [0])
         self.jobs: int = args.jobs
         if self.jobs < 1:
             raise PedscanError(f"--jobs {self.jobs}: at least one process")
@@ -384,8 +384,8 @@ class Experiment:
         r: dict[str, dict[str, Any]] = {f"frames{n}": {"frames": n, "data": "train", "val": "val"} for n in TABLE4_FRAMES}
         # The sequence's lead over seeds: N = 1 and 16 again from other training seeds, those
         # asked for and those a command before left in the folder.
-        found = {int(m.group(1)) for p in (self.work / "runs").glob("frames*-seed*")
-                 if (m := re.fullmatch(r"frames(?:1|16)-seed(\d+)", p.name))} if (self.work / "runs").is_dir() else set()
+        found = {seed for p in (self.work / "runs").glob("frames*-seed*")
+                 if (seed := run_seed(p.name)) is not None} if (self.work / "runs").is_dir() else set()
         for seed in sorted(set(self.seeds) | found):
             if seed != 0:
                 for n in SEED_FRAMES:

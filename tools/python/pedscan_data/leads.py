@@ -18,7 +18,7 @@ def iou_row(scores: dict[str, Any], key: str, argmax: bool = False) -> list[floa
     """The IoU of score ``key`` over all and per bin (:data:`BIN_NAMES`); Nones when unscored."""
     s = scores.get(key)
     if s is None:
-        return [None] * 4
+        return [None] * len(BIN_NAMES)
     if argmax:
         s = s["argmax"]
     return [s["overall"]["iou"]] + [b["iou"] for b in s["bins"]]
@@ -34,12 +34,19 @@ def seed_run(frames: int, seed: int) -> str:
     return f"frames{frames}" if seed == 0 else f"frames{frames}-seed{seed}"
 
 
+def run_seed(name: str) -> int | None:
+    """The training seed of a ``--seeds`` run named by :func:`seed_run` (0 for the plain
+    ``frames1``/``frames16``); None for any other name."""
+    frames = "|".join(map(str, SEED_FRAMES))
+    m = re.fullmatch(rf"frames(?:{frames})(?:-seed(\d+))?", name)
+    return None if m is None else int(m.group(1) or 0)
+
+
 def seed_leads(scores: dict[str, Any]) -> dict[str, Any] | None:
     """The 16-frame network's IoU minus the single frame's on the generated test set, per
     distance bin, for every training seed with both scored: each seed's, their mean and their
     spread (largest minus smallest; None with one seed). None when no seed has both."""
-    seeds = sorted({0} | {int(m.group(1)) for k in scores
-                          if (m := re.fullmatch(r"frames(?:1|16)-seed(\d+)--test", k))})
+    seeds = sorted({seed for k in scores if k.endswith("--test") and (seed := run_seed(k[:-len("--test")])) is not None})
     per: dict[int, list[float | None]] = {}
     for seed in seeds:
         one, many = f"{seed_run(1, seed)}--test", f"{seed_run(16, seed)}--test"

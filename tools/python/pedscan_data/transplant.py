@@ -159,34 +159,34 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
             out.append(float(np.median(cache[s][r, c])))
         return out
 
-    def pushed(images: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]]) -> list[float]:
+    # Each person's backdrop (mask, cells looked at), found once for both uses below.
+    real_bd = [backdrop(real_img[s], r, c, d) for s, r, c, d in real_people]
+    gen_bd = [backdrop(gen_img[s], r, c, d) for s, r, c, d in gen_people]
+
+    def pushed(images: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]],
+               backdrops: list[tuple[np.ndarray, int]]) -> list[float]:
         out = []
-        for s, r, c, d in people:
+        for (s, r, c, _), (mask, _) in zip(people, backdrops):
             image = images[s].copy()
-            mask, _ = backdrop(image, r, c, d)
             image[mask] += BACKDROP_PUSH_M
             out.append(float(np.median(margin(image)[r, c])))
         return out
 
-    def share(images: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]]) -> float:
-        out = []
-        for s, r, c, d in people:
-            mask, looked = backdrop(images[s], r, c, d)
-            out.append(mask.sum() / max(looked, 1))
-        return float(np.mean(out))
+    def share(backdrops: list[tuple[np.ndarray, int]]) -> float:
+        return float(np.mean([mask.sum() / max(looked, 1) for mask, looked in backdrops]))
 
     settings = {
         "real": own(real_img, real_people),
         "generated": own(gen_img, gen_people),
         "real in generated": moved(real_img, real_people, gen_img),
         "generated in real": moved(gen_img, gen_people, real_img),
-        "real, backdrop pushed back": pushed(real_img, real_people),
-        "generated, backdrop pushed back": pushed(gen_img, gen_people),
+        "real, backdrop pushed back": pushed(real_img, real_people, real_bd),
+        "generated, backdrop pushed back": pushed(gen_img, gen_people, gen_bd),
     }
     return {
         "model": str(model), "real": str(real), "generated": str(generated), "columns": columns, "range_m": list(band),
         "threshold_margin": cut,
-        "backdrop_share": {"real": share(real_img, real_people), "generated": share(gen_img, gen_people)},
+        "backdrop_share": {"real": share(real_bd), "generated": share(gen_bd)},
         "settings": {k: {"people": len(v), "median_margin": float(np.median(v)), "found": float(np.mean(np.array(v) > cut))}
                      for k, v in settings.items()},
     }

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from pedscan_data import experiments as exp
-from pedscan_data.leads import render_leads, seed_leads
+from pedscan_data.leads import render_leads, run_seed, seed_leads, seed_run
 
 from test_experiments import experiments, table4_rows
 
@@ -79,6 +79,9 @@ def test_the_runs_of_seeds_an_earlier_command_trained_stay_in_the_experiment(tmp
     runs = experiments(tmp_path)["hall"].runs()
     assert {"frames1-seed7", "frames16-seed7"} <= set(runs)
     assert not [n for n in runs if "seed8" in n or "seedx" in n]
+    # The seed of a run's name is the inverse of its name for the seed; other runs have none.
+    assert [run_seed(seed_run(n, s)) for n in (1, 16) for s in (0, 7, 12)] == [0, 7, 12] * 2
+    assert [run_seed(n) for n in ("frames4-seed8", "frames16-seedx", "frames16-change", "motion-static")] == [None] * 4
 
 
 def test_the_lead_over_seeds_its_spread_and_each_world_against_the_hall() -> None:
