@@ -78,6 +78,17 @@ def widen_people(range_m: np.ndarray, label: np.ndarray, reach_m: float) -> tupl
     return r_out, l_out, src
 
 
+def person_cells(range_m: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """A person's cells (a mask of a whole turn) as rows, columns, the shift of those columns
+    and its median range. A person across the turn's seam is seen from the seam's other side:
+    its columns are shifted by half a turn (``shift``; 0 otherwise), so that they run on;
+    ``(c - shift) % w`` gives a grid column back."""
+    w = range_m.shape[1]
+    rows, cc = np.nonzero(cells)
+    shift = w // 2 if cc.max() - cc.min() > w // 2 else 0
+    return rows, (cc + shift) % w, shift, float(np.median(range_m[cells]))
+
+
 #: What :func:`flank_people` puts beside a person: a patch this wide (m, at the person's range),
 #: standing this far behind the person's front (m), its cells within this depth of the patch's
 #: median (m).
@@ -120,13 +131,7 @@ def flank_people(range_m: np.ndarray, label: np.ndarray, instance: np.ndarray, p
         cells = (instance == pid) & (label == 1) & (range_m > 0)
         if not chosen or not cells.any():
             continue
-        rows, cc = np.nonzero(cells)
-        # A person across the turn's seam is seen from the seam's other side: columns unwrapped.
-        shift = 0
-        if cc.max() - cc.min() > w // 2:
-            shift = w // 2
-            cc = (cc + shift) % w
-        rp = float(np.median(range_m[cells]))
+        rows, cc, shift, rp = person_cells(range_m, cells)
         k = max(1, int(round(width_m / (rp * column_rad))))
         r0, r1 = int(rows.min()), int(rows.max()) + 1
         patch = None
@@ -204,11 +209,7 @@ def backdrop_people(range_m: np.ndarray, label: np.ndarray, instance: np.ndarray
         cells = (instance == pid) & (label == 1) & (range_m > 0)
         if not chosen or not cells.any():
             continue
-        rows, cc = np.nonzero(cells)
-        # A person across the turn's seam: its columns unwrapped from the seam's other side.
-        shift = w // 2 if cc.max() - cc.min() > w // 2 else 0
-        cc = (cc + shift) % w
-        rp = float(np.median(range_m[cells]))
+        rows, cc, shift, rp = person_cells(range_m, cells)
         c0 = int(cc.min()) - int(round(left_m / (rp * column_rad)))
         c1 = int(cc.max()) + int(round(right_m / (rp * column_rad)))
         half = (w - 1 - (int(cc.max()) - int(cc.min()))) // 2
