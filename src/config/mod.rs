@@ -234,6 +234,12 @@ pub struct HumansConfig {
     /// [`BY_THING_M`] of an obstacle (a wall, a pole, a parked car, a tree), as people wait at
     /// a stop, by a shop window or beside a car, 0..1.
     pub by_things: f64,
+    /// Share of synthetic people who start before something as the sensor sees them halfway
+    /// through the sequence: an obstacle within [`BEFORE_THING_M`] behind them along its line
+    /// of sight (a shop front, a stall, a parked car, a tree), as people stand and walk before
+    /// real structure, in worlds with a walkable area; tried for half the placement tries,
+    /// then anywhere. Those joining a group stand by the one they join, 0..1.
+    pub before_things: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table (the
     /// street's markets, `scene.markets`), where one within `spawn_radius_m` is free; the
@@ -489,6 +495,11 @@ pub const MAX_PLATFORM_BOXES: usize = 64;
 /// this, m (a body's half depth and a hand's breadth: its back or side a few centimetres off).
 pub const BY_THING_M: f64 = 0.25;
 
+/// `humans.before_things`: the obstacle stands at most this far behind a person's centre along
+/// the sensor's line of sight, m (within the 0-2 m behind a person where real scans show
+/// structure and generated ones mostly open ground; docs/real-data.md).
+pub const BEFORE_THING_M: f64 = 2.0;
+
 impl Default for SensorModelConfig {
     fn default() -> Self {
         SensorModelConfig {
@@ -632,6 +643,7 @@ impl Default for HumansConfig {
             yaw_rate_rps: [-0.3, 0.3],
             standing: 0.0,
             by_things: 0.0,
+            before_things: 0.0,
             at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
@@ -896,7 +908,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("scene.markets", self.scene.markets)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("scene.markets", self.scene.markets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

@@ -223,6 +223,10 @@ const OBSTACLE_Z: (f64, f64) = (0.05, 2.0);
 /// A triangle whose vertices are all within this of z = 0 is floor.
 const FLOOR_Z_TOLERANCE: f64 = 0.05;
 
+/// Obstacles reaching this high stand behind a person over most of its height
+/// ([`WalkableGrid::obstacle`]: a parked car, a stall, a wall; not a bench or a bollard), m.
+const TALL_Z: f64 = 1.2;
+
 /// Which connected regions of walkable cells a grid keeps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Regions {
@@ -243,6 +247,10 @@ pub struct WalkableGrid {
     pub nx: usize,
     pub ny: usize,
     pub clearance_m: Vec<f32>,
+    /// Cells a tall obstacle touches (a triangle 5 cm-2 m high reaching [`TALL_Z`] or more,
+    /// as against floor's edge, a road or a bench); empty for a grid made of clearances
+    /// alone.
+    pub obstacle: Vec<bool>,
 }
 
 impl WalkableGrid {
@@ -268,6 +276,7 @@ impl WalkableGrid {
         let (nx, ny) = WalkableGrid::dims(lo, hi + DVec2::splat(cell_m), cell_m).map_err(|m| Error::input("environment", m))?;
         let mut floor = vec![false; nx * ny];
         let mut blocked = vec![false; nx * ny];
+        let mut tall = vec![false; nx * ny];
         let centre = |i: usize, j: usize| lo + DVec2::new((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
         for t in env.triangles() {
             let zmin = t.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
@@ -294,11 +303,12 @@ impl WalkableGrid {
                         floor[j * nx + i] = true;
                     } else if is_obstacle && d <= half_diag {
                         blocked[j * nx + i] = true;
+                        tall[j * nx + i] |= zmax >= TALL_Z;
                     }
                 }
             }
         }
-        Ok(WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked))
+        Ok(WalkableGrid { obstacle: tall, ..WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked) })
     }
 
     /// The cells (nx, ny) of a grid from corner `lo` to `hi`, at least one each way; the error
@@ -330,6 +340,8 @@ impl WalkableGrid {
 
     /// As [`WalkableGrid::from_cells`], keeping the connected regions `keep` says.
     pub fn from_cells_keeping(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], mut blocked: Vec<bool>, keep: Regions) -> WalkableGrid {
+        // Every obstacle, where the caller does not say which are tall.
+        let obstacle = blocked.clone();
         let open: Vec<bool> = (0..nx * ny).map(|k| floor[k] && !blocked[k]).collect();
         let mut component = vec![u32::MAX; nx * ny];
         let mut sizes: Vec<usize> = Vec::new();
@@ -419,7 +431,7 @@ impl WalkableGrid {
                 if d2 == i64::MAX { f32::INFINITY } else { (((d2 as f64).sqrt() - 0.5).max(0.0) * cell_m) as f32 }
             })
             .collect();
-        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m }
+        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, obstacle }
     }
 
     /// Clearance at a world xy point (0 outside the grid).
@@ -433,6 +445,32 @@ impl WalkableGrid {
             return 0.0;
         }
         self.clearance_m[j * self.nx + i] as f64
+    }
+
+    /// Whether, looking from `eye` through `at`, an obstacle's cell lies within `far_m` past
+    /// `at`, before any other cell one cannot stand on (a road, the floor's edge): something
+    /// a sensor at `eye` sees behind a person standing at `at` (`humans.before_things`).
+    pub fn obstacle_behind(&self, eye: DVec2, at: DVec2, far_m: f64) -> bool {
+        let d = at - eye;
+        if self.obstacle.is_empty() || d.length() < 1e-9 {
+            return false;
+        }
+        let dir = d / d.length();
+        let step = self.cell_m * 0.5;
+        for k in 0..=(far_m / step).ceil() as usize {
+            let q = (at + dir * (k as f64 * step).min(far_m) - self.origin) / self.cell_m;
+            if q.x < 0.0 || q.y < 0.0 || q.x as usize >= self.nx || q.y as usize >= self.ny {
+                return false;
+            }
+            let c = q.y as usize * self.nx + q.x as usize;
+            if self.obstacle[c] {
+                return true;
+            }
+            if self.clearance_m[c] <= 0.0 {
+                return false;
+            }
+        }
+        false
     }
 
     /// Fraction of cells with at least `r` clearance.

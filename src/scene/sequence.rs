@@ -845,6 +845,7 @@ fn sample_synthetic_people(
         // Drawn only where asked for, as the other behaviours.
         let by_thing = stands && hc.by_things > 0.0 && rng.random::<f64>() < hc.by_things;
         let at_place = stands && hc.at_places > 0.0 && !places.is_empty() && rng.random::<f64>() < hc.at_places;
+        let before = hc.before_things > 0.0 && rng.random::<f64>() < hc.before_things;
         let mut placed = None;
         let mut tries = 0;
         let placeable = |plan: &HumanPlan| {
@@ -888,6 +889,11 @@ fn sample_synthetic_people(
                 continue;
             }
             if by_thing && !at_place && inp.grid.is_some_and(|g| g.clearance(start) > hc.clearance_m + crate::config::BY_THING_M) {
+                continue;
+            }
+            // Before something, for the first half of the tries (there may be no such spot).
+            let mid = sensor.position(duration * 0.5).truncate();
+            if before && !at_place && attempt < TRIES / 2 && inp.grid.is_some_and(|g| !g.obstacle_behind(mid, start, crate::config::BEFORE_THING_M)) {
                 continue;
             }
             if long {

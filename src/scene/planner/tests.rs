@@ -5,26 +5,41 @@ use rand_chacha::ChaCha8Rng;
 
 /// A `w` x `h` m floor from the origin with 1 m high box obstacles `[x0, y0, x1, y1]`.
 pub(crate) fn grid(w: f64, h: f64, boxes: &[[f64; 4]], cell_m: f64) -> WalkableGrid {
-    let mut env = Environment {
-        positions: vec![DVec3::new(0.0, 0.0, 0.0), DVec3::new(w, 0.0, 0.0), DVec3::new(w, h, 0.0), DVec3::new(0.0, h, 0.0)],
-        ..Default::default()
-    };
-    env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![0, 1, 2, 0, 2, 3], double_sided: true, reflectance: 0.5, class: 0 });
-    for (n, b) in boxes.iter().enumerate() {
-        let base = env.positions.len() as u32;
-        for z in [0.0, 1.0] {
-            for (x, y) in [(b[0], b[1]), (b[2], b[1]), (b[2], b[3]), (b[0], b[3])] {
-                env.positions.push(DVec3::new(x, y, z));
-            }
-        }
-        let mut idx = Vec::new();
-        for (a, c) in [(0, 1), (1, 2), (2, 3), (3, 0)] {
-            idx.extend([base + a, base + c, base + c + 4, base + a, base + c + 4, base + a + 4]);
-        }
-        idx.extend([base + 4, base + 5, base + 6, base + 4, base + 6, base + 7]);
-        env.meshes.push(EnvMesh { name: format!("box{n}"), indices: idx, double_sided: true, reflectance: 0.5, class: 0 });
+    WalkableGrid::from_environment(&floor_with_boxes(w, h, boxes, 1.0), cell_m).unwrap()
+}
+
+/// The environment of [`grid`], its boxes `height_m` high.
+pub(crate) fn floor_with_boxes(w: f64, h: f64, boxes: &[[f64; 4]], height_m: f64) -> Environment {
+    let mut env = Environment::default();
+    push_quad(&mut env, [0.0, 0.0, w, h]);
+    for b in boxes {
+        push_box(&mut env, *b, height_m);
     }
-    WalkableGrid::from_environment(&env, cell_m).unwrap()
+    env
+}
+
+/// Adds a floor rectangle `[x0, y0, x1, y1]` at z = 0.
+fn push_quad(env: &mut Environment, q: [f64; 4]) {
+    let b = env.positions.len() as u32;
+    env.positions.extend([DVec3::new(q[0], q[1], 0.0), DVec3::new(q[2], q[1], 0.0), DVec3::new(q[2], q[3], 0.0), DVec3::new(q[0], q[3], 0.0)]);
+    env.meshes.push(EnvMesh { name: "floor".into(), indices: vec![b, b + 1, b + 2, b, b + 2, b + 3], double_sided: true, reflectance: 0.5, class: 0 });
+}
+
+/// Adds a box `[x0, y0, x1, y1]` standing on z = 0, `height_m` high (sides and top).
+fn push_box(env: &mut Environment, b: [f64; 4], height_m: f64) {
+    let base = env.positions.len() as u32;
+    for z in [0.0, height_m] {
+        for (x, y) in [(b[0], b[1]), (b[2], b[1]), (b[2], b[3]), (b[0], b[3])] {
+            env.positions.push(DVec3::new(x, y, z));
+        }
+    }
+    let mut idx = Vec::new();
+    for (a, c) in [(0, 1), (1, 2), (2, 3), (3, 0)] {
+        idx.extend([base + a, base + c, base + c + 4, base + a, base + c + 4, base + a + 4]);
+    }
+    idx.extend([base + 4, base + 5, base + 6, base + 4, base + 6, base + 7]);
+    let n = env.meshes.len() - 1;
+    env.meshes.push(EnvMesh { name: format!("box{n}"), indices: idx, double_sided: true, reflectance: 0.5, class: 0 });
 }
 
 /// Two 10 x 10 m rooms side by side, split by a wall at x = 10 with a door of `door_m`.
@@ -238,7 +253,7 @@ fn segment_check_sees_every_touched_cell() {
     // A single blocked cell at (5, 5) in a 10 x 10 grid of 1 m cells.
     let mut clearance_m = vec![1.0f32; 100];
     clearance_m[55] = 0.0;
-    let g = WalkableGrid { origin: DVec2::ZERO, cell_m: 1.0, nx: 10, ny: 10, clearance_m };
+    let g = WalkableGrid { origin: DVec2::ZERO, cell_m: 1.0, nx: 10, ny: 10, clearance_m, obstacle: Vec::new() };
     assert!(!segment_clear(&g, DVec2::new(0.5, 0.5), DVec2::new(9.5, 9.5), 0.5), "through the cell's centre");
     assert!(!segment_clear(&g, DVec2::new(4.5, 5.99), DVec2::new(9.5, 5.2), 0.5), "clipping its corner");
     assert!(!segment_clear(&g, DVec2::new(4.0, 4.0), DVec2::new(7.0, 7.0), 0.5), "through the corners");
@@ -272,4 +287,33 @@ fn planning_time_in_a_36_by_24_m_hall() {
         times[times.len() / 2],
         times[times.len() - 1]
     );
+}
+
+/// `obstacle_behind` sees a tall obstacle behind a point along the line of sight, within the
+/// distance asked; not a low one (a bench), not one off the line, not one past a gap in the
+/// floor (a road), and nothing in a grid made of clearances alone.
+#[test]
+fn an_obstacle_behind_is_a_tall_one_on_the_line_of_sight() {
+    // The floor in three parts, leaving a 1 m gap (a road) at y 10-11 over x 30-40; a 2 m high
+    // box at y 20-21 over x 10-14, a 0.5 m high one at y 20-21 over x 26-30, and a 2 m high
+    // wall at y 12-12.5 over x 32-38, just past the road.
+    let mut env = Environment::default();
+    for q in [[0.0, 0.0, 30.0, 40.0], [30.0, 0.0, 40.0, 10.0], [30.0, 11.0, 40.0, 40.0]] {
+        push_quad(&mut env, q);
+    }
+    push_box(&mut env, [10.0, 20.0, 14.0, 21.0], 2.0);
+    push_box(&mut env, [26.0, 20.0, 30.0, 21.0], 0.5);
+    push_box(&mut env, [32.0, 12.0, 38.0, 12.5], 2.0);
+    let g = WalkableGrid::from_environment(&env, 0.1).unwrap();
+    let eye = DVec2::new(12.0, 2.0);
+    assert!(g.obstacle_behind(eye, DVec2::new(12.0, 18.5), 2.0), "1.5 m before the tall box");
+    assert!(!g.obstacle_behind(eye, DVec2::new(12.0, 17.0), 2.0), "3 m before it, 2 m asked");
+    assert!(g.obstacle_behind(eye, DVec2::new(12.0, 17.0), 3.5), "3 m before it, 3.5 m asked");
+    assert!(!g.obstacle_behind(DVec2::new(12.0, 38.0), DVec2::new(12.0, 18.5), 2.0), "the box in front, seen from behind");
+    assert!(!g.obstacle_behind(DVec2::new(28.0, 2.0), DVec2::new(28.0, 18.5), 2.0), "1.5 m before the low box");
+    assert!(!g.obstacle_behind(DVec2::new(35.0, 2.0), DVec2::new(35.0, 9.5), 3.5), "the road between the person and the wall");
+    assert!(g.obstacle_behind(DVec2::new(35.0, 2.0), DVec2::new(35.0, 11.6), 2.0), "past the road, before the wall");
+    assert!(!g.obstacle_behind(eye, eye, 2.0), "at the eye itself");
+    let bare = WalkableGrid { obstacle: Vec::new(), ..g.clone() };
+    assert!(!bare.obstacle_behind(eye, DVec2::new(12.0, 18.5), 2.0), "a grid of clearances alone");
 }

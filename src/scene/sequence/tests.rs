@@ -719,6 +719,42 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
     assert!(cfg.validate().is_err());
 }
 
+/// `humans.before_things`: a person asked to stand before something starts with a tall
+/// obstacle at most `BEFORE_THING_M` behind it as the sensor sees it halfway through; without
+/// it, few do (most stand in the open here).
+#[test]
+fn people_asked_to_stand_before_things_have_one_behind_them() {
+    let model = crate::human::tests_support::tiny_model();
+    // Sixteen 2 m high boxes, 3 x 0.6 m, 9 m apart.
+    let boxes: Vec<[f64; 4]> = (0..16).map(|k| [4.0 + 9.0 * (k % 4) as f64, 6.0 + 9.0 * (k / 4) as f64, 7.0 + 9.0 * (k % 4) as f64, 6.6 + 9.0 * (k / 4) as f64]).collect();
+    let env = crate::scene::planner::tests::floor_with_boxes(40.0, 40.0, &boxes, 2.0);
+    let grid = WalkableGrid::from_environment(&env, 0.1).unwrap();
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
+    let mut cfg = Config::default();
+    cfg.humans.count = [6, 6];
+    cfg.humans.spawn_radius_m = 18.0;
+    cfg.humans.standing = 0.5;
+    let before = |cfg: &Config| {
+        let (mut n, mut total) = (0, 0);
+        for seed in 0..10 {
+            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, &inp).unwrap();
+            let mid = plan.sensor.position(plan.times_s.last().unwrap() * 0.5).truncate();
+            for p in &plan.humans {
+                n += usize::from(grid.obstacle_behind(mid, p.position_m(0.0).truncate(), crate::config::BEFORE_THING_M));
+                total += 1;
+            }
+        }
+        (n, total)
+    };
+    let (anywhere, total) = before(&cfg);
+    assert!(anywhere * 4 < total, "{anywhere} of {total} before a thing without being asked");
+    cfg.humans.before_things = 1.0;
+    let (asked, total) = before(&cfg);
+    assert_eq!(asked, total, "{asked} of {total} before a thing");
+    cfg.humans.before_things = -0.5;
+    assert!(cfg.validate().is_err());
+}
+
 /// `humans.at_places`: in a street of markets, every person asked to stand at a place stands
 /// on one of the world's places (behind a counter, before it, by a table), each on their own
 /// and facing the place's way; without it, hardly anybody does.
