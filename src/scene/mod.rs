@@ -225,7 +225,7 @@ const FLOOR_Z_TOLERANCE: f64 = 0.05;
 
 /// Obstacles reaching this high stand behind a person over most of its height
 /// ([`WalkableGrid::obstacle`]: a parked car, a stall, a wall; not a bench or a bollard), m.
-const TALL_Z: f64 = 1.2;
+pub(crate) const TALL_Z: f64 = 1.2;
 
 /// Which connected regions of walkable cells a grid keeps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -247,9 +247,9 @@ pub struct WalkableGrid {
     pub nx: usize,
     pub ny: usize,
     pub clearance_m: Vec<f32>,
-    /// Cells a tall obstacle touches (a triangle 5 cm-2 m high reaching [`TALL_Z`] or more,
-    /// as against floor's edge, a road or a bench); empty for a grid made of clearances
-    /// alone.
+    /// Cells a tall obstacle touches, as against floor's edge, a road or a bench: a triangle
+    /// 5 cm-2 m high reaching [`TALL_Z`] or more, in a recording a return [`TALL_Z`]-2 m over
+    /// the floor; empty for a grid made of clearances alone.
     pub obstacle: Vec<bool>,
 }
 
@@ -333,15 +333,14 @@ impl WalkableGrid {
     /// The walkable area from per-cell observations: `floor` cells one can stand on, minus
     /// `blocked` cells, its largest connected region only (the hollow inside of a closed
     /// obstacle, a box or a pillar, is floor but nobody can get there). Cell (i, j) has its
-    /// corner at `origin + cell_m * (i, j)`, index j * nx + i.
+    /// corner at `origin + cell_m * (i, j)`, index j * nx + i. Its tall obstacles
+    /// ([`WalkableGrid::obstacle`]) are the caller's to set: none here.
     pub fn from_cells(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], blocked: Vec<bool>) -> WalkableGrid {
         Self::from_cells_keeping(lo, cell_m, nx, ny, floor, blocked, Regions::Largest)
     }
 
     /// As [`WalkableGrid::from_cells`], keeping the connected regions `keep` says.
     pub fn from_cells_keeping(lo: DVec2, cell_m: f64, nx: usize, ny: usize, floor: &[bool], mut blocked: Vec<bool>, keep: Regions) -> WalkableGrid {
-        // Every obstacle, where the caller does not say which are tall.
-        let obstacle = blocked.clone();
         let open: Vec<bool> = (0..nx * ny).map(|k| floor[k] && !blocked[k]).collect();
         let mut component = vec![u32::MAX; nx * ny];
         let mut sizes: Vec<usize> = Vec::new();
@@ -431,7 +430,7 @@ impl WalkableGrid {
                 if d2 == i64::MAX { f32::INFINITY } else { (((d2 as f64).sqrt() - 0.5).max(0.0) * cell_m) as f32 }
             })
             .collect();
-        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, obstacle }
+        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, obstacle: Vec::new() }
     }
 
     /// Clearance at a world xy point (0 outside the grid).
