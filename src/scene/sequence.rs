@@ -835,6 +835,8 @@ fn sample_synthetic_people(
     // after goal (`long_walk`).
     let long = free_span.is_some_and(|span| duration > LONG_SEQUENCE_S || hc.speed_mps[1] * duration > span);
     let s0 = sensor.start_xy();
+    // Where the sensor is halfway through (`humans.before_things`).
+    let mid = sensor.position(duration * 0.5).truncate();
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     // The world's places within reach (`humans.at_places`).
     let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
@@ -892,7 +894,6 @@ fn sample_synthetic_people(
                 continue;
             }
             // Before something, for the first half of the tries (there may be no such spot).
-            let mid = sensor.position(duration * 0.5).truncate();
             if before && !at_place && attempt < TRIES / 2 && inp.grid.is_some_and(|g| !g.obstacle_behind(mid, start, crate::config::BEFORE_THING_M)) {
                 continue;
             }
