@@ -234,11 +234,8 @@ pub struct HumansConfig {
     /// [`BY_THING_M`] of an obstacle (a wall, a pole, a parked car, a tree), as people wait at
     /// a stop, by a shop window or beside a car, 0..1.
     pub by_things: f64,
-    /// Share of synthetic people who start before something as the sensor sees them halfway
-    /// through the sequence: an obstacle within [`BEFORE_THING_M`] behind them along its line
-    /// of sight (a shop front, a stall, a parked car, a tree), as people stand and walk before
-    /// real structure, in worlds with a walkable area; tried for half the placement tries,
-    /// then anywhere. Those joining a group stand by the one they join, 0..1.
+    /// Share of synthetic people (not those joining a group) who start with a tall obstacle at
+    /// most [`BEFORE_THING_M`] behind them as the sensor sees them halfway through, 0..1.
     pub before_things: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table (the
@@ -495,9 +492,7 @@ pub const MAX_PLATFORM_BOXES: usize = 64;
 /// this, m (a body's half depth and a hand's breadth: its back or side a few centimetres off).
 pub const BY_THING_M: f64 = 0.25;
 
-/// `humans.before_things`: the obstacle stands at most this far behind a person's centre along
-/// the sensor's line of sight, m (within the 0-2 m behind a person where real scans show
-/// structure and generated ones mostly open ground; docs/real-data.md).
+/// `humans.before_things`: how far behind a person's centre, along the line of sight, m.
 pub const BEFORE_THING_M: f64 = 2.0;
 
 impl Default for SensorModelConfig {
