@@ -234,8 +234,8 @@ pub struct HumansConfig {
     /// [`BY_THING_M`] of an obstacle (a wall, a pole, a parked car, a tree), as people wait at
     /// a stop, by a shop window or beside a car, 0..1.
     pub by_things: f64,
-    /// Share of synthetic people (not those joining a group) who start with a tall obstacle at
-    /// most [`BEFORE_THING_M`] behind them as the sensor sees them halfway through, 0..1.
+    /// Share of synthetic people (not those joining a group or at a place) who start with a tall
+    /// obstacle at most [`BEFORE_THING_M`] behind them as the sensor sees it halfway through, 0..1.
     pub before_things: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table (the
