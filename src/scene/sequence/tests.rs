@@ -683,6 +683,19 @@ fn behaviours_come_in_the_shares_asked_for() {
     assert_eq!(sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(4), &cfg, &inp).unwrap(), plain);
 }
 
+/// Of the people planned with seeds 0-9, how many `test` holds for, and how many there are.
+fn count_over_seeds(cfg: &Config, inp: &PlanInputs, test: impl Fn(&SequencePlan, &HumanPlan) -> bool) -> (usize, usize) {
+    let (mut n, mut total) = (0, 0);
+    for seed in 0..10 {
+        let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, inp).unwrap();
+        for p in &plan.humans {
+            n += usize::from(test(&plan, p));
+            total += 1;
+        }
+    }
+    (n, total)
+}
+
 /// `humans.by_things`: a person standing by something stands with an obstacle within
 /// `clearance_m` + `BY_THING_M` (and never nearer than `clearance_m`); without it, people stand
 /// anywhere (most of them in the open here).
@@ -698,17 +711,11 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
     cfg.humans.standing = 1.0;
     let near = crate::config::BY_THING_M + cfg.humans.clearance_m;
     let count_near = |cfg: &Config| {
-        let (mut n, mut total) = (0, 0);
-        for seed in 0..10 {
-            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, &inp).unwrap();
-            for p in &plan.humans {
-                let c = grid.clearance(p.position_m(0.0).truncate());
-                assert!(c >= cfg.humans.clearance_m, "seed {seed}: a person inside an obstacle's clearance ({c} m)");
-                n += usize::from(c <= near);
-                total += 1;
-            }
-        }
-        (n, total)
+        count_over_seeds(cfg, &inp, |_, p| {
+            let c = grid.clearance(p.position_m(0.0).truncate());
+            assert!(c >= cfg.humans.clearance_m, "a person inside an obstacle's clearance ({c} m)");
+            c <= near
+        })
     };
     let (anywhere, total) = count_near(&cfg);
     assert!(anywhere * 4 < total, "{anywhere} of {total} by a thing without being asked");
@@ -735,16 +742,10 @@ fn people_asked_to_stand_before_things_have_one_behind_them() {
     cfg.humans.spawn_radius_m = 18.0;
     cfg.humans.standing = 0.5;
     let before = |cfg: &Config| {
-        let (mut n, mut total) = (0, 0);
-        for seed in 0..10 {
-            let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), cfg, &inp).unwrap();
+        count_over_seeds(cfg, &inp, |plan, p| {
             let mid = plan.sensor.position(plan.times_s.last().unwrap() * 0.5).truncate();
-            for p in &plan.humans {
-                n += usize::from(grid.obstacle_behind(mid, p.position_m(0.0).truncate(), crate::config::BEFORE_THING_M));
-                total += 1;
-            }
-        }
-        (n, total)
+            grid.obstacle_behind(mid, p.position_m(0.0).truncate(), crate::config::BEFORE_THING_M)
+        })
     };
     let (anywhere, total) = before(&cfg);
     assert!(anywhere * 4 < total, "{anywhere} of {total} before a thing without being asked");
