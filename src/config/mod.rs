@@ -234,9 +234,12 @@ pub struct HumansConfig {
     /// [`BY_THING_M`] of an obstacle (a wall, a pole, a parked car, a tree), as people wait at
     /// a stop, by a shop window or beside a car, 0..1.
     pub by_things: f64,
-    /// Share of synthetic people (not those joining a group or at a place) who start with a tall
-    /// obstacle at most [`BEFORE_THING_M`] behind them as the sensor sees it halfway through, 0..1.
+    /// Share of people (not joining a group, not at a place) who start with a tall obstacle at
+    /// most [`crate::scene::BEFORE_THING_M`] behind them as the sensor sees them midway, 0..1.
     pub before_things: f64,
+    /// Share of people (as `before_things`) who start with a low obstacle (a counter, a bench)
+    /// at most [`crate::scene::BEHIND_THING_M`] in front of them, hiding their legs, 0..1.
+    pub behind_things: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table (the
     /// street's markets, `scene.markets`), where one within `spawn_radius_m` is free; the
@@ -492,9 +495,6 @@ pub const MAX_PLATFORM_BOXES: usize = 64;
 /// this, m (a body's half depth and a hand's breadth: its back or side a few centimetres off).
 pub const BY_THING_M: f64 = 0.25;
 
-/// `humans.before_things`: how far behind a person's centre, along the line of sight, m.
-pub const BEFORE_THING_M: f64 = 2.0;
-
 impl Default for SensorModelConfig {
     fn default() -> Self {
         SensorModelConfig {
@@ -639,6 +639,7 @@ impl Default for HumansConfig {
             standing: 0.0,
             by_things: 0.0,
             before_things: 0.0,
+            behind_things: 0.0,
             at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
@@ -903,7 +904,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("scene.markets", self.scene.markets)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("scene.markets", self.scene.markets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

@@ -224,8 +224,16 @@ const OBSTACLE_Z: (f64, f64) = (0.05, 2.0);
 const FLOOR_Z_TOLERANCE: f64 = 0.05;
 
 /// Obstacles reaching this high stand behind a person over most of its height
-/// ([`WalkableGrid::obstacle`]: a parked car, a stall, a wall; not a bench or a bollard), m.
+/// ([`WalkableGrid::obstacle_behind`]: a parked car, a stall, a wall; not a bench or a bollard), m.
 pub(crate) const TALL_Z: f64 = 1.2;
+/// Obstacles reaching this high, and lower than [`TALL_Z`], hide a person's legs from a sensor
+/// they stand between ([`WalkableGrid::low_obstacle_before`]: a counter, a bench's back, a bin, a
+/// hedge, a table), m.
+pub(crate) const LOW_Z: f64 = 0.7;
+/// `humans.before_things`: how far behind a person's centre, along the line of sight, m.
+pub const BEFORE_THING_M: f64 = 2.0;
+/// `humans.behind_things`: how far in front of a person's centre, along the line of sight, m.
+pub const BEHIND_THING_M: f64 = 1.5;
 
 /// Which connected regions of walkable cells a grid keeps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -247,10 +255,10 @@ pub struct WalkableGrid {
     pub nx: usize,
     pub ny: usize,
     pub clearance_m: Vec<f32>,
-    /// Cells a tall obstacle touches, as against floor's edge, a road or a bench: a triangle
-    /// 5 cm-2 m high reaching [`TALL_Z`] or more, in a recording a return [`TALL_Z`]-2 m over
-    /// the floor; empty for a grid made of clearances alone.
-    pub obstacle: Vec<bool>,
+    /// Per cell, how high the obstacles touching it reach over the floor (0: none): in an
+    /// environment the highest point of a triangle 5 cm-2 m high, in a recording the highest
+    /// return up to 2 m; empty for a grid made of clearances alone.
+    pub top_m: Vec<f32>,
 }
 
 impl WalkableGrid {
@@ -276,7 +284,7 @@ impl WalkableGrid {
         let (nx, ny) = WalkableGrid::dims(lo, hi + DVec2::splat(cell_m), cell_m).map_err(|m| Error::input("environment", m))?;
         let mut floor = vec![false; nx * ny];
         let mut blocked = vec![false; nx * ny];
-        let mut tall = vec![false; nx * ny];
+        let mut top = vec![0f32; nx * ny];
         let centre = |i: usize, j: usize| lo + DVec2::new((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
         for t in env.triangles() {
             let zmin = t.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
@@ -303,12 +311,12 @@ impl WalkableGrid {
                         floor[j * nx + i] = true;
                     } else if is_obstacle && d <= half_diag {
                         blocked[j * nx + i] = true;
-                        tall[j * nx + i] |= zmax >= TALL_Z;
+                        top[j * nx + i] = top[j * nx + i].max(zmax as f32);
                     }
                 }
             }
         }
-        Ok(WalkableGrid { obstacle: tall, ..WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked) })
+        Ok(WalkableGrid { top_m: top, ..WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked) })
     }
 
     /// The cells (nx, ny) of a grid from corner `lo` to `hi`, at least one each way; the error
@@ -430,7 +438,7 @@ impl WalkableGrid {
                 if d2 == i64::MAX { f32::INFINITY } else { (((d2 as f64).sqrt() - 0.5).max(0.0) * cell_m) as f32 }
             })
             .collect();
-        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, obstacle: Vec::new() }
+        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, top_m: Vec::new() }
     }
 
     /// Clearance at a world xy point (0 outside the grid).
@@ -446,24 +454,45 @@ impl WalkableGrid {
         self.clearance_m[j * self.nx + i] as f64
     }
 
-    /// Whether, looking from `eye` through `at`, an obstacle's cell lies within `far_m` past
-    /// `at`, before any other cell one cannot stand on (a road, the floor's edge): something
-    /// a sensor at `eye` sees behind a person standing at `at` (`humans.before_things`).
+    /// Whether, looking from `eye` through `at`, a tall obstacle's cell (one reaching [`TALL_Z`])
+    /// lies within `far_m` past `at`, before any other cell one cannot stand on (a road, the
+    /// floor's edge): something a sensor at `eye` sees behind a person standing at `at`
+    /// (`humans.before_things`).
     pub fn obstacle_behind(&self, eye: DVec2, at: DVec2, far_m: f64) -> bool {
-        let d = at - eye;
-        if self.obstacle.is_empty() || d.length() < 1e-9 {
+        self.march(at, at - eye, far_m, |top| (top >= TALL_Z).then_some(true))
+    }
+
+    /// Whether, looking from `at` back toward `eye`, a low obstacle's cell (one reaching
+    /// [`LOW_Z`] but not [`TALL_Z`]) lies within `far_m` of `at`, before a tall one (which would
+    /// hide the whole person) or any other cell one cannot stand on: something that hides the
+    /// legs of a person standing at `at` from a sensor at `eye` (`humans.behind_things`).
+    pub fn low_obstacle_before(&self, eye: DVec2, at: DVec2, far_m: f64) -> bool {
+        self.march(at, eye - at, far_m, |top| {
+            if top >= TALL_Z {
+                Some(false)
+            } else {
+                (top >= LOW_Z).then_some(true)
+            }
+        })
+    }
+
+    /// Walks from `from` along `dir` in half-cell steps up to `far_m`: at each cell, `seen` of how
+    /// high its obstacles reach decides when it says so, else a cell one cannot stand on, the
+    /// grid's edge or the end of the walk gives false.
+    fn march(&self, from: DVec2, dir: DVec2, far_m: f64, mut seen: impl FnMut(f64) -> Option<bool>) -> bool {
+        if self.top_m.is_empty() || dir.length() < 1e-9 {
             return false;
         }
-        let dir = d / d.length();
+        let dir = dir / dir.length();
         let step = self.cell_m * 0.5;
         for k in 0..=(far_m / step).ceil() as usize {
-            let q = (at + dir * (k as f64 * step).min(far_m) - self.origin) / self.cell_m;
+            let q = (from + dir * (k as f64 * step).min(far_m) - self.origin) / self.cell_m;
             if q.x < 0.0 || q.y < 0.0 || q.x as usize >= self.nx || q.y as usize >= self.ny {
                 return false;
             }
             let c = q.y as usize * self.nx + q.x as usize;
-            if self.obstacle[c] {
-                return true;
+            if let Some(v) = seen(self.top_m[c] as f64) {
+                return v;
             }
             if self.clearance_m[c] <= 0.0 {
                 return false;

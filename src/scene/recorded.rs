@@ -17,7 +17,7 @@
 //! floor stays one region with the near floor, where people can stand at the distances a street
 //! shows them (without this, people composited into KITTI streets stood at a median 6 m).
 
-use super::{Regions, WalkableGrid, TALL_Z, WALKABLE_CELL_M};
+use super::{Regions, WalkableGrid, WALKABLE_CELL_M};
 use crate::error::{Error, Result};
 use crate::input::Recording;
 use glam::{DVec2, DVec3};
@@ -123,8 +123,8 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
     // Per cell: 0, or 1 + the cells a floor return there grows the floor by (the largest).
     let mut seen = vec![0u16; nx * ny];
     let mut blocked = vec![false; nx * ny];
-    // Cells with a return from TALL_Z to 2 m over the floor: a tall obstacle (`obstacle_behind`).
-    let mut tall = vec![false; nx * ny];
+    // How high each cell's returns reach over the floor, up to 2 m (`WalkableGrid::top_m`).
+    let mut top = vec![0f32; nx * ny];
     for (p, o) in pts {
         let d = (p.truncate() - o.truncate()).length();
         if d > WALKABLE_RING_M {
@@ -141,7 +141,7 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
             seen[j * nx + i] = seen[j * nx + i].max(g);
         } else if h >= BLOCK_Z_M[0] && h <= BLOCK_Z_M[1] {
             blocked[j * nx + i] = true;
-            tall[j * nx + i] |= h >= TALL_Z;
+            top[j * nx + i] = top[j * nx + i].max(h as f32);
         }
     }
     // Grow the floor cells: each by its own reach along its row, then every cell so reached by
@@ -159,7 +159,7 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
         return Err(none());
     }
     let min_cells = (MIN_REGION_M2 / (cell_m * cell_m)).ceil() as usize;
-    Ok(WalkableGrid { obstacle: tall, ..WalkableGrid::from_cells_keeping(lo, cell_m, nx, ny, &floor_cells, blocked, Regions::AtLeast(min_cells)) })
+    Ok(WalkableGrid { top_m: top, ..WalkableGrid::from_cells_keeping(lo, cell_m, nx, ny, &floor_cells, blocked, Regions::AtLeast(min_cells)) })
 }
 
 /// Along the line `first + k * stride` (k < n): every cell within `src - 1` cells of a cell
@@ -228,11 +228,11 @@ mod tests {
         assert_eq!(g.clearance(DVec2::new(40.0, 0.0)), 0.0, "never seen");
     }
 
-    /// A tall obstacle in a recording is a cell with a return 1.2-2 m over the floor: the
-    /// pillar (returns to 1.55 m) stands behind a person before it, a bench (returns to 0.9 m)
-    /// does not.
+    /// A tall obstacle in a recording is a cell with a return 1.2-2 m over the floor, a low one
+    /// 0.7-1.2 m: the pillar (returns to 1.55 m) stands behind a person before it and hides
+    /// all of one behind it; a bench (returns to 0.9 m) hides the legs of one behind it only.
     #[test]
-    fn tall_obstacles_are_those_with_returns_above_1_2_m() {
+    fn obstacles_are_tall_or_low_by_how_high_their_returns_reach() {
         let mut pts = floor_scene();
         for k in 0..10 {
             for z in 0..5 {
@@ -243,6 +243,9 @@ mod tests {
         assert_eq!(g.clearance(DVec2::new(-4.5, 0.0)), 0.0, "the bench blocks the floor");
         assert!(g.obstacle_behind(DVec2::ZERO, DVec2::new(3.5, 0.0), 2.0), "the pillar behind");
         assert!(!g.obstacle_behind(DVec2::ZERO, DVec2::new(-3.5, 0.0), 2.0), "the bench behind");
+        assert!(g.low_obstacle_before(DVec2::ZERO, DVec2::new(-5.5, 0.0), 1.5), "the bench in front");
+        assert!(!g.low_obstacle_before(DVec2::ZERO, DVec2::new(6.5, 0.0), 1.5), "the pillar in front");
+        assert!(!g.low_obstacle_before(DVec2::ZERO, DVec2::new(-3.5, 0.0), 1.5), "nothing in front");
     }
 
     /// A street's floor split by a row of parked cars: a small floor by the sensor and a larger

@@ -835,7 +835,7 @@ fn sample_synthetic_people(
     // after goal (`long_walk`).
     let long = free_span.is_some_and(|span| duration > LONG_SEQUENCE_S || hc.speed_mps[1] * duration > span);
     let s0 = sensor.start_xy();
-    // Where the sensor is halfway through (`humans.before_things`).
+    // Where the sensor is halfway through (`humans.before_things`, `behind_things`).
     let mid = sensor.position(duration * 0.5).truncate();
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     // The world's places within reach (`humans.at_places`).
@@ -848,6 +848,7 @@ fn sample_synthetic_people(
         let by_thing = stands && hc.by_things > 0.0 && rng.random::<f64>() < hc.by_things;
         let at_place = stands && hc.at_places > 0.0 && !places.is_empty() && rng.random::<f64>() < hc.at_places;
         let before = hc.before_things > 0.0 && rng.random::<f64>() < hc.before_things;
+        let behind = hc.behind_things > 0.0 && rng.random::<f64>() < hc.behind_things;
         let mut placed = None;
         let mut tries = 0;
         let placeable = |plan: &HumanPlan| {
@@ -893,8 +894,10 @@ fn sample_synthetic_people(
             if by_thing && !at_place && inp.grid.is_some_and(|g| g.clearance(start) > hc.clearance_m + crate::config::BY_THING_M) {
                 continue;
             }
-            // Before something, for the first half of the tries (there may be no such spot).
-            if before && !at_place && attempt < TRIES / 2 && inp.grid.is_some_and(|g| !g.obstacle_behind(mid, start, crate::config::BEFORE_THING_M)) {
+            // Before something tall, behind something low, for the first half of the tries
+            // (there may be no such spot).
+            let wanted = |g: &WalkableGrid| (!before || g.obstacle_behind(mid, start, crate::scene::BEFORE_THING_M)) && (!behind || g.low_obstacle_before(mid, start, crate::scene::BEHIND_THING_M));
+            if (before || behind) && !at_place && attempt < TRIES / 2 && inp.grid.is_some_and(|g| !wanted(g)) {
                 continue;
             }
             if long {

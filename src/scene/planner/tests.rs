@@ -253,7 +253,7 @@ fn segment_check_sees_every_touched_cell() {
     // A single blocked cell at (5, 5) in a 10 x 10 grid of 1 m cells.
     let mut clearance_m = vec![1.0f32; 100];
     clearance_m[55] = 0.0;
-    let g = WalkableGrid { origin: DVec2::ZERO, cell_m: 1.0, nx: 10, ny: 10, clearance_m, obstacle: Vec::new() };
+    let g = WalkableGrid { origin: DVec2::ZERO, cell_m: 1.0, nx: 10, ny: 10, clearance_m, top_m: Vec::new() };
     assert!(!segment_clear(&g, DVec2::new(0.5, 0.5), DVec2::new(9.5, 9.5), 0.5), "through the cell's centre");
     assert!(!segment_clear(&g, DVec2::new(4.5, 5.99), DVec2::new(9.5, 5.2), 0.5), "clipping its corner");
     assert!(!segment_clear(&g, DVec2::new(4.0, 4.0), DVec2::new(7.0, 7.0), 0.5), "through the corners");
@@ -289,22 +289,27 @@ fn planning_time_in_a_36_by_24_m_hall() {
     );
 }
 
-/// `obstacle_behind` sees a tall obstacle behind a point along the line of sight, within the
-/// distance asked; not a low one (a bench), not one off the line, not one past a gap in the
-/// floor (a road), and nothing in a grid made of clearances alone.
-#[test]
-fn an_obstacle_behind_is_a_tall_one_on_the_line_of_sight() {
-    // The floor in three parts, leaving a 1 m gap (a road) at y 10-11 over x 30-40; a 2 m high
-    // box at y 20-21 over x 10-14, a 0.5 m high one at y 20-21 over x 26-30, and a 2 m high
-    // wall at y 12-12.5 over x 32-38, just past the road.
+/// The floor in three parts, leaving a 1 m gap (a road) at y 10-11 over x 30-40; a 2 m high
+/// box at y 20-21 over x 10-14, a 0.9 m high one at y 20-21 over x 26-30, a 2 m high wall at
+/// y 12-12.5 over x 32-38 and a 0.8 m high box there over x 30.5-31.5, just past the road.
+fn boxes_and_a_road() -> WalkableGrid {
     let mut env = Environment::default();
     for q in [[0.0, 0.0, 30.0, 40.0], [30.0, 0.0, 40.0, 10.0], [30.0, 11.0, 40.0, 40.0]] {
         push_quad(&mut env, q);
     }
     push_box(&mut env, [10.0, 20.0, 14.0, 21.0], 2.0);
-    push_box(&mut env, [26.0, 20.0, 30.0, 21.0], 0.5);
+    push_box(&mut env, [26.0, 20.0, 30.0, 21.0], 0.9);
     push_box(&mut env, [32.0, 12.0, 38.0, 12.5], 2.0);
-    let g = WalkableGrid::from_environment(&env, 0.1).unwrap();
+    push_box(&mut env, [30.5, 12.0, 31.5, 12.5], 0.8);
+    WalkableGrid::from_environment(&env, 0.1).unwrap()
+}
+
+/// `obstacle_behind` sees a tall obstacle behind a point along the line of sight, within the
+/// distance asked; not a low one (a bench), not one off the line, not one past a gap in the
+/// floor (a road), and nothing in a grid made of clearances alone.
+#[test]
+fn an_obstacle_behind_is_a_tall_one_on_the_line_of_sight() {
+    let g = boxes_and_a_road();
     let eye = DVec2::new(12.0, 2.0);
     assert!(g.obstacle_behind(eye, DVec2::new(12.0, 18.5), 2.0), "1.5 m before the tall box");
     assert!(!g.obstacle_behind(eye, DVec2::new(12.0, 17.0), 2.0), "3 m before it, 2 m asked");
@@ -314,6 +319,24 @@ fn an_obstacle_behind_is_a_tall_one_on_the_line_of_sight() {
     assert!(!g.obstacle_behind(DVec2::new(35.0, 2.0), DVec2::new(35.0, 9.5), 3.5), "the road between the person and the wall");
     assert!(g.obstacle_behind(DVec2::new(35.0, 2.0), DVec2::new(35.0, 11.6), 2.0), "past the road, before the wall");
     assert!(!g.obstacle_behind(eye, eye, 2.0), "at the eye itself");
-    let bare = WalkableGrid { obstacle: Vec::new(), ..g.clone() };
+    let bare = WalkableGrid { top_m: Vec::new(), ..g.clone() };
     assert!(!bare.obstacle_behind(eye, DVec2::new(12.0, 18.5), 2.0), "a grid of clearances alone");
+}
+
+/// `low_obstacle_before` sees a low obstacle between a point and the eye, within the distance
+/// asked (what hides a person's legs); not a tall one (that hides all of them), not one behind
+/// the point, not one past a road, and nothing in a grid made of clearances alone.
+#[test]
+fn a_low_obstacle_before_is_one_between_the_point_and_the_eye() {
+    let g = boxes_and_a_road();
+    let eye = DVec2::new(28.0, 2.0);
+    assert!(g.low_obstacle_before(eye, DVec2::new(28.0, 22.0), 1.5), "1 m behind the low box");
+    assert!(!g.low_obstacle_before(eye, DVec2::new(28.0, 23.0), 1.5), "2 m behind it, 1.5 m asked");
+    assert!(g.low_obstacle_before(eye, DVec2::new(28.0, 23.0), 2.5), "2 m behind it, 2.5 m asked");
+    assert!(!g.low_obstacle_before(eye, DVec2::new(28.0, 19.0), 1.5), "1 m before it, the box behind");
+    assert!(!g.low_obstacle_before(DVec2::new(12.0, 2.0), DVec2::new(12.0, 22.0), 1.5), "1 m behind the tall box");
+    assert!(!g.low_obstacle_before(DVec2::new(31.0, 40.0), DVec2::new(31.0, 9.5), 3.5), "the 0.8 m box past the road");
+    assert!(g.low_obstacle_before(DVec2::new(31.0, 2.0), DVec2::new(31.0, 13.5), 1.5), "1 m behind the 0.8 m box");
+    let bare = WalkableGrid { top_m: Vec::new(), ..g.clone() };
+    assert!(!bare.low_obstacle_before(eye, DVec2::new(28.0, 22.0), 1.5), "a grid of clearances alone");
 }

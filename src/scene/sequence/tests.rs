@@ -726,34 +726,51 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
     assert!(cfg.validate().is_err());
 }
 
-/// `humans.before_things`: a person asked to stand before something starts with a tall
-/// obstacle at most `BEFORE_THING_M` behind it as the sensor sees it halfway through; without
-/// it, few do (most stand in the open here).
-#[test]
-fn people_asked_to_stand_before_things_have_one_behind_them() {
+/// Over a field of sixteen `height_m` high boxes (3 x 0.6 m, 9 m apart), six people a sequence
+/// of whom half stand: how many people `holds` (given the grid, the sensor halfway through and
+/// where the person starts) without `share`, and with it at 1; each as (holding, all).
+fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: fn(&WalkableGrid, DVec2, DVec2) -> bool) -> [(usize, usize); 2] {
     let model = crate::human::tests_support::tiny_model();
-    // Sixteen 2 m high boxes, 3 x 0.6 m, 9 m apart.
     let boxes: Vec<[f64; 4]> = (0..16).map(|k| [4.0 + 9.0 * (k % 4) as f64, 6.0 + 9.0 * (k / 4) as f64, 7.0 + 9.0 * (k % 4) as f64, 6.6 + 9.0 * (k / 4) as f64]).collect();
-    let env = crate::scene::planner::tests::floor_with_boxes(40.0, 40.0, &boxes, 2.0);
+    let env = crate::scene::planner::tests::floor_with_boxes(40.0, 40.0, &boxes, height_m);
     let grid = WalkableGrid::from_environment(&env, 0.1).unwrap();
     let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
     let mut cfg = Config::default();
     cfg.humans.count = [6, 6];
     cfg.humans.spawn_radius_m = 18.0;
     cfg.humans.standing = 0.5;
-    let before = |cfg: &Config| {
+    let count = |cfg: &Config| {
         count_over_seeds(cfg, &inp, |plan, p| {
             let mid = plan.sensor.position(plan.times_s.last().unwrap() * 0.5).truncate();
-            grid.obstacle_behind(mid, p.position_m(0.0).truncate(), crate::config::BEFORE_THING_M)
+            holds(&grid, mid, p.position_m(0.0).truncate())
         })
     };
-    let (anywhere, total) = before(&cfg);
+    let without = count(&cfg);
+    *share(&mut cfg) = 1.0;
+    let with = count(&cfg);
+    *share(&mut cfg) = -0.5;
+    assert!(cfg.validate().is_err(), "a share below 0");
+    [without, with]
+}
+
+/// `humans.before_things`: a person asked to stand before something starts with a tall
+/// obstacle (2 m boxes) at most `BEFORE_THING_M` behind it as the sensor sees it halfway
+/// through; without it, few do (most stand in the open here).
+#[test]
+fn people_asked_to_stand_before_things_have_one_behind_them() {
+    let [(anywhere, total), (asked, all)] = placed_by_a_share(2.0, |c| &mut c.humans.before_things, |g, mid, at| g.obstacle_behind(mid, at, crate::scene::BEFORE_THING_M));
     assert!(anywhere * 4 < total, "{anywhere} of {total} before a thing without being asked");
-    cfg.humans.before_things = 1.0;
-    let (asked, total) = before(&cfg);
-    assert_eq!(asked, total, "{asked} of {total} before a thing");
-    cfg.humans.before_things = -0.5;
-    assert!(cfg.validate().is_err());
+    assert_eq!(asked, all, "{asked} of {all} before a thing");
+}
+
+/// `humans.behind_things`: a person asked to stand behind something starts with a low
+/// obstacle (0.9 m boxes: counters) at most `BEHIND_THING_M` in front of it as the sensor sees
+/// it halfway through; without it, few do.
+#[test]
+fn people_asked_to_stand_behind_things_have_one_before_them() {
+    let [(anywhere, total), (asked, all)] = placed_by_a_share(0.9, |c| &mut c.humans.behind_things, |g, mid, at| g.low_obstacle_before(mid, at, crate::scene::BEHIND_THING_M));
+    assert!(anywhere * 4 < total, "{anywhere} of {total} behind a thing without being asked");
+    assert_eq!(asked, all, "{asked} of {all} behind a thing");
 }
 
 /// `humans.at_places`: in a street of markets, every person asked to stand at a place stands
