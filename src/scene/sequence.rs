@@ -900,6 +900,8 @@ fn sample_synthetic_people(
             if (before || behind) && !at_place && attempt < TRIES / 2 && inp.grid.is_some_and(|g| !wanted(g)) {
                 continue;
             }
+            // One standing behind something faces it, as at a counter (at a place: the place's way).
+            facing = facing.or((behind && attempt < TRIES / 2).then(|| (mid - start).to_angle()));
             if long {
                 if tries >= LONG_TRIES {
                     break;
@@ -931,8 +933,8 @@ fn sample_synthetic_people(
                     }
                 }
                 _ if stands => {
-                    // Waiting or looking around: a third turn on the spot. At a place, facing
-                    // its way give or take 30 degrees.
+                    // Waiting or looking around: a third turn on the spot. At a place or
+                    // behind something, facing its way give or take 30 degrees.
                     let mut u01 = || rng.random::<f64>();
                     let heading = match facing {
                         Some(f) => f + (u01() * 2.0 - 1.0) * PLACE_FACING_RAD,

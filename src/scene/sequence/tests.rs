@@ -728,8 +728,8 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
 
 /// Over a field of sixteen `height_m` high boxes (3 x 0.6 m, 9 m apart), six people a sequence
 /// of whom half stand: how many people `holds` (given the grid, the sensor halfway through and
-/// where the person starts) without `share`, and with it at 1; each as (holding, all).
-fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: fn(&WalkableGrid, DVec2, DVec2) -> bool) -> [(usize, usize); 2] {
+/// the person) without `share`, and with it at 1; each as (holding, all).
+fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: fn(&WalkableGrid, DVec2, &HumanPlan) -> bool) -> [(usize, usize); 2] {
     let model = crate::human::tests_support::tiny_model();
     let boxes: Vec<[f64; 4]> = (0..16).map(|k| [4.0 + 9.0 * (k % 4) as f64, 6.0 + 9.0 * (k / 4) as f64, 7.0 + 9.0 * (k % 4) as f64, 6.6 + 9.0 * (k / 4) as f64]).collect();
     let env = crate::scene::planner::tests::floor_with_boxes(40.0, 40.0, &boxes, height_m);
@@ -742,7 +742,7 @@ fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: f
     let count = |cfg: &Config| {
         count_over_seeds(cfg, &inp, |plan, p| {
             let mid = plan.sensor.position(plan.times_s.last().unwrap() * 0.5).truncate();
-            holds(&grid, mid, p.position_m(0.0).truncate())
+            holds(&grid, mid, p)
         })
     };
     let without = count(&cfg);
@@ -758,17 +758,23 @@ fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: f
 /// through; without it, few do (most stand in the open here).
 #[test]
 fn people_asked_to_stand_before_things_have_one_behind_them() {
-    let [(anywhere, total), (asked, all)] = placed_by_a_share(2.0, |c| &mut c.humans.before_things, |g, mid, at| g.obstacle_behind(mid, at, crate::scene::BEFORE_THING_M));
+    let [(anywhere, total), (asked, all)] = placed_by_a_share(2.0, |c| &mut c.humans.before_things, |g, mid, p| g.obstacle_behind(mid, p.position_m(0.0).truncate(), crate::scene::BEFORE_THING_M));
     assert!(anywhere * 4 < total, "{anywhere} of {total} before a thing without being asked");
     assert_eq!(asked, all, "{asked} of {all} before a thing");
 }
 
 /// `humans.behind_things`: a person asked to stand behind something starts with a low
 /// obstacle (0.9 m boxes: counters) at most `BEHIND_THING_M` in front of it as the sensor sees
-/// it halfway through; without it, few do.
+/// it halfway through, and one who stands faces it (the sensor) within 30 degrees; without
+/// it, few do.
 #[test]
 fn people_asked_to_stand_behind_things_have_one_before_them() {
-    let [(anywhere, total), (asked, all)] = placed_by_a_share(0.9, |c| &mut c.humans.behind_things, |g, mid, at| g.low_obstacle_before(mid, at, crate::scene::BEHIND_THING_M));
+    let [(anywhere, total), (asked, all)] = placed_by_a_share(0.9, |c| &mut c.humans.behind_things, |g, mid, p| {
+        let at = p.position_m(0.0).truncate();
+        let off = (p.trajectory.heading_rad(0.0) - (mid - at).to_angle() + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let walks = p.trajectory.velocity(0.0).length() > 0.0;
+        g.low_obstacle_before(mid, at, crate::scene::BEHIND_THING_M) && (walks || off.abs() <= std::f64::consts::FRAC_PI_6 + 1e-9)
+    });
     assert!(anywhere * 4 < total, "{anywhere} of {total} behind a thing without being asked");
     assert_eq!(asked, all, "{asked} of {all} behind a thing");
 }
