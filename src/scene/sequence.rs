@@ -901,7 +901,7 @@ fn sample_synthetic_people(
                 continue;
             }
             // One standing behind something faces it, as at a counter (at a place: the place's way).
-            facing = facing.or((behind && attempt < TRIES / 2).then(|| (mid - start).to_angle()));
+            facing = facing.or((behind && attempt < TRIES / 2 && inp.grid.is_some()).then(|| (mid - start).to_angle()));
             if long {
                 if tries >= LONG_TRIES {
                     break;
