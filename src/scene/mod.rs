@@ -230,6 +230,10 @@ pub(crate) const TALL_Z: f64 = 1.2;
 /// they stand between ([`WalkableGrid::low_obstacle_before`]: a counter, a bench's back, a bin, a
 /// hedge, a table), m.
 pub(crate) const LOW_Z: f64 = 0.7;
+/// A height over the floor, m, as [`WalkableGrid::top_cm`] keeps it: whole cm, 0-255.
+pub(crate) fn height_cm(z_m: f64) -> u8 {
+    (z_m * 100.0).floor().clamp(0.0, 255.0) as u8
+}
 /// `humans.before_things`: how far behind a person's centre, along the line of sight, m.
 pub const BEFORE_THING_M: f64 = 2.0;
 /// `humans.behind_things`: how far in front of a person's centre, along the line of sight, m.
@@ -255,10 +259,11 @@ pub struct WalkableGrid {
     pub nx: usize,
     pub ny: usize,
     pub clearance_m: Vec<f32>,
-    /// Per cell, how high the obstacles touching it reach over the floor (0: none): in an
-    /// environment the highest point of a triangle 5 cm-2 m high, in a recording the highest
-    /// return up to 2 m; empty for a grid made of clearances alone.
-    pub top_m: Vec<f32>,
+    /// Per cell, how high the obstacles touching it reach over the floor, in whole cm up to
+    /// 255 (0: none; a byte a cell, as the grid's other masks): in an environment the highest
+    /// point of a triangle 5 cm-2 m high, in a recording the highest return up to 2 m; empty
+    /// for a grid made of clearances alone.
+    pub top_cm: Vec<u8>,
 }
 
 impl WalkableGrid {
@@ -284,7 +289,7 @@ impl WalkableGrid {
         let (nx, ny) = WalkableGrid::dims(lo, hi + DVec2::splat(cell_m), cell_m).map_err(|m| Error::input("environment", m))?;
         let mut floor = vec![false; nx * ny];
         let mut blocked = vec![false; nx * ny];
-        let mut top = vec![0f32; nx * ny];
+        let mut top = vec![0u8; nx * ny];
         let centre = |i: usize, j: usize| lo + DVec2::new((i as f64 + 0.5) * cell_m, (j as f64 + 0.5) * cell_m);
         for t in env.triangles() {
             let zmin = t.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
@@ -311,12 +316,12 @@ impl WalkableGrid {
                         floor[j * nx + i] = true;
                     } else if is_obstacle && d <= half_diag {
                         blocked[j * nx + i] = true;
-                        top[j * nx + i] = top[j * nx + i].max(zmax as f32);
+                        top[j * nx + i] = top[j * nx + i].max(height_cm(zmax));
                     }
                 }
             }
         }
-        Ok(WalkableGrid { top_m: top, ..WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked) })
+        Ok(WalkableGrid { top_cm: top, ..WalkableGrid::from_cells(lo, cell_m, nx, ny, &floor, blocked) })
     }
 
     /// The cells (nx, ny) of a grid from corner `lo` to `hi`, at least one each way; the error
@@ -438,7 +443,7 @@ impl WalkableGrid {
                 if d2 == i64::MAX { f32::INFINITY } else { (((d2 as f64).sqrt() - 0.5).max(0.0) * cell_m) as f32 }
             })
             .collect();
-        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, top_m: Vec::new() }
+        WalkableGrid { origin: lo, cell_m, nx, ny, clearance_m, top_cm: Vec::new() }
     }
 
     /// Clearance at a world xy point (0 outside the grid).
@@ -480,7 +485,7 @@ impl WalkableGrid {
     /// high its obstacles reach decides when it says so, else a cell one cannot stand on, the
     /// grid's edge or the end of the walk gives false.
     fn march(&self, from: DVec2, dir: DVec2, far_m: f64, mut seen: impl FnMut(f64) -> Option<bool>) -> bool {
-        if self.top_m.is_empty() || dir.length() < 1e-9 {
+        if self.top_cm.is_empty() || dir.length() < 1e-9 {
             return false;
         }
         let dir = dir / dir.length();
@@ -491,7 +496,7 @@ impl WalkableGrid {
                 return false;
             }
             let c = q.y as usize * self.nx + q.x as usize;
-            if let Some(v) = seen(self.top_m[c] as f64) {
+            if let Some(v) = seen(self.top_cm[c] as f64 * 0.01) {
                 return v;
             }
             if self.clearance_m[c] <= 0.0 {

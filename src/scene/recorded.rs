@@ -17,7 +17,7 @@
 //! floor stays one region with the near floor, where people can stand at the distances a street
 //! shows them (without this, people composited into KITTI streets stood at a median 6 m).
 
-use super::{Regions, WalkableGrid, WALKABLE_CELL_M};
+use super::{height_cm, Regions, WalkableGrid, WALKABLE_CELL_M};
 use crate::error::{Error, Result};
 use crate::input::Recording;
 use glam::{DVec2, DVec3};
@@ -123,8 +123,8 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
     // Per cell: 0, or 1 + the cells a floor return there grows the floor by (the largest).
     let mut seen = vec![0u16; nx * ny];
     let mut blocked = vec![false; nx * ny];
-    // How high each cell's returns reach over the floor, up to 2 m (`WalkableGrid::top_m`).
-    let mut top = vec![0f32; nx * ny];
+    // How high each cell's returns reach over the floor, up to 2 m (`WalkableGrid::top_cm`).
+    let mut top = vec![0u8; nx * ny];
     for (p, o) in pts {
         let d = (p.truncate() - o.truncate()).length();
         if d > WALKABLE_RING_M {
@@ -141,7 +141,7 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
             seen[j * nx + i] = seen[j * nx + i].max(g);
         } else if h >= BLOCK_Z_M[0] && h <= BLOCK_Z_M[1] {
             blocked[j * nx + i] = true;
-            top[j * nx + i] = top[j * nx + i].max(h as f32);
+            top[j * nx + i] = top[j * nx + i].max(height_cm(h));
         }
     }
     // Grow the floor cells: each by its own reach along its row, then every cell so reached by
@@ -159,7 +159,7 @@ pub fn walkable_from_points(pts: &[(DVec3, DVec3)], floor: f64, cell_m: f64) -> 
         return Err(none());
     }
     let min_cells = (MIN_REGION_M2 / (cell_m * cell_m)).ceil() as usize;
-    Ok(WalkableGrid { top_m: top, ..WalkableGrid::from_cells_keeping(lo, cell_m, nx, ny, &floor_cells, blocked, Regions::AtLeast(min_cells)) })
+    Ok(WalkableGrid { top_cm: top, ..WalkableGrid::from_cells_keeping(lo, cell_m, nx, ny, &floor_cells, blocked, Regions::AtLeast(min_cells)) })
 }
 
 /// Along the line `first + k * stride` (k < n): every cell within `src - 1` cells of a cell

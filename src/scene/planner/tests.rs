@@ -253,7 +253,7 @@ fn segment_check_sees_every_touched_cell() {
     // A single blocked cell at (5, 5) in a 10 x 10 grid of 1 m cells.
     let mut clearance_m = vec![1.0f32; 100];
     clearance_m[55] = 0.0;
-    let g = WalkableGrid { origin: DVec2::ZERO, cell_m: 1.0, nx: 10, ny: 10, clearance_m, top_m: Vec::new() };
+    let g = WalkableGrid { origin: DVec2::ZERO, cell_m: 1.0, nx: 10, ny: 10, clearance_m, top_cm: Vec::new() };
     assert!(!segment_clear(&g, DVec2::new(0.5, 0.5), DVec2::new(9.5, 9.5), 0.5), "through the cell's centre");
     assert!(!segment_clear(&g, DVec2::new(4.5, 5.99), DVec2::new(9.5, 5.2), 0.5), "clipping its corner");
     assert!(!segment_clear(&g, DVec2::new(4.0, 4.0), DVec2::new(7.0, 7.0), 0.5), "through the corners");
@@ -319,7 +319,7 @@ fn an_obstacle_behind_is_a_tall_one_on_the_line_of_sight() {
     assert!(!g.obstacle_behind(DVec2::new(35.0, 2.0), DVec2::new(35.0, 9.5), 3.5), "the road between the person and the wall");
     assert!(g.obstacle_behind(DVec2::new(35.0, 2.0), DVec2::new(35.0, 11.6), 2.0), "past the road, before the wall");
     assert!(!g.obstacle_behind(eye, eye, 2.0), "at the eye itself");
-    let bare = WalkableGrid { top_m: Vec::new(), ..g.clone() };
+    let bare = WalkableGrid { top_cm: Vec::new(), ..g.clone() };
     assert!(!bare.obstacle_behind(eye, DVec2::new(12.0, 18.5), 2.0), "a grid of clearances alone");
 }
 
@@ -337,6 +337,6 @@ fn a_low_obstacle_before_is_one_between_the_point_and_the_eye() {
     assert!(!g.low_obstacle_before(DVec2::new(12.0, 2.0), DVec2::new(12.0, 22.0), 1.5), "1 m behind the tall box");
     assert!(!g.low_obstacle_before(DVec2::new(31.0, 40.0), DVec2::new(31.0, 9.5), 3.5), "the 0.8 m box past the road");
     assert!(g.low_obstacle_before(DVec2::new(31.0, 2.0), DVec2::new(31.0, 13.5), 1.5), "1 m behind the 0.8 m box");
-    let bare = WalkableGrid { top_m: Vec::new(), ..g.clone() };
+    let bare = WalkableGrid { top_cm: Vec::new(), ..g.clone() };
     assert!(!bare.low_obstacle_before(eye, DVec2::new(28.0, 22.0), 1.5), "a grid of clearances alone");
 }
