@@ -750,6 +750,8 @@ fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: f
     let with = count(&cfg);
     *share(&mut cfg) = -0.5;
     assert!(cfg.validate().is_err(), "a share below 0");
+    *share(&mut cfg) = 1.5;
+    assert!(cfg.validate().is_err(), "a share above 1");
     [without, with]
 }
 
