@@ -234,6 +234,12 @@ pub(crate) const LOW_Z: f64 = 0.7;
 pub(crate) fn height_cm(z_m: f64) -> u8 {
     (z_m * 100.0).floor().clamp(0.0, 255.0) as u8
 }
+/// Obstacles reaching this high hide a whole person from a sensor at a person's height
+/// ([`WalkableGrid::hidden_from`]: a wall, a booth, a parked truck; a recording's returns reach
+/// 2 m at most), m.
+pub(crate) const HIDES_Z: f64 = 1.9;
+/// Half the width [`WalkableGrid::hidden_from`] hides: a person's shoulders, m.
+const HIDDEN_HALF_M: f64 = 0.3;
 /// `humans.before_things`: how far behind a person's centre, along the line of sight, m.
 pub const BEFORE_THING_M: f64 = 2.0;
 /// `humans.behind_things`: how far in front of a person's centre, along the line of sight, m.
@@ -481,10 +487,32 @@ impl WalkableGrid {
         })
     }
 
+    /// Whether a sensor at `eye` cannot see a person at `at`: the lines of sight to its middle
+    /// and to either shoulder ([`HIDDEN_HALF_M`] aside) each cross a cell whose obstacles reach
+    /// [`HIDES_Z`] (a wall, a booth, a parked truck; not a car, a bench or a pole, which hide
+    /// one line at most) before leaving the grid. A road between hides nothing. Where long
+    /// sequences bring people back in: from doorways, side streets and corners.
+    pub fn hidden_from(&self, eye: DVec2, at: DVec2) -> bool {
+        let d = at - eye;
+        if d.length() < 1e-9 {
+            return false;
+        }
+        let side = d.perp() / d.length() * HIDDEN_HALF_M;
+        [DVec2::ZERO, side, -side].iter().all(|&s| {
+            let from = at + s;
+            self.march_over(from, eye - from, eye.distance(from), false, |top| (top >= HIDES_Z).then_some(true))
+        })
+    }
+
     /// Walks from `from` along `dir` in half-cell steps up to `far_m`: at each cell, `seen` of how
     /// high its obstacles reach decides when it says so, else a cell one cannot stand on, the
     /// grid's edge or the end of the walk gives false.
-    fn march(&self, from: DVec2, dir: DVec2, far_m: f64, mut seen: impl FnMut(f64) -> Option<bool>) -> bool {
+    fn march(&self, from: DVec2, dir: DVec2, far_m: f64, seen: impl FnMut(f64) -> Option<bool>) -> bool {
+        self.march_over(from, dir, far_m, true, seen)
+    }
+
+    /// [`WalkableGrid::march`], going on over cells one cannot stand on unless `floor_only`.
+    fn march_over(&self, from: DVec2, dir: DVec2, far_m: f64, floor_only: bool, mut seen: impl FnMut(f64) -> Option<bool>) -> bool {
         if self.top_cm.is_empty() || dir.length() < 1e-9 {
             return false;
         }
@@ -499,7 +527,7 @@ impl WalkableGrid {
             if let Some(v) = seen(self.top_cm[c] as f64 * 0.01) {
                 return v;
             }
-            if self.clearance_m[c] <= 0.0 {
+            if floor_only && self.clearance_m[c] <= 0.0 {
                 return false;
             }
         }

@@ -340,3 +340,22 @@ fn a_low_obstacle_before_is_one_between_the_point_and_the_eye() {
     let bare = WalkableGrid { top_cm: Vec::new(), ..g.clone() };
     assert!(!bare.low_obstacle_before(eye, DVec2::new(28.0, 22.0), 1.5), "a grid of clearances alone");
 }
+
+/// `hidden_from` needs a tall obstacle across the lines of sight to a person's middle and both
+/// shoulders: behind a 2 m box yes, even past a road; before it, behind a 0.9 m one or half
+/// behind the box's edge no; nothing in a grid made of clearances alone.
+#[test]
+fn hidden_is_behind_something_tall_and_wide() {
+    let g = boxes_and_a_road();
+    let eye = DVec2::new(12.0, 2.0);
+    assert!(g.hidden_from(eye, DVec2::new(12.0, 22.0)), "1 m behind the tall box");
+    assert!(g.hidden_from(eye, DVec2::new(12.0, 35.0)), "14 m behind it");
+    assert!(!g.hidden_from(eye, DVec2::new(12.0, 18.5)), "before it");
+    assert!(!g.hidden_from(eye, DVec2::new(14.2, 23.0)), "half behind its edge");
+    assert!(g.hidden_from(eye, DVec2::new(13.7, 23.0)), "all but a hand behind it");
+    assert!(!g.hidden_from(DVec2::new(28.0, 2.0), DVec2::new(28.0, 22.0)), "behind the low box");
+    assert!(g.hidden_from(DVec2::new(35.0, 2.0), DVec2::new(35.0, 13.5)), "behind the wall past the road");
+    assert!(!g.hidden_from(DVec2::new(35.0, 2.0), DVec2::new(35.0, 9.5)), "before the road");
+    let bare = WalkableGrid { top_cm: Vec::new(), ..g.clone() };
+    assert!(!bare.hidden_from(eye, DVec2::new(12.0, 22.0)), "a grid of clearances alone");
+}

@@ -46,6 +46,11 @@ pub const LEAVE_M: f64 = 100.0;
 /// Tries at planning a leg, and at placing a whole long walk.
 const LEG_TRIES: usize = 20;
 pub(super) const LONG_TRIES: usize = 40;
+/// Tries at a place to come back in, the first half of them out of the sensor's sight.
+const ARRIVAL_TRIES: usize = 200;
+/// How far from the sensor, in spawn radii, a place out of its sight to come back in may be
+/// (one farther than a spawn radius walks back toward the sensor); in view: 0.3-1.
+const HIDDEN_ARRIVAL_RADII: f64 = 2.0;
 
 /// Who a new person must keep clear of over a long sequence: obstacles, the sensor, the people
 /// placed before.
@@ -77,8 +82,10 @@ impl Crowd<'_> {
 /// and after 10-60 s of waiting first for one who stands. Each walk slows to a stop at its
 /// goal, and one that begins after a wait gets going, over [`Pauses::RAMP_S`] (the speed never
 /// steps). Somebody left more than [`LEAVE_M`]
-/// from the sensor (a vehicle drives on) leaves and comes back in 0.3-1 spawn radii from where
-/// the sensor is then, so the people stay around it to the end. Each leg keeps clear of the
+/// from the sensor (a vehicle drives on) leaves and comes back in near where the sensor is
+/// then: out of its sight 0.3-2 spawn radii away where there is such a place
+/// ([`WalkableGrid::hidden_from`]), else in view 0.3-1 spawn radii away, so the people stay
+/// around it to the end. Each leg keeps clear of the
 /// obstacles, the sensor and the people placed before at every frame; None when a leg finds
 /// no way to.
 #[allow(clippy::too_many_arguments)]
@@ -121,16 +128,19 @@ pub(super) fn long_walk(
     // Somebody a vehicle leaves far behind (none for the sensor's own walk).
     let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
     while t <= duration {
-        // Left far behind: come back in near the sensor.
+        // Left far behind: come back in near the sensor, out of its sight where the first
+        // half of the tries find such a place (a doorway, a side street, behind a booth or a
+        // parked truck), so arrivals walk into view.
         if let Some(sensor) = crowd.sensor.filter(|_| far(pos, t)) {
             let here = sensor.position(t).truncate();
-            let back = (0..LEG_TRIES)
-                .map(|_| {
-                    let (r, a) = (spawn_radius_m * u(rng, [0.3, 1.0]), u(rng, [0.0, std::f64::consts::TAU]));
-                    here + r * DVec2::new(a.cos(), a.sin())
+            let back = (0..ARRIVAL_TRIES)
+                .map(|k| {
+                    let reach = if k < ARRIVAL_TRIES / 2 { HIDDEN_ARRIVAL_RADII } else { 1.0 };
+                    let (r, a) = (spawn_radius_m * u(rng, [0.3, reach]), u(rng, [0.0, std::f64::consts::TAU]));
+                    (k, here + r * DVec2::new(a.cos(), a.sin()))
                 })
-                .find(|&p| crowd.clear(&stand(p, heading), t, t + 1e-9));
-            pos = back?;
+                .find(|&(k, p)| (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear(&stand(p, heading), t, t + 1e-9));
+            pos = back?.1;
             at_rest = false;
         }
         // After a walk, a wait at its goal, turning on the spot toward the next walk.

@@ -497,6 +497,47 @@ fn a_long_sequences_sensor_walks_and_a_driving_one_keeps_its_people() {
     assert!(came_back >= 4, "{came_back} returns");
 }
 
+/// People a driving sensor leaves behind come back in out of its sight where the street has
+/// such places (behind a row of kiosks), where places drawn as before are mostly in view.
+#[test]
+fn people_come_back_in_from_out_of_sight() {
+    let model = crate::human::tests_support::tiny_model();
+    let kiosks: Vec<[f64; 4]> = (0..49).map(|k| 10.0 + 12.0 * k as f64).map(|x| [x, 9.0, x + 2.5, 10.5]).collect();
+    let env = crate::scene::planner::tests::floor_with_boxes(600.0, 16.0, &kiosks, 2.5);
+    let street = crate::scene::WalkableGrid::from_environment(&env, 0.25).unwrap();
+    let arc = Trajectory { start_m: DVec2::new(20.0, 4.0), z_m: 1.7, heading0_rad: 0.0, speed_mps: 8.0, yaw_rate_rps: 0.0 };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&street), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: Some(arc), places: &[] };
+    let mut cfg = Config::default();
+    cfg.frames = 601;
+    cfg.humans.count = [4, 4];
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &inp).unwrap();
+    let (mut arrivals, mut hidden) = (0, 0);
+    for p in &plan.humans {
+        let HumanPath::Legs(legs) = &p.trajectory else { panic!() };
+        for w in legs.windows(2) {
+            let at = w[1].path.position(0.0).truncate();
+            if w[0].path.position(w[1].t0_s - w[0].t0_s).truncate().distance(at) > 1.0 {
+                arrivals += 1;
+                hidden += street.hidden_from(plan.sensor.position(w[1].t0_s).truncate(), at) as usize;
+            }
+        }
+    }
+    assert!(arrivals >= 4 && hidden * 10 >= arrivals * 9, "{hidden} of {arrivals} arrivals out of sight");
+    // Places drawn around the sensor as before this (0.3-1 spawn radii) are mostly in view.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let (mut free, mut out_of_sight) = (0, 0);
+    for _ in 0..2000 {
+        let eye = DVec2::new(rng.random_range(50.0..550.0), 4.0);
+        let (r, a) = (cfg.humans.spawn_radius_m * rng.random_range(0.3..1.0), rng.random_range(0.0..std::f64::consts::TAU));
+        let p = eye + r * DVec2::new(a.cos(), a.sin());
+        if street.clearance(p) >= cfg.humans.clearance_m {
+            free += 1;
+            out_of_sight += street.hidden_from(eye, p) as usize;
+        }
+    }
+    assert!(out_of_sight * 3 < free, "{out_of_sight} of {free} drawn places out of sight");
+}
+
 #[test]
 fn gait_phase_advances_by_distance_over_stride() {
     let p = plan(MotionMode::Full);
