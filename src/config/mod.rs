@@ -2,9 +2,12 @@
 //! command-line flags, then checked once into values the pipeline can use without re-checking.
 //! The resolved configuration is written into every output file as TOML text.
 
+mod checks;
 mod flags;
 pub use flags::Flags;
 
+use checks::{non_negative, positive, range_ok};
+pub(crate) use checks::usable_sensor_height;
 use crate::debug::KillPoint;
 use crate::error::{Error, Result};
 use crate::human::MotionMode;
@@ -240,6 +243,10 @@ pub struct HumansConfig {
     /// Share of people (as `before_things`) who start with a low obstacle (a counter, a bench)
     /// at most [`crate::scene::BEHIND_THING_M`] in front of them, hiding their legs, 0..1.
     pub behind_things: f64,
+    /// Clothes over the unclothed bodies, thickness uniform in [min, max], m (0..0.15): each
+    /// model dressed in [`crate::human::clothes::CLOTHES_VARIANTS`] thicknesses over the range;
+    /// [0, 0], the default, leaves the bodies unclothed.
+    pub clothes_m: [f64; 2],
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table (the
     /// street's markets, `scene.markets`), where one within `spawn_radius_m` is free; the
@@ -640,6 +647,7 @@ impl Default for HumansConfig {
             by_things: 0.0,
             before_things: 0.0,
             behind_things: 0.0,
+            clothes_m: [0.0, 0.0],
             at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
@@ -911,6 +919,7 @@ impl Config {
         }
         range_ok("humans.yaw_rate_rps", self.humans.yaw_rate_rps, -10.0, 10.0)?;
         range_ok("humans.arm_swing", self.humans.arm_swing, 0.0, 2.0)?;
+        range_ok("humans.clothes_m", self.humans.clothes_m, 0.0, 0.15)?;
         range_ok("humans.stride_variation", self.humans.stride_variation, 0.5, 1.5)?;
         range_ok("scene.sensor_speed_mps", self.scene.sensor_speed_mps, 0.0, 100.0)?;
         range_ok("scene.sensor_yaw_rate_rps", self.scene.sensor_yaw_rate_rps, -10.0, 10.0)?;
@@ -954,36 +963,6 @@ impl Config {
         }
         Ok(())
     }
-}
-
-/// A sensor height over the floor that a scene can be built with (`scene.sensor_height_m`,
-/// `--sensor-height`): finite and within a kilometre.
-pub(crate) fn usable_sensor_height(h: f64) -> bool {
-    h.is_finite() && h.abs() < 1000.0
-}
-
-fn range_ok(key: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<()> {
-    if !(r[0].is_finite() && r[1].is_finite() && r[0] <= r[1] && r[0] >= lo && r[1] <= hi) {
-        return Err(Error::input(
-            format!("config key `{key}`"),
-            format!("[{}, {}] must be finite, ordered and within [{lo}, {hi}]", r[0], r[1]),
-        ));
-    }
-    Ok(())
-}
-
-fn positive(key: &str, v: f64) -> Result<()> {
-    if !(v.is_finite() && v > 0.0) {
-        return Err(Error::input(format!("config key `{key}`"), format!("{v} must be a positive number")));
-    }
-    Ok(())
-}
-
-fn non_negative(key: &str, v: f64) -> Result<()> {
-    if !(v.is_finite() && v >= 0.0) {
-        return Err(Error::input(format!("config key `{key}`"), format!("{v} must be a non-negative number")));
-    }
-    Ok(())
 }
 
 /// Serde: a switch that is off is left out of the written configuration.

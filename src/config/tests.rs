@@ -138,6 +138,13 @@ fn unknown_keys_and_impossible_values_are_rejected() {
     let mut c = Config::default();
     c.humans.speed_mps = [f64::NAN, 1.0];
     assert!(c.validate().is_err());
+    // Clothes thicker than 15 cm, unordered or NaN are no clothes.
+    for clothes in [[0.0, 0.2], [0.05, 0.01], [f64::NAN, 0.05], [-0.01, 0.05]] {
+        let mut c = Config::default();
+        c.humans.clothes_m = clothes;
+        let e = c.validate().unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("humans.clothes_m"), "{clothes:?}: {e}");
+    }
     // The track transform within its documented ranges only (a scale of 1e308 sent every
     // track position to infinity).
     let mut c = Config::default();

@@ -16,6 +16,7 @@
 //! stride and Froude number (see [`stride_length_m`]), and its feet slide where that differs.
 
 pub(crate) mod checks;
+pub mod clothes;
 mod gait;
 mod load;
 pub mod proxy;
