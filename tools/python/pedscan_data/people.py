@@ -9,9 +9,11 @@ points), the people and the medians of: points; width (the points' spread in azi
 that range: what a range image shows across); height seen (highest minus lowest point);
 lowest and highest point above the ground (the 5th percentile height of the other points
 within 3 m, horizontally); and the share whose lowest point is more than 0.5 m above the
-ground (legs hidden: behind a parked car, a hedge). An instance spread over more than 2 m
-horizontally is several people under one id (SemanticKITTI has such): counted as ``merged``
-and left out; so is one of fewer than 5 points (``few``).
+ground (legs hidden: behind a parked car, a hedge). A person's points more than 1.5 m from
+its median position are strays (a few points labelled with its id elsewhere in the scan, as
+SemanticKITTI has) and left out of it. An instance with more than a tenth of its points
+strays, or the rest spread over more than 2 m horizontally, is several people under one id:
+counted as ``merged`` and left out; so is one of fewer than 5 points (``few``).
 
 Set real scans beside a generated export to see how the two differ (docs/real-data.md).
 """
@@ -46,6 +48,12 @@ LEGS_HIDDEN_M = 0.5
 #: An instance spread wider than this is several people, m.
 MERGED_M = 2.0
 
+#: A person's points farther than this from its median position are strays, m.
+STRAY_M = 1.5
+
+#: An instance with more than this share of strays is several people.
+STRAY_SHARE = 0.1
+
 #: Fewer points than this say nothing of a shape.
 FEW_POINTS = 5
 
@@ -63,6 +71,19 @@ def merged(points: np.ndarray, m: np.ndarray) -> bool:
     return bool(np.ptp(points[m, :2], axis=0).max() > MERGED_M)
 
 
+def core(points: np.ndarray, m: np.ndarray) -> np.ndarray | None:
+    """The points ``m`` of one instance without its strays (farther than :data:`STRAY_M` from
+    its median position, horizontally: a few points labelled with its id elsewhere in the
+    scan); None where it is several people (strays more than :data:`STRAY_SHARE` of its points,
+    or the rest :func:`merged`)."""
+    xy = points[:, :2].astype(np.float64)
+    centre = np.median(xy[m], axis=0)
+    near = m & (np.hypot(*(xy - centre).T) <= STRAY_M)
+    if near.sum() < (1.0 - STRAY_SHARE) * m.sum() or merged(points, near):
+        return None
+    return near
+
+
 def scan_people(points: np.ndarray, labels: np.ndarray) -> tuple[list[dict[str, float]], int, int]:
     """The people of one scan (dicts of range_m, points, width_m, height_m, bottom_m, top_m; the
     last two NaN without ground around), and the instances merged and with few points."""
@@ -75,9 +96,11 @@ def scan_people(points: np.ndarray, labels: np.ndarray) -> tuple[list[dict[str, 
         if m.sum() < FEW_POINTS:
             few += 1
             continue
-        if merged(points, m):
+        kept = core(points, m)
+        if kept is None:
             spread += 1
             continue
+        m = kept
         p = xy[m]
         centre = np.median(p, axis=0)
         horizontal = np.hypot(p[:, 0], p[:, 1])
@@ -128,7 +151,7 @@ def format_report(d: dict[str, Any]) -> str:
         return "n/a" if x is None else f"{x:.{digits}f}"
 
     lines = [f"{d['scans']}: {d['scan_count']} scans, {d['people']} people "
-             f"(left out: {d['merged']} instances spread over more than {MERGED_M:g} m, {d['few']} of under {FEW_POINTS} points)",
+             f"(left out: {d['merged']} instances of several people, {d['few']} of under {FEW_POINTS} points)",
              "distance   people  points  width m  height seen m  lowest m  highest m  legs hidden"]
     for b in d["bins"]:
         name = f"{b['min_m']:g}-{b['max_m']:g} m" if b["max_m"] is not None else f"{b['min_m']:g}+ m"

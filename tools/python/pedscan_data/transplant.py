@@ -8,7 +8,8 @@ root with ``labels/``: real scans, and pedscan's ``--formats semantickitti`` exp
 world the network was trained on). Both are put on the model's grid by ``pedscan project``, as
 ``predict`` does, and each scan is seen alone (an N-frame network sees it as a still scene).
 A person is one instance of class 30 or 254 in one scan whose median range lies in
-``--range``, with at least 20 cells and spread over at most 2 m (:mod:`pedscan_data.people`).
+``--range``, with at least 20 cells and spread over at most 2 m, its strays left out
+(:mod:`pedscan_data.people`).
 
 Per person the median human margin (logit of human minus background, over its cells) and
 whether it exceeds the model's threshold (found), in four settings:
@@ -26,9 +27,17 @@ Beside the settings, the backdrop share of each side: per person, the share of t
 (its rows, ``BACKDROP_COLUMNS`` either side, not its own) holding a return 0-2 m behind it;
 their mean over the people.
 
+- ``real, alone`` and ``generated, alone``: the people in their own scans with every other
+  return taken out but the ground's (SemanticKITTI's road, parking, sidewalk, other ground and
+  terrain: ``GROUND_CLASSES``), so nothing stands around them;
+- ``real, alone, a quarter narrower`` and the same for the generated: alone, and in each of
+  their rows the outer eighth of their cells at either side taken out too (``NARROWER``), as
+  if they were a quarter narrower (0.53 m across becomes 0.40 m).
+
 When a real person is missed in its own scan and found among generated surroundings (and a
 generated one missed among real surroundings), the surroundings decide, not the person's own
-shape; ``--columns 0`` moves the people's columns alone.
+shape; ``--columns 0`` moves the people's columns alone. When one is missed alone and found
+alone but narrower, its width decides.
 """
 
 from __future__ import annotations
@@ -42,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from .people import merged, person_instances
+from .people import core, person_instances
 from .reader import PedscanError
 from .scans import NO_CELL, POINT_BYTES, find_pedscan, projected_scans, read_points, read_u32, scan_sequences, sensor_argument
 
@@ -59,6 +68,14 @@ BACKDROP_M = (0.0, 2.0)
 #: How much farther ``backdrop pushed back`` moves them, m.
 BACKDROP_PUSH_M = 8.0
 
+#: SemanticKITTI's ground classes (road, parking, sidewalk, other ground, terrain): what a
+#: person ``alone`` keeps around it.
+GROUND_CLASSES = (40, 44, 48, 49, 72)
+
+#: The share of a person's cells in each of its rows that ``a quarter narrower`` takes out, half
+#: at either side.
+NARROWER = 0.25
+
 #: People taken from each side at most (the first in file order).
 MAX_PEOPLE = 200
 
@@ -74,7 +91,8 @@ def grid_people(points: np.ndarray, labels: np.ndarray, cells: np.ndarray, range
     cols = range_m.shape[1]
     out = []
     for m in person_instances(labels, cells != NO_CELL):
-        if merged(points, m):
+        m = core(points, m)
+        if m is None:
             continue
         c = np.unique(cells[m].astype(np.int64))
         if len(c) < MIN_CELLS:
@@ -100,9 +118,33 @@ def backdrop(image: np.ndarray, rows: np.ndarray, cols: np.ndarray, range_m: flo
     return near & (image > 0) & (behind >= BACKDROP_M[0]) & (behind < BACKDROP_M[1]), int(near.sum())
 
 
-def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[float, float]) -> tuple[list[np.ndarray], list[tuple[int, np.ndarray, np.ndarray, float]]]:
-    """The range images of every scan, and (scan index, rows, columns, range) of its people."""
+def alone(image: np.ndarray, ground: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``image`` with every return taken out (0) but the person's cells and the ground's."""
+    out = np.where(ground, image, 0.0).astype(image.dtype)
+    out[rows, cols] = image[rows, cols]
+    return out
+
+
+def narrower(rows: np.ndarray, cols: np.ndarray, width: int) -> np.ndarray:
+    """Which of a person's cells stay when it is made narrower: in each of its rows, the outer
+    ``NARROWER / 2`` of its cells (by column, counted from its centre across the seam) at
+    either side go."""
+    rel = (cols - centre_column(cols, width) + width // 2) % width
+    keep = np.ones(len(rows), bool)
+    for r in np.unique(rows):
+        at = np.nonzero(rows == r)[0]
+        k = int(round(len(at) * NARROWER / 2))
+        if k:
+            order = at[np.argsort(rel[at], kind="stable")]
+            keep[order[:k]] = keep[order[-k:]] = False
+    return keep
+
+
+def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[float, float]) -> tuple[list[np.ndarray], list[np.ndarray], list[tuple[int, np.ndarray, np.ndarray, float]]]:
+    """The range images of every scan, their ground cells (``GROUND_CLASSES``), and (scan
+    index, rows, columns, range) of their people."""
     images: list[np.ndarray] = []
+    grounds: list[np.ndarray] = []
     people: list[tuple[int, np.ndarray, np.ndarray, float]] = []
     for seq in scan_sequences(scans, labelled=True):
         for _, p in projected_scans(binary, seq, work, sensor):
@@ -111,8 +153,12 @@ def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[floa
             for r, c, d in grid_people(read_points(p.file), labels, p.cells, p.range_m, band):
                 if len(people) < MAX_PEOPLE:
                     people.append((len(images), r, c, d))
+            ground = np.zeros(p.range_m.shape, bool)
+            on = p.cells != NO_CELL
+            ground.flat[p.cells[on].astype(np.int64)] = np.isin(labels[on] & 0xFFFF, GROUND_CLASSES)
             images.append(p.range_m)
-    return images, people
+            grounds.append(ground)
+    return images, grounds, people
 
 
 def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band: tuple[float, float] = (8.0, 24.0),
@@ -130,8 +176,8 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
     binary = find_pedscan(pedscan)
     with tempfile.TemporaryDirectory(prefix="pedscan-transplant-") as tmp:
         sensor = sensor_argument(spec, Path(tmp))
-        real_img, real_people = collect(binary, real, Path(tmp) / "real", sensor, band)
-        gen_img, gen_people = collect(binary, generated, Path(tmp) / "generated", sensor, band)
+        real_img, real_ground, real_people = collect(binary, real, Path(tmp) / "real", sensor, band)
+        gen_img, gen_ground, gen_people = collect(binary, generated, Path(tmp) / "generated", sensor, band)
     if not real_people or not gen_people:
         empty = real if not real_people else generated
         raise PedscanError(f"{empty}: no person at {band[0]:g}-{band[1]:g} m with {MIN_CELLS} cells or more")
@@ -172,6 +218,18 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
             out.append(float(np.median(margin(image)[r, c])))
         return out
 
+    def by_itself(images: list[np.ndarray], grounds: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]],
+                  thinner: bool) -> list[float]:
+        out = []
+        for s, r, c, _ in people:
+            image = alone(images[s], grounds[s], r, c)
+            if thinner:
+                keep = narrower(r, c, image.shape[1])
+                image[r[~keep], c[~keep]] = 0.0
+                r, c = r[keep], c[keep]
+            out.append(float(np.median(margin(image)[r, c])))
+        return out
+
     def share(backdrops: list[tuple[np.ndarray, int]]) -> float:
         return float(np.mean([mask.sum() / max(looked, 1) for mask, looked in backdrops]))
 
@@ -182,6 +240,10 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
         "generated in real": moved(gen_img, gen_people, real_img),
         "real, backdrop pushed back": pushed(real_img, real_people, real_bd),
         "generated, backdrop pushed back": pushed(gen_img, gen_people, gen_bd),
+        "real, alone": by_itself(real_img, real_ground, real_people, False),
+        "generated, alone": by_itself(gen_img, gen_ground, gen_people, False),
+        "real, alone, a quarter narrower": by_itself(real_img, real_ground, real_people, True),
+        "generated, alone, a quarter narrower": by_itself(gen_img, gen_ground, gen_people, True),
     }
     return {
         "model": str(model), "real": str(real), "generated": str(generated), "columns": columns, "range_m": list(band),
@@ -212,9 +274,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(f"people at {d['range_m'][0]:g}-{d['range_m'][1]:g} m, {d['columns']} columns either side moved with each; "
           f"threshold margin {d['threshold_margin']:.2f}")
-    print("setting                          people  median margin  found")
+    print("setting                                 people  median margin  found")
     for k, v in d["settings"].items():
-        print(f"{k:<32} {v['people']:>6}  {v['median_margin']:>13.2f}  {v['found']:>5.2f}")
+        print(f"{k:<39} {v['people']:>6}  {v['median_margin']:>13.2f}  {v['found']:>5.2f}")
     b = d["backdrop_share"]
     print(f"backdrop (their rows, {BACKDROP_COLUMNS} columns either side, a return {BACKDROP_M[0]:g}-{BACKDROP_M[1]:g} m "
           f"behind them): real {b['real']:.2f}, generated {b['generated']:.2f} of the cells")

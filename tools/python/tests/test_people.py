@@ -57,6 +57,29 @@ def test_each_person_is_measured_from_its_points_and_the_ground_around_it() -> N
     assert far["width_m"] == pytest.approx(0.4, rel=0.01)
 
 
+def test_a_few_stray_points_are_left_out_of_a_person_and_many_make_it_several() -> None:
+    from pedscan_data.people import core
+
+    pts, labels = scene()
+    people, _, _ = scan_people(pts, labels)
+    whole = next(p for p in people if round(p["range_m"]) == 10)
+    lab = labels >> 16
+    ids, counts = np.unique(lab[np.isin(labels & 0xFFFF, (30, 254))], return_counts=True)
+    i = next(i for i, c in zip(ids, counts) if c == whole["points"])
+    # 5 points of its id 30 m away (under a tenth of its 108): strays, left out of it.
+    stray = (np.array([[0.0, -30.0, -1.0, 0.1]] * 5, dtype=np.float32), np.full(5, i << 16 | 30, dtype=np.uint32))
+    p2, l2 = np.concatenate([pts, stray[0]]), np.concatenate([labels, stray[1]])
+    again = next(p for p in scan_people(p2, l2)[0] if round(p["range_m"]) == 10)
+    assert again == whole
+    m = (l2 >> 16) == i
+    assert core(p2, m).sum() == whole["points"]
+    # 20 (more than a tenth): several people.
+    many = (np.array([[0.0, -30.0, -1.0, 0.1]] * 20, dtype=np.float32), np.full(20, i << 16 | 30, dtype=np.uint32))
+    p3, l3 = np.concatenate([pts, many[0]]), np.concatenate([labels, many[1]])
+    assert core(p3, (l3 >> 16) == i) is None
+    assert scan_people(p3, l3)[1] == scan_people(pts, labels)[1] + 1
+
+
 def test_the_report_bins_people_by_distance_and_counts_hidden_legs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     pts, labels = scene()
     seq = tmp_path / "seq"

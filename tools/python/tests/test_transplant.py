@@ -11,7 +11,7 @@ import torch
 
 from conftest import generate_test16, net_for, save_model
 from pedscan_data.reader import Sequence
-from pedscan_data.transplant import BACKDROP_COLUMNS, backdrop, main, transplant
+from pedscan_data.transplant import BACKDROP_COLUMNS, alone, backdrop, main, narrower, transplant
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +35,8 @@ def test_a_person_moved_with_its_whole_turn_is_what_it_was(scans: tuple[Path, Pa
     assert s["real"]["people"] >= 8 and s["real"] == s["generated"] == s["real in generated"] == s["generated in real"]
     assert 0.0 <= s["real"]["found"] <= 1.0
     assert s["real, backdrop pushed back"] == s["generated, backdrop pushed back"]
+    assert s["real, alone"] == s["generated, alone"] and s["real, alone, a quarter narrower"] == s["generated, alone, a quarter narrower"]
+    assert s["real, alone"] != s["real"], "alone, the people's surroundings are gone"
     assert d["backdrop_share"]["real"] == d["backdrop_share"]["generated"]
     # With no surroundings moved, people land among other scans' beams: other margins.
     near = transplant(model, folder, folder, columns=0, band=(0.0, 100.0))["settings"]
@@ -67,3 +69,22 @@ def test_a_backdrop_is_what_stands_0_to_2_m_behind_a_person_in_its_rows_beside_i
     mask, looked = backdrop(image, rows, cols, 10.0)
     assert looked == 3 * (2 * BACKDROP_COLUMNS + 1) - 9
     assert set(zip(*np.nonzero(mask))) == {(r, c) for r in (2, 3, 4) for c in range(90, 100)}
+
+
+def test_alone_keeps_the_person_and_the_ground_and_narrower_takes_the_outer_eighths() -> None:
+    import numpy as np
+
+    image = np.full((6, 512), 30.0, dtype=np.float32)
+    ground = np.zeros(image.shape, bool)
+    ground[5] = True
+    rows = np.array([2] * 8 + [3] * 2 + [4] * 8)
+    cols = np.concatenate([np.arange(100, 108), [103, 104], (np.arange(508, 516) % 512)])
+    image[rows, cols] = 10.0
+    out = alone(image, ground, rows, cols)
+    assert (out[rows, cols] == 10.0).all() and (out[5] == 30.0).all()
+    assert np.count_nonzero(out) == len(rows) + 512
+    keep = narrower(rows, cols, 512)
+    # 8 cells a row: one off either end; 2 cells: none; across the seam by columns from its centre.
+    assert set(cols[~keep][rows[~keep] == 2]) == {100, 107}
+    assert keep[rows == 3].all()
+    assert set(cols[~keep][rows[~keep] == 4]) == {508, 3}
