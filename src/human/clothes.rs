@@ -9,6 +9,7 @@
 
 use super::{HumanModel, Lod};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::collections::HashMap;
 
 /// Dressed variants of each model, one thickness each.
@@ -30,9 +31,14 @@ pub fn dress(models: Vec<HumanModel>, range_m: [f64; 2]) -> Vec<HumanModel> {
         return models;
     }
     let n = CLOTHES_VARIANTS as f64;
-    models
-        .iter()
-        .flat_map(|m| (0..CLOTHES_VARIANTS).map(move |k| m.dressed((range_m[0] + (range_m[1] - range_m[0]) * (k as f64 + 0.5) / n) as f32)))
+    // Each variant on its own thread (about 25 ms of CPU each for a bundled person); the
+    // order is the models' and then the thicknesses'.
+    (0..models.len() * CLOTHES_VARIANTS)
+        .into_par_iter()
+        .map(|i| {
+            let k = i % CLOTHES_VARIANTS;
+            models[i / CLOTHES_VARIANTS].dressed((range_m[0] + (range_m[1] - range_m[0]) * (k as f64 + 0.5) / n) as f32)
+        })
         .collect()
 }
 
