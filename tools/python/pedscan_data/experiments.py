@@ -92,7 +92,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .leads import BIN_NAMES, SEED_FRAMES, fmt, iou_row, render_leads, run_seed, seed_leads, seed_run
+from .leads import BIN_NAMES, SEED_FRAMES, fmt, iou_row, render_leads, render_recorded_seeds, run_seed, seed_leads, seed_run
 from .netio import atomic_write_text, save_figure
 from .reader import PedscanError
 
@@ -726,6 +726,7 @@ def render_markdown(res: dict[str, Any]) -> str:
                 if g is None and r is None:
                     continue
                 lines.append(f"| {world} | {n} | {fmt(g)} | {fmt(r)} | {fmt(r / g if g and r is not None else None, 3)} |")
+        lines += render_recorded_seeds(world_scores(res))
     if any(k.startswith("recorded-") for k in sc):
         lines += ["", "## Trained on the recording (the paper's setting)", "",
                   "People composited into the recording, from other seeds than its test set's "

@@ -1,7 +1,8 @@
 """The sequence's lead over training seeds: the paper's finding (16 frames beat one on far
 people) measured as ``experiments paper --seeds`` trains it, the 16-frame network's IoU minus
 the single frame's per distance bin, per seed, with its mean and spread, and each world's lead
-against the hall's."""
+against the hall's; and the same networks on the hall's recorded test set over their seeds, each
+world against the hall's."""
 
 from __future__ import annotations
 
@@ -109,4 +110,69 @@ def render_leads(leads: dict[str, Any]) -> list[str]:
                 verdict = "larger" if diff > spread else "not larger"
                 row.append(f"{diff:+.4f} against {spread:.4f}: {verdict}")
             lines.append(f"| {world} | " + " | ".join(row) + " |")
+    return lines
+
+
+def run_frames_seed(name: str) -> tuple[int, int] | None:
+    """(frames, training seed) of a ``--seeds`` run named by :func:`seed_run`; None for any
+    other name."""
+    frames = "|".join(map(str, SEED_FRAMES))
+    m = re.fullmatch(rf"frames({frames})(?:-seed(\d+))?", name)
+    return None if m is None else (int(m.group(1)), int(m.group(2) or 0))
+
+
+def recorded_seeds(worlds: list[tuple[str, dict[str, Any]]]) -> dict[str, dict[int, dict[int, float]]]:
+    """Per world and N (1 and 16), each training seed's IoU on the hall's recorded test set
+    (score ``frames{N}[-seed{S}]--test-recorded``); worlds and N without one are left out."""
+    out: dict[str, dict[int, dict[int, float]]] = {}
+    for world, scores in worlds:
+        for key, s in scores.items():
+            if not key.endswith("--test-recorded"):
+                continue
+            fs = run_frames_seed(key[:-len("--test-recorded")])
+            if fs is not None:
+                out.setdefault(world, {}).setdefault(fs[0], {})[fs[1]] = s["overall"]["iou"]
+    return out
+
+
+def render_recorded_seeds(worlds: list[tuple[str, dict[str, Any]]]) -> list[str]:
+    """Each world's networks on the hall's recorded test set over their training seeds, and
+    each world against the hall's: seed by seed where both trained one, and the means against
+    the spread (as the leads: higher when the difference exceeds the larger of the two worlds'
+    largest-minus-smallest). Shown when the hall and another world each have two seeds of one N."""
+    rec = recorded_seeds(worlds)
+    hall = rec.get("hall", {})
+    pairs = [(w, n) for w, per_n in rec.items() if w != "hall" for n in sorted(per_n)
+             if len(per_n[n]) > 1 and len(hall.get(n, {})) > 1]
+    if not pairs:
+        return []
+
+    def spread(v: dict[int, float]) -> float:
+        return max(v.values()) - min(v.values())
+
+    def mean(v: dict[int, float]) -> float:
+        return sum(v.values()) / len(v)
+
+    lines = ["", "### Over training seeds", "",
+             "The 1- and 16-frame networks of `--seeds` on the hall's recorded test set: each world's "
+             "mean over its seeds (lowest to highest), and each world against the hall's, seed by seed "
+             "where both trained one and by the means against the spread (the larger of the two worlds' "
+             "highest-minus-lowest): higher when the difference exceeds it.", "",
+             "| world | N | seeds | IoU recorded test | against the hall, seed by seed | means, against the spread |",
+             "|---|---|---|---|---|---|"]
+    for world, per_n in [("hall", hall)] + [(w, rec[w]) for w in dict.fromkeys(w for w, _ in pairs)]:
+        for n in sorted(per_n):
+            v = per_n[n]
+            seeds = ", ".join(map(str, sorted(v)))
+            got = f"{mean(v):.4f} ({min(v.values()):.4f} to {max(v.values()):.4f})" if len(v) > 1 else f"{mean(v):.4f}"
+            if world == "hall" or (world, n) not in pairs:
+                lines.append(f"| {world} | {n} | {seeds} | {got} | | |")
+                continue
+            h = hall[n]
+            both = sorted(set(v) & set(h))
+            above = sum(v[s] > h[s] for s in both)
+            by_seed = f"higher at {above} of {len(both)} ({', '.join(f'{v[s] - h[s]:+.4f}' for s in both)})" if both else "no seed in common"
+            diff, sp = mean(v) - mean(h), max(spread(v), spread(h))
+            verdict = "higher" if diff > sp else "not higher"
+            lines.append(f"| {world} | {n} | {seeds} | {got} | {by_seed} | {diff:+.4f} against {sp:.4f}: {verdict} |")
     return lines

@@ -137,3 +137,27 @@ def test_the_report_carries_the_leads_and_table4_keeps_seed_0(tmp_path: Path) ->
     # Table 4 shows seed 0 (the plain runs): the street's 16 frames at 8+ m are 0.5 + 0.10.
     rows = table4_rows(md)
     assert rows[7].split(" | ")[6] == "0.6000 / 0.1622 |"
+
+
+def test_the_worlds_on_the_recording_over_seeds_seed_by_seed_and_against_the_spread() -> None:
+    from pedscan_data.leads import recorded_seeds, render_recorded_seeds
+
+    def on_recording(ious: dict[str, float]) -> dict:
+        return {f"{run}--test-recorded": scored(v, (v, v, v)) for run, v in ious.items()}
+
+    hall = on_recording({"frames1": 0.40, "frames1-seed1": 0.35, "frames1-seed2": 0.33,
+                         "frames16": 0.27, "frames16-seed1": 0.21})
+    street = on_recording({"frames1-seed1": 0.39, "frames1-seed2": 0.41, "frames16-seed1": 0.30,
+                           "frames16-seed2": 0.60, "motion-static": 0.9})
+    assert recorded_seeds([("hall", hall), ("street", street)])["street"] == {1: {1: 0.39, 2: 0.41}, 16: {1: 0.30, 2: 0.60}}
+    md = "\n".join(render_recorded_seeds([("hall", hall), ("street", street)]))
+    assert "| hall | 1 | 0, 1, 2 | 0.3600 (0.3300 to 0.4000) | | |" in md
+    # One frame: higher at both seeds both trained, but its mean lead (0.04) is within the
+    # hall's spread (0.07). Sixteen: the street's own spread (0.30) is what the lead must beat.
+    assert "| street | 1 | 1, 2 | 0.4000 (0.3900 to 0.4100) | higher at 2 of 2 (+0.0400, +0.0800) | +0.0400 against 0.0700: not higher |" in md
+    assert "| street | 16 | 1, 2 | 0.4500 (0.3000 to 0.6000) | higher at 1 of 1 (+0.0900) | +0.2100 against 0.3000: not higher |" in md
+    # A lead beyond both spreads is higher; the hall alone, or one seed a side, shows nothing.
+    wide = on_recording({"frames1-seed1": 0.50, "frames1-seed2": 0.52})
+    assert "| +0.1500 against 0.0700: higher |" in "\n".join(render_recorded_seeds([("hall", hall), ("street", wide)]))
+    assert render_recorded_seeds([("hall", hall)]) == []
+    assert render_recorded_seeds([("hall", on_recording({"frames1": 0.4})), ("street", street)]) == []
