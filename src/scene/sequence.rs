@@ -400,8 +400,7 @@ pub struct HumanPlan {
     /// Stride length used to advance the gait, m.
     pub stride_m: f64,
     pub motion: MotionMode,
-    /// Arm swing of this person's walk: 1 = the model's own, 0 = arms still (see
-    /// `humans.arm_swing`).
+    /// Arm swing of this person's walk: 1 = the model's own, 0 = still (`humans.arm_swing`).
     pub arm_swing: f64,
     /// Stride over the model's own (the legs re-solved for it; `stride_m` is this times the
     /// model's stride), 1 = the animation as built.
@@ -551,16 +550,17 @@ pub struct PlanInputs<'a> {
     pub models: &'a [HumanModel],
     /// Recorded pedestrian tracks (world frame); empty: synthetic people.
     pub tracks: &'a [Arc<Track>],
-    /// The recorded sensor path of this sequence's window (its times are the frame times);
-    /// None: a sampled arc.
+    /// The recorded sensor path of this window (its times are the frame times); None: an arc.
     pub sensor: Option<PoseTrack>,
     /// Height of the floor people stand on, world z, m.
     pub floor_z_m: f64,
     /// The sensor's path when the background sets it (a built-in street's lane); None: a
     /// sampled arc (or the recorded `sensor`, which wins).
     pub sensor_arc: Option<Trajectory>,
-    /// Places people stand at (a built-in world's [`crate::scene::world::World::places`]).
+    /// Places people stand at and doorways they come out of (a built-in world's
+    /// [`crate::scene::world::World::places`] and [`crate::scene::world::World::doors`]).
     pub places: &'a [crate::scene::world::Place],
+    pub doors: &'a [crate::scene::world::Place],
 }
 
 /// Tries at joining the person placed before (`humans.groups`) before placing one alone.
@@ -908,7 +908,7 @@ fn sample_synthetic_people(
                 }
                 tries += 1;
                 let (Some(grid), Some(planner)) = (inp.grid, planner.as_mut()) else { unreachable!("long sequences have a walkable area") };
-                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s };
+                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s, doors: inp.doors };
                 let Some(path) = long_walk(rng, planner, &crowd, start, speed.max(0.1), stands, hc.spawn_radius_m, inp.floor_z_m, duration) else { continue };
                 placed = Some(HumanPlan {
                     model,

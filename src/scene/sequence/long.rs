@@ -14,7 +14,7 @@ use std::sync::Arc;
 pub(super) fn walk_the_sensor(rng: &mut impl rand::Rng, cfg: &Config, grid: &WalkableGrid, times_s: &[f64]) -> Option<SensorPath> {
     let sc = &cfg.scene;
     let duration = *times_s.last()?;
-    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s };
+    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s, doors: &[] };
     let mut planner = crate::scene::planner::Planner::new();
     let [lo, hi] = sc.sensor_speed_mps;
     for _ in 0..LONG_TRIES {
@@ -51,6 +51,9 @@ const ARRIVAL_TRIES: usize = 200;
 /// How far from the sensor, in spawn radii, a place out of its sight to come back in may be
 /// (one farther than a spawn radius walks back toward the sensor); in view: 0.3-1.
 const HIDDEN_ARRIVAL_RADII: f64 = 2.0;
+/// Share of those coming back in who come out of a doorway where one is free within a spawn
+/// radius of the sensor (0.3-1 spawn radii away, as the places in view).
+const DOOR_ARRIVALS: f64 = 0.5;
 
 /// Who a new person must keep clear of over a long sequence: obstacles, the sensor, the people
 /// placed before.
@@ -62,6 +65,8 @@ pub(super) struct Crowd<'a> {
     pub sensor: Option<&'a SensorPath>,
     pub others: &'a [HumanPlan],
     pub times_s: &'a [f64],
+    /// Doorways one who comes back in may come out of ([`crate::scene::world::World::doors`]).
+    pub doors: &'a [crate::scene::world::Place],
 }
 
 impl Crowd<'_> {
@@ -83,7 +88,8 @@ impl Crowd<'_> {
 /// goal, and one that begins after a wait gets going, over [`Pauses::RAMP_S`] (the speed never
 /// steps). Somebody left more than [`LEAVE_M`]
 /// from the sensor (a vehicle drives on) leaves and comes back in near where the sensor is
-/// then: out of its sight 0.3-2 spawn radii away where there is such a place
+/// then: for a share [`DOOR_ARRIVALS`] out of a doorway of the world 0.3-1 spawn radii away
+/// where one is free, else out of its sight 0.3-2 spawn radii away where there is such a place
 /// ([`WalkableGrid::hidden_from`]), else in view 0.3-1 spawn radii away, so the people stay
 /// around it to the end. Each leg keeps clear of the
 /// obstacles, the sensor and the people placed before at every frame; None when a leg finds
@@ -128,19 +134,31 @@ pub(super) fn long_walk(
     // Somebody a vehicle leaves far behind (none for the sensor's own walk).
     let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
     while t <= duration {
-        // Left far behind: come back in near the sensor, out of its sight where the first
-        // half of the tries find such a place (a doorway, a side street, behind a booth or a
-        // parked truck), so arrivals walk into view.
+        // Left far behind: come back in near the sensor, out of a doorway ([`DOOR_ARRIVALS`])
+        // or out of its sight where the first half of the tries find such a place (a side
+        // street, behind a booth or a parked truck), so arrivals walk into view.
         if let Some(sensor) = crowd.sensor.filter(|_| far(pos, t)) {
             let here = sensor.position(t).truncate();
-            let back = (0..ARRIVAL_TRIES)
-                .map(|k| {
-                    let reach = if k < ARRIVAL_TRIES / 2 { HIDDEN_ARRIVAL_RADII } else { 1.0 };
-                    let (r, a) = (spawn_radius_m * u(rng, [0.3, reach]), u(rng, [0.0, std::f64::consts::TAU]));
-                    (k, here + r * DVec2::new(a.cos(), a.sin()))
-                })
-                .find(|&(k, p)| (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear(&stand(p, heading), t, t + 1e-9));
-            pos = back?.1;
+            // Out of a doorway, facing out, for a share of them: one of those free within
+            // reach, drawn evenly.
+            let mut door = None;
+            if !crowd.doors.is_empty() && rng.random::<f64>() < DOOR_ARRIVALS {
+                let reach = 0.3 * spawn_radius_m..=spawn_radius_m;
+                let free: Vec<_> = crowd.doors.iter().filter(|d| reach.contains(&d.at.distance(here)) && crowd.clear(&stand(d.at, d.facing_rad), t, t + 1e-9)).collect();
+                door = (!free.is_empty()).then(|| free[((rng.random::<f64>() * free.len() as f64) as usize).min(free.len() - 1)]);
+            }
+            if let Some(d) = door {
+                (pos, heading) = (d.at, d.facing_rad);
+            } else {
+                let back = (0..ARRIVAL_TRIES)
+                    .map(|k| {
+                        let reach = if k < ARRIVAL_TRIES / 2 { HIDDEN_ARRIVAL_RADII } else { 1.0 };
+                        let (r, a) = (spawn_radius_m * u(rng, [0.3, reach]), u(rng, [0.0, std::f64::consts::TAU]));
+                        (k, here + r * DVec2::new(a.cos(), a.sin()))
+                    })
+                    .find(|&(k, p)| (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear(&stand(p, heading), t, t + 1e-9));
+                pos = back?.1;
+            }
             at_rest = false;
         }
         // After a walk, a wait at its goal, turning on the spot toward the next walk.

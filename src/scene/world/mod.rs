@@ -63,6 +63,9 @@ pub struct World {
     /// faces. Each had room for a person (`clearance_m`) where it was made; the walkable area
     /// has the last word.
     pub places: Vec<Place>,
+    /// Doorways people come out of in a long sequence (the street's buildings): a point of
+    /// the doorway's floor, in from the facade, and the way out.
+    pub doors: Vec<Place>,
     /// Its footprint (xy bounds), m.
     pub bounds: (DVec2, DVec2),
     /// The movers driving through it ([`World::add_movers`]); their meshes are the last of
@@ -108,11 +111,11 @@ impl World {
     pub fn build(kind: WorldKind, seed: u64, index: usize, p: &WorldParams) -> Result<World> {
         let mut rng = world_rng(seed, index);
         let mut counts = BTreeMap::new();
-        let (env, sensor, traffic, places) = match kind {
+        let (env, sensor, traffic, [places, doors]) = match kind {
             WorldKind::Street => street::build(&mut rng, p, &mut counts),
             WorldKind::Indoor => {
                 let (env, traffic) = indoor::build(&mut rng, p, &mut counts);
-                (env, None, traffic, Vec::new())
+                (env, None, traffic, [Vec::new(), Vec::new()])
             }
         };
         let what = || format!("scene.background = \"{}\" (sequence {index})", kind.name());
@@ -138,9 +141,16 @@ impl World {
             lo = lo.min(v.truncate());
             hi = hi.max(v.truncate());
         }
+        // The walkable area has the last word on a doorway: one too shallow to stand in, or
+        // with something on the sidewalk before it, is no way out.
+        let mut doors = doors;
+        doors.retain(|d| grid.clearance(d.at) >= p.clearance_m);
+        if !doors.is_empty() {
+            counts.insert("doorway", doors.len());
+        }
         let draws = env.draws();
         let mover_of_draw = vec![NO_MOVER; draws.len()];
-        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, places, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
+        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, places, doors, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
     }
 
     /// Drives the world's traffic over `duration_s` around the people at their floor

@@ -53,6 +53,8 @@ pub struct Builder {
     by_key: HashMap<(u16, u32), usize>,
     /// Places people stand at (behind a stall's counter, at a table).
     pub places: Vec<Place>,
+    /// Doorways people come out of (a building's ground floor).
+    pub doors: Vec<Place>,
 }
 
 /// A place a person stands at ([`super::World::places`]): floor xy, and the way they face

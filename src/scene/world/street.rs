@@ -11,7 +11,7 @@
 //! come the other way, and cars drive ahead of and behind it in its lane ([`super::movers`]).
 
 use super::movers::{self, Ego, Lane, LaneTraffic};
-use super::shapes::Builder;
+use super::shapes::{Builder, Material, Place};
 use super::things::{self, class, material};
 use super::{chance, pick, uni, WorldParams};
 use crate::scene::{Environment, Trajectory};
@@ -26,6 +26,12 @@ pub const ROAD_Z: f64 = -0.12;
 
 /// Street beyond the sensor's run on either side, m (more than an HDL-64E sees of a person).
 pub const MARGIN_M: f64 = 100.0;
+
+/// Narrowest doorway people come out of, m (the walkable area keeps `humans.clearance_m` from
+/// walls: a narrower one is no way out).
+const DOORWAY_MIN_M: f64 = 1.3;
+/// How far into a doorway (from the facade) one coming out of it starts at most, m.
+const DOOR_IN_M: f64 = 0.3;
 
 /// Width of a parking lane, m.
 const PARKING_M: f64 = 2.2;
@@ -70,7 +76,9 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
 /// ([`World::places`]).
 ///
 /// [`World::places`]: super::World::places
-pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Vec<LaneTraffic>, Vec<super::Place>) {
+/// Returns the environment, the sensor's path, the traffic to drive, and the places people
+/// stand at beside the doorways they come out of.
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Vec<LaneTraffic>, [Vec<super::Place>; 2]) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
     let run = speed * p.duration_s.max(0.0);
@@ -146,7 +154,7 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         })
         .collect();
     let ego = Ego { half: movers::EGO_HALF_M, speed_mps: speed };
-    let places = std::mem::take(&mut b.places);
+    let places = [std::mem::take(&mut b.places), std::mem::take(&mut b.doors)];
     let traffic = vec![
         LaneTraffic { lane, movers, ego: None, count_as: None },
         LaneTraffic { lane: own_lane, movers: own_movers, ego: Some(ego), count_as: Some("car in the sensor lane") },
@@ -269,13 +277,22 @@ fn building(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f
     // The body behind the door recesses, the floors above them flush with the facade.
     slab(b, m, xa, xb, front + s * recess, front + s * 12.0, 0.0, h);
     slab(b, m, xa, xb, front, front + s * recess, ground_h, h);
-    // Ground floor: wall pieces with doorways between them (the body's face shows through).
+    // Ground floor: wall pieces with doorways between them (the body's face shows through),
+    // each doorway floored, and one wide enough to walk through a way out for people.
     let mut x = xa;
+    let mut doors = Vec::new();
     let mut door = chance(rng, 0.5);
     while x < xb - 0.01 {
         let w = if door { uni(rng, 1.0, 2.4) } else { uni(rng, 1.0, 5.0) }.min(xb - x);
         if !door {
             slab(b, m, x, x + w, front, front + s * recess, 0.0, ground_h);
+        } else {
+            let back = front + s * recess;
+            b.quad(Material::new(class::SIDEWALK, m.reflectance as f64), [DVec3::new(x, front, 0.0), DVec3::new(x + w, front, 0.0), DVec3::new(x + w, back, 0.0), DVec3::new(x, back, 0.0)]);
+            if w >= DOORWAY_MIN_M {
+                let inside = (0.5 * recess - 0.3).clamp(0.0, DOOR_IN_M);
+                doors.push((x, x + w, Place { at: DVec2::new(x + 0.5 * w, front + s * inside), facing_rad: -s * FRAC_PI_2 }));
+            }
         }
         x += w;
         door = !door;
@@ -289,10 +306,16 @@ fn building(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f
         let (pw, pd) = (uni(rng, 0.3, 0.6), uni(rng, 0.12, 0.3));
         let mut x = xa + 0.5 * pw;
         while x < xb - 0.5 * pw {
-            slab(b, trim, x - 0.5 * pw, x + 0.5 * pw, front - s * pd, front, if chance(rng, 0.5) { 0.0 } else { ground_h }, h);
+            let z0 = if chance(rng, 0.5) { 0.0 } else { ground_h };
+            slab(b, trim, x - 0.5 * pw, x + 0.5 * pw, front - s * pd, front, z0, h);
+            // A pier down to the ground before a doorway leaves no way out through it.
+            if z0 == 0.0 {
+                doors.retain(|&(a, e, _)| x + 0.5 * pw <= a || x - 0.5 * pw >= e);
+            }
             x += step;
         }
     }
+    b.doors.extend(doors.into_iter().map(|(_, _, d)| d));
     // Window sills on the floors above.
     if chance(rng, 0.6) {
         let mut z = ground_h + 1.0;

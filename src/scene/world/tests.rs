@@ -386,6 +386,28 @@ fn market_places_have_room_for_a_person() {
     assert!(roomy * 10 >= total * 9, "{roomy} of {total} places with room for a person");
 }
 
+/// The buildings' doorways have floors (no hole at a facade's foot) and are ways out: people
+/// coming back in stand just inside them, facing the street, with room to, and see the street
+/// ahead at chest height.
+#[test]
+fn doorways_are_floored_and_people_come_out_of_them_facing_the_street() {
+    let p = params();
+    for index in 0..3 {
+        let w = World::build(WorldKind::Street, 11, index, &p).unwrap();
+        assert!(w.doors.len() >= 5, "sequence {index}: {} doorways", w.doors.len());
+        for d in &w.doors {
+            // Facing the road, which runs along x at y = 0.
+            let ahead = DVec2::from_angle(d.facing_rad);
+            assert!(ahead.x.abs() < 1e-9 && ahead.y * d.at.y < 0.0, "{d:?}");
+            let chest = d.at.extend(1.3);
+            assert_eq!(first_hit(&w.env, chest, DVec3::NEG_Z, 2.0).map(|h| (h * 1e6).round() / 1e6), Some(1.3), "{d:?}: no floor");
+            // Nothing before them for 0.5 m at chest height (no wall piece, no door).
+            assert!(first_hit(&w.env, chest, ahead.extend(0.0), 0.5).is_none(), "{d:?}: blocked");
+            assert!(w.grid.clearance(d.at) >= p.clearance_m, "{d:?}: no room to stand");
+        }
+    }
+}
+
 /// Where a horizontal ray from `o` along `dir` first meets `env` within `max_m`, m (None: clear).
 fn first_hit(env: &crate::scene::Environment, o: DVec3, dir: DVec3, max_m: f64) -> Option<f64> {
     let mut best: Option<f64> = None;

@@ -155,7 +155,7 @@ fn frame_times_k_over_rate_have_no_drift_unlike_accumulation() {
     cfg.humans.models = Vec::new();
     cfg.frames = 10_001;
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
-    let inputs = pedscan::scene::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[] };
+    let inputs = pedscan::scene::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[] };
     let plan = sample_plan(&mut rng, &cfg, &inputs).expect("plan");
     assert_eq!(plan.times_s.len(), 10_001);
     let mut acc = 0.0f64;
