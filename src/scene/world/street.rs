@@ -72,12 +72,11 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
 /// Builds one street; the sensor's trajectory along it, its traffic: 2-6 cars and 1-3
 /// cyclists for the oncoming lane and 1-3 cars for the sensor's (drawn after everything else,
 /// in that order, so the layout of a seed is the same with or without them, and the oncoming
-/// traffic with or without the sensor's lane's), and the places people stand at
-/// ([`World::places`]).
+/// traffic with or without the sensor's lane's), the places people stand at
+/// ([`World::places`]) and the doorways they come out of ([`World::doors`]), in that order.
 ///
 /// [`World::places`]: super::World::places
-/// Returns the environment, the sensor's path, the traffic to drive, and the places people
-/// stand at beside the doorways they come out of.
+/// [`World::doors`]: super::World::doors
 pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Vec<LaneTraffic>, [Vec<super::Place>; 2]) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
