@@ -31,28 +31,36 @@ pub fn dress(models: Vec<HumanModel>, range_m: [f64; 2]) -> Vec<HumanModel> {
         return models;
     }
     let n = CLOTHES_VARIANTS as f64;
-    // Each variant on its own thread (about 25 ms of CPU each for a bundled person); the
-    // order is the models' and then the thicknesses'.
-    (0..models.len() * CLOTHES_VARIANTS)
-        .into_par_iter()
-        .map(|i| {
-            let k = i % CLOTHES_VARIANTS;
-            models[i / CLOTHES_VARIANTS].dressed((range_m[0] + (range_m[1] - range_m[0]) * (k as f64 + 0.5) / n) as f32)
-        })
-        .collect()
+    let thicknesses: Vec<f32> = (0..CLOTHES_VARIANTS).map(|k| (range_m[0] + (range_m[1] - range_m[0]) * (k as f64 + 0.5) / n) as f32).collect();
+    // Each model on its own thread (its push directions found once for all its thicknesses);
+    // the order is the models' and then the thicknesses'.
+    models.par_iter().flat_map_iter(|m| m.dressed_in(&thicknesses)).collect()
 }
 
 impl HumanModel {
     /// This model in clothes `thickness_m` thick (see the module), named `NAME+clothesMM`
     /// (whole mm).
     pub fn dressed(&self, thickness_m: f32) -> HumanModel {
-        let mut m = self.clone();
-        m.name = format!("{}+clothes{}", self.name, (thickness_m * 1000.0).round() as u32);
+        self.dressed_in(&[thickness_m]).remove(0)
+    }
+
+    /// [`HumanModel::dressed`] at each of `thicknesses`.
+    fn dressed_in(&self, thicknesses: &[f32]) -> Vec<HumanModel> {
         let h = self.height_m.max(1e-3);
-        for lod in &mut m.lods {
-            dress_lod(lod, thickness_m, h);
-        }
-        m
+        let pushes: Vec<Vec<(Vec3, f32)>> = self.lods.iter().map(|lod| pushes(lod, h)).collect();
+        thicknesses
+            .iter()
+            .map(|&thickness_m| {
+                let mut m = self.clone();
+                m.name = format!("{}+clothes{}", self.name, (thickness_m * 1000.0).round() as u32);
+                for (lod, push) in m.lods.iter_mut().zip(&pushes) {
+                    for (p, &(n, share)) in lod.positions.iter_mut().zip(push) {
+                        *p += n * thickness_m * share;
+                    }
+                }
+                m
+            })
+            .collect()
     }
 }
 
@@ -63,9 +71,10 @@ fn share(y_m: f32, h: f32) -> f32 {
     ramp(NONE_BELOW, FULL_FROM, f).min(1.0 - ramp(FULL_TO, NONE_ABOVE, f))
 }
 
-/// Pushes `lod`'s vertices out along their normals (area-weighted face normals, shared by all
-/// vertices at one position, so seams stay closed).
-fn dress_lod(lod: &mut Lod, thickness_m: f32, h: f32) {
+/// Per vertex of `lod`, the way clothes push it out and the share of their thickness it gets:
+/// its normal (area-weighted face normals, shared by all vertices at one position, so seams
+/// stay closed) and [`share`] of its height in a body `h` tall.
+fn pushes(lod: &Lod, h: f32) -> Vec<(Vec3, f32)> {
     let key = |p: Vec3| ((p.x * 1e5).round() as i64, (p.y * 1e5).round() as i64, (p.z * 1e5).round() as i64);
     let mut welded: HashMap<(i64, i64, i64), Vec3> = HashMap::new();
     for t in lod.indices.chunks_exact(3) {
@@ -75,10 +84,7 @@ fn dress_lod(lod: &mut Lod, thickness_m: f32, h: f32) {
             *welded.entry(key(p)).or_insert(Vec3::ZERO) += n;
         }
     }
-    for p in &mut lod.positions {
-        let n = welded.get(&key(*p)).copied().unwrap_or(Vec3::ZERO).normalize_or_zero();
-        *p += n * thickness_m * share(p.y, h);
-    }
+    lod.positions.iter().map(|p| (welded.get(&key(*p)).copied().unwrap_or(Vec3::ZERO).normalize_or_zero(), share(p.y, h))).collect()
 }
 
 #[cfg(test)]
