@@ -38,9 +38,8 @@ def seed_run(frames: int, seed: int) -> str:
 def run_seed(name: str) -> int | None:
     """The training seed of a ``--seeds`` run named by :func:`seed_run` (0 for the plain
     ``frames1``/``frames16``); None for any other name."""
-    frames = "|".join(map(str, SEED_FRAMES))
-    m = re.fullmatch(rf"frames(?:{frames})(?:-seed(\d+))?", name)
-    return None if m is None else int(m.group(1) or 0)
+    fs = run_frames_seed(name)
+    return None if fs is None else fs[1]
 
 
 def seed_leads(scores: dict[str, Any]) -> dict[str, Any] | None:
