@@ -54,6 +54,13 @@ const HIDDEN_ARRIVAL_RADII: f64 = 2.0;
 /// Share of those coming back in who come out of a doorway where one is free within a spawn
 /// radius of the sensor (0.3-1 spawn radii away, as the places in view).
 const DOOR_ARRIVALS: f64 = 0.5;
+/// Share of the walks of somebody within a spawn radius of the sensor that go in through a
+/// doorway where one is free within a short walk ([`DOOR_WALK_S`] at their speed, 2 m at
+/// least): they walk to it, stop in it and are gone (a building takes them in), and come back
+/// in elsewhere as those left far behind do.
+const DOOR_DEPARTURES: f64 = 0.2;
+/// A doorway one goes in through is at most this long a walk away (in a straight line), s.
+const DOOR_WALK_S: f64 = 8.0;
 
 /// Who a new person must keep clear of over a long sequence: obstacles, the sensor, the people
 /// placed before.
@@ -73,12 +80,15 @@ impl Crowd<'_> {
     /// Whether `path` (its own time 0 at `t0`) keeps clear at every frame in `[t0, t1)`.
     fn clear(&self, path: &HumanPath, t0: f64, t1: f64) -> bool {
         let a = self.times_s.partition_point(|&t| t < t0);
-        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| {
-            let p = path.position(t - t0).truncate();
-            self.grid.clearance(p) >= self.clearance_m
-                && self.sensor.is_none_or(|s| p.distance(s.position(t).truncate()) >= self.separation_m)
-                && self.others.iter().all(|h| h.position_m(t).truncate().distance(p) >= self.separation_m)
-        })
+        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| self.clear_at(path.position(t - t0).truncate(), t))
+    }
+
+    /// Whether somebody at `p` is clear at time `t`, a frame's or any other (one coming back in
+    /// after a walk comes back between frames: [`Crowd::clear`] would check nothing there).
+    pub(super) fn clear_at(&self, p: DVec2, t: f64) -> bool {
+        self.grid.clearance(p) >= self.clearance_m
+            && self.sensor.is_none_or(|s| p.distance(s.position(t).truncate()) >= self.separation_m)
+            && self.others.iter().all(|h| h.position_m(t).truncate().distance(p) >= self.separation_m)
     }
 }
 
@@ -86,9 +96,9 @@ impl Crowd<'_> {
 /// planned like a short sequence's walk, 8-25 s long at least), waiting 0.5-5 s at each goal,
 /// and after 10-60 s of waiting first for one who stands. Each walk slows to a stop at its
 /// goal, and one that begins after a wait gets going, over [`Pauses::RAMP_S`] (the speed never
-/// steps). Somebody left more than [`LEAVE_M`]
-/// from the sensor (a vehicle drives on) leaves and comes back in near where the sensor is
-/// then: for a share [`DOOR_ARRIVALS`] out of a doorway of the world 0.3-1 spawn radii away
+/// steps). Somebody left more than [`LEAVE_M`] from the sensor (a vehicle drives on), or gone
+/// in through a doorway ([`DOOR_DEPARTURES`]), leaves and comes back in near where the sensor
+/// is then: for a share [`DOOR_ARRIVALS`] out of a doorway of the world 0.3-1 spawn radii away
 /// where one is free, else out of its sight 0.3-2 spawn radii away where there is such a place
 /// ([`WalkableGrid::hidden_from`]), else in view 0.3-1 spawn radii away, so the people stay
 /// around it to the end. Each leg keeps clear of the
@@ -133,18 +143,21 @@ pub(super) fn long_walk(
     let mut at_rest = stands_first;
     // Somebody a vehicle leaves far behind (none for the sensor's own walk).
     let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
+    // Gone in through a doorway (at `pos`) at the end of the last walk.
+    let mut gone_in = false;
     while t <= duration {
-        // Left far behind: come back in near the sensor, out of a doorway ([`DOOR_ARRIVALS`])
-        // or out of its sight where the first half of the tries find such a place (a side
-        // street, behind a booth or a parked truck), so arrivals walk into view.
-        if let Some(sensor) = crowd.sensor.filter(|_| far(pos, t)) {
+        // Left far behind, or gone in: come back in near the sensor, out of a doorway
+        // ([`DOOR_ARRIVALS`]; not the one gone in through) or out of its sight where the first
+        // half of the tries find such a place (a side street, behind a booth or a parked
+        // truck), so arrivals walk into view.
+        if let Some(sensor) = crowd.sensor.filter(|_| gone_in || far(pos, t)) {
             let here = sensor.position(t).truncate();
             // Out of a doorway, facing out, for a share of them: one of those free within
             // reach, drawn evenly.
             let mut door = None;
             if !crowd.doors.is_empty() && rng.random::<f64>() < DOOR_ARRIVALS {
                 let reach = 0.3 * spawn_radius_m..=spawn_radius_m;
-                let free: Vec<_> = crowd.doors.iter().filter(|d| reach.contains(&d.at.distance(here)) && crowd.clear(&stand(d.at, d.facing_rad), t, t + 1e-9)).collect();
+                let free: Vec<_> = crowd.doors.iter().filter(|d| reach.contains(&d.at.distance(here)) && d.at.distance(pos) > 1.0 && crowd.clear_at(d.at, t)).collect();
                 door = (!free.is_empty()).then(|| free[((rng.random::<f64>() * free.len() as f64) as usize).min(free.len() - 1)]);
             }
             if let Some(d) = door {
@@ -156,10 +169,11 @@ pub(super) fn long_walk(
                         let (r, a) = (spawn_radius_m * u(rng, [0.3, reach]), u(rng, [0.0, std::f64::consts::TAU]));
                         (k, here + r * DVec2::new(a.cos(), a.sin()))
                     })
-                    .find(|&(k, p)| (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear(&stand(p, heading), t, t + 1e-9));
+                    .find(|&(k, p)| (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear_at(p, t));
                 pos = back?.1;
             }
             at_rest = false;
+            gone_in = false;
         }
         // After a walk, a wait at its goal, turning on the spot toward the next walk.
         let wait = if at_rest { u(rng, WAIT_S) } else { 0.0 };
@@ -170,9 +184,19 @@ pub(super) fn long_walk(
             let (r, a) = (spawn_radius_m * u(rng, [0.0, 1.0]).sqrt(), u(rng, [0.0, std::f64::consts::TAU]));
             s.position(t + wait + leg_s).truncate() + r * DVec2::new(a.cos(), a.sin())
         });
+        // Near the sensor, a share of the walks go in through a doorway within a short walk
+        // (first try), drawn evenly among those free now.
+        let mut door_goal = None;
+        if toward.is_none() && !crowd.doors.is_empty() && crowd.sensor.is_some() && rng.random::<f64>() < DOOR_DEPARTURES {
+            let reach = 2.0..=(speed * DOOR_WALK_S).max(2.0);
+            let near: Vec<DVec2> = crowd.doors.iter().map(|d| d.at).filter(|d| reach.contains(&d.distance(pos)) && crowd.clear_at(*d, t)).collect();
+            door_goal = (!near.is_empty()).then(|| near[((rng.random::<f64>() * near.len() as f64) as usize).min(near.len() - 1)]);
+        }
         let mut walked = None;
+        let mut to_door = false;
         for k in 0..LEG_TRIES {
-            let w = match toward.filter(|_| k == 0) {
+            to_door = k == 0 && door_goal.is_some();
+            let w = match (toward.or(door_goal)).filter(|_| k == 0) {
                 Some(goal) => planner.plan_to(crowd.grid, crowd.clearance_m, speed, pos, goal),
                 None => planner.plan_walk(rng, crowd.grid, crowd.clearance_m, speed, leg_s, Some(pos)),
             };
@@ -210,8 +234,9 @@ pub(super) fn long_walk(
         d += path.distance(end);
         pos = path.position(end).truncate();
         heading = path.heading_rad(end);
-        // Arrived (a walk cut short leaves, and comes back in walking).
+        // Arrived (a walk cut short leaves, and comes back in walking); at a doorway, gone in.
         at_rest = end >= arrive;
+        gone_in = to_door && at_rest;
     }
     Some(HumanPath::Legs(Arc::new(legs)))
 }

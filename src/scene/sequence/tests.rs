@@ -501,7 +501,7 @@ fn a_long_sequences_sensor_walks_and_a_driving_one_keeps_its_people() {
 /// such places (behind a row of kiosks), where places drawn as before are mostly in view.
 #[test]
 fn people_come_back_in_from_out_of_sight() {
-    let (street, cfg, plan, arrivals) = coming_back(&[]);
+    let (street, cfg, plan, arrivals) = coming_back(&[], 8.0, 4, 60);
     let hidden = arrivals.iter().filter(|(t, at, _)| street.hidden_from(plan.sensor.position(*t).truncate(), *at)).count();
     let arrivals = arrivals.len();
     assert!(arrivals >= 4 && hidden * 10 >= arrivals * 9, "{hidden} of {arrivals} arrivals out of sight");
@@ -520,19 +520,69 @@ fn people_come_back_in_from_out_of_sight() {
     assert!(out_of_sight * 3 < free, "{out_of_sight} of {free} drawn places out of sight");
 }
 
-/// Four people around a sensor driving 8 m/s for 60 s down a street with a row of 2.5 m kiosks
-/// (and `doors`): the walkable area, the configuration, the plan, and each arrival (somebody
+/// People near the sensor go in through the street's doorways now and then: they walk to one,
+/// stop in it and come back in elsewhere; without doorways nobody leaves but those left far
+/// behind.
+#[test]
+fn people_go_in_through_doorways() {
+    let doors: Vec<crate::scene::world::Place> =
+        (0..70).map(|k| crate::scene::world::Place { at: DVec2::new(16.0 + 8.0 * k as f64, 14.0), facing_rad: -std::f64::consts::FRAC_PI_2 }).collect();
+    let departures = |doors: &[crate::scene::world::Place], sensor_mps: f64, people: usize, seconds: usize| {
+        let (_, _, plan, _) = coming_back(doors, sensor_mps, people, seconds);
+        let mut gone = Vec::new();
+        for p in &plan.humans {
+            let HumanPath::Legs(legs) = &p.trajectory else { panic!() };
+            for w in legs.windows(2) {
+                let dt = w[1].t0_s - w[0].t0_s;
+                let from = w[0].path.position(dt).truncate();
+                if from.distance(w[1].path.position(0.0).truncate()) > 1.0 {
+                    let sensor = plan.sensor.position(w[1].t0_s).truncate();
+                    // Stopped there: 2 cm in its last tenth of a second.
+                    let stopped = w[0].path.position(dt - 0.1).truncate().distance(from) < 0.02;
+                    gone.push((from, from.distance(sensor), stopped));
+                }
+            }
+        }
+        gone
+    };
+    let with = departures(&doors, 0.3, 20, 300);
+    let in_doors: Vec<_> = with.iter().filter(|(from, ..)| doors.iter().any(|d| d.at.distance(*from) < 1e-6)).collect();
+    assert!(in_doors.len() >= 3, "{} of {} departures through doorways", in_doors.len(), with.len());
+    for (from, sensor_m, stopped) in &in_doors {
+        assert!(*stopped && *sensor_m < super::long::LEAVE_M, "gone in at {from}, {sensor_m} m from the sensor, stopped {stopped}");
+    }
+    // Without doorways, in a sensor's wake that leaves people far behind.
+    let without = departures(&[], 8.0, 4, 60);
+    assert!(!without.is_empty() && without.iter().all(|(_, sensor_m, ..)| *sensor_m > super::long::LEAVE_M), "{without:?}");
+}
+
+/// Where somebody comes back in is checked where they stand at that moment, between frames too
+/// (a check over the frames of an instant between two frames would check nothing).
+#[test]
+fn a_place_to_come_back_in_between_frames_is_checked() {
+    let env = crate::scene::planner::tests::floor_with_boxes(40.0, 16.0, &[[10.0, 4.0, 14.0, 8.0]], 2.5);
+    let grid = crate::scene::WalkableGrid::from_environment(&env, 0.25).unwrap();
+    let times_s: Vec<f64> = (0..20).map(|k| k as f64 * 0.1).collect();
+    let crowd = super::long::Crowd { grid: &grid, clearance_m: 0.3, separation_m: 0.5, sensor: None, others: &[], times_s: &times_s, doors: &[] };
+    let (inside, open) = (DVec2::new(12.0, 6.0), DVec2::new(30.0, 6.0));
+    for t in [0.1, 0.15, 0.1 + 1e-12] {
+        assert!(!crowd.clear_at(inside, t) && crowd.clear_at(open, t), "at {t} s");
+    }
+}
+
+/// `people` around a sensor driving `sensor_mps` for `seconds` down a street with a row of 2.5 m
+/// kiosks (and `doors`): the walkable area, the configuration, the plan, and each arrival (somebody
 /// coming back in): its time, where, and the walk it starts.
-fn coming_back(doors: &[crate::scene::world::Place]) -> (crate::scene::WalkableGrid, Config, SequencePlan, Vec<(f64, DVec2, HumanPath)>) {
+fn coming_back(doors: &[crate::scene::world::Place], sensor_mps: f64, people: usize, seconds: usize) -> (crate::scene::WalkableGrid, Config, SequencePlan, Vec<(f64, DVec2, HumanPath)>) {
     let model = crate::human::tests_support::tiny_model();
     let kiosks: Vec<[f64; 4]> = (0..49).map(|k| 10.0 + 12.0 * k as f64).map(|x| [x, 9.0, x + 2.5, 10.5]).collect();
     let env = crate::scene::planner::tests::floor_with_boxes(600.0, 16.0, &kiosks, 2.5);
     let street = crate::scene::WalkableGrid::from_environment(&env, 0.25).unwrap();
-    let arc = Trajectory { start_m: DVec2::new(20.0, 4.0), z_m: 1.7, heading0_rad: 0.0, speed_mps: 8.0, yaw_rate_rps: 0.0 };
+    let arc = Trajectory { start_m: DVec2::new(20.0, 4.0), z_m: 1.7, heading0_rad: 0.0, speed_mps: sensor_mps, yaw_rate_rps: 0.0 };
     let inp = PlanInputs { rate_hz: 10.0, grid: Some(&street), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: Some(arc), places: &[], doors };
     let mut cfg = Config::default();
-    cfg.frames = 601;
-    cfg.humans.count = [4, 4];
+    cfg.frames = 10 * seconds + 1;
+    cfg.humans.count = [people, people];
     let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &inp).unwrap();
     let mut arrivals = Vec::new();
     for p in &plan.humans {
@@ -553,7 +603,7 @@ fn coming_back(doors: &[crate::scene::world::Place]) -> (crate::scene::WalkableG
 fn people_come_back_in_out_of_doorways() {
     let doors: Vec<crate::scene::world::Place> =
         (0..30).map(|k| crate::scene::world::Place { at: DVec2::new(16.0 + 20.0 * k as f64, 14.0), facing_rad: -std::f64::consts::FRAC_PI_2 }).collect();
-    let (_, cfg, plan, arrivals) = coming_back(&doors);
+    let (_, cfg, plan, arrivals) = coming_back(&doors, 8.0, 4, 60);
     let mut out_of_doors = 0;
     for (t, at, walk) in &arrivals {
         let Some(d) = doors.iter().find(|d| d.at.distance(*at) < 1e-9) else { continue };
