@@ -158,7 +158,7 @@ pub(super) fn long_walk(
             if !crowd.doors.is_empty() && rng.random::<f64>() < DOOR_ARRIVALS {
                 let reach = 0.3 * spawn_radius_m..=spawn_radius_m;
                 let free: Vec<_> = crowd.doors.iter().filter(|d| reach.contains(&d.at.distance(here)) && d.at.distance(pos) > 1.0 && crowd.clear_at(d.at, t)).collect();
-                door = (!free.is_empty()).then(|| free[((rng.random::<f64>() * free.len() as f64) as usize).min(free.len() - 1)]);
+                door = drawn(rng, &free);
             }
             if let Some(d) = door {
                 (pos, heading) = (d.at, d.facing_rad);
@@ -190,12 +190,10 @@ pub(super) fn long_walk(
         if toward.is_none() && !crowd.doors.is_empty() && crowd.sensor.is_some() && rng.random::<f64>() < DOOR_DEPARTURES {
             let reach = 2.0..=(speed * DOOR_WALK_S).max(2.0);
             let near: Vec<DVec2> = crowd.doors.iter().map(|d| d.at).filter(|d| reach.contains(&d.distance(pos)) && crowd.clear_at(*d, t)).collect();
-            door_goal = (!near.is_empty()).then(|| near[((rng.random::<f64>() * near.len() as f64) as usize).min(near.len() - 1)]);
+            door_goal = drawn(rng, &near);
         }
         let mut walked = None;
-        let mut to_door = false;
         for k in 0..LEG_TRIES {
-            to_door = k == 0 && door_goal.is_some();
             let w = match (toward.or(door_goal)).filter(|_| k == 0) {
                 Some(goal) => planner.plan_to(crowd.grid, crowd.clearance_m, speed, pos, goal),
                 None => planner.plan_walk(rng, crowd.grid, crowd.clearance_m, speed, leg_s, Some(pos)),
@@ -205,11 +203,11 @@ pub(super) fn long_walk(
             let (path, arrive) = eased(HumanPath::Walk(w, floor_z), walk_s, at_rest);
             let turn = turning(pos, heading, path.heading_rad(0.0), wait);
             if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + arrive) {
-                walked = Some((arrive, path, turn));
+                walked = Some((arrive, path, turn, k == 0 && door_goal.is_some()));
                 break;
             }
         }
-        let Some((arrive, path, turn)) = walked else {
+        let Some((arrive, path, turn, to_door)) = walked else {
             // Nowhere to walk now: wait where one is, or give up the person.
             if !crowd.clear(&stand(pos, heading), t, t + 2.0) {
                 return None;
@@ -239,6 +237,11 @@ pub(super) fn long_walk(
         gone_in = to_door && at_rest;
     }
     Some(HumanPath::Legs(Arc::new(legs)))
+}
+
+/// One of `items` drawn evenly (None, and nothing drawn, when there are none).
+fn drawn<T: Copy>(rng: &mut impl rand::Rng, items: &[T]) -> Option<T> {
+    (!items.is_empty()).then(|| items[((rng.random::<f64>() * items.len() as f64) as usize).min(items.len() - 1)])
 }
 
 /// A walk of `walk_s` seconds that slows to a stop at its end, and with `from_rest` gets going
