@@ -28,12 +28,23 @@ fi
 if [ $# -eq 0 ]; then set -- generate; fi
 # The Python tools in the venv $1, installed with the pip flags that follow (PyTorch, ONNX Runtime
 # and matplotlib for the networks' tests; PyPI's torch wheel brings its CUDA libraries, a few GB,
-# and runs on the CPU where there is no GPU).
+# and runs on the CPU where there is no GPU). No wheel cache: it would hold those GB a second time
+# on a machine that installs once. A download cut off is tried once more; a second failure names
+# itself and stops the run.
 python_install() {
   local venv=$1
   shift
   [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet --disable-pip-version-check "$@" -e "tools/python[test]"
+  local try
+  for try in 1 2; do
+    if "$venv/bin/pip" install --quiet --disable-pip-version-check --no-cache-dir "$@" \
+      -e "tools/python[test]"; then
+      return 0
+    fi
+    echo "setup.sh: installing the Python tools into $venv failed (try $try of 2); free disk:" >&2
+    df -h "$venv" >&2 || true
+  done
+  return 1
 }
 # Their tests, on sequences made by the debug pedscan.
 python_tests() {
@@ -50,7 +61,10 @@ case "$1" in
     pip_job=$!
     # Lavapipe runs every GPU test; the validation layer is on in each of them.
     cargo test --locked "$@"
-    wait "$pip_job"
+    if ! wait "$pip_job"; then
+      echo "setup.sh: the Python tools did not install (above); their tests cannot run" >&2
+      exit 1
+    fi
     python_tests tools/python/.venv
     ;;
   test-latest)
