@@ -190,20 +190,29 @@ impl Builder {
     }
 
     /// The environment: a mesh per material, named `class-<id>-r<reflectance>`, in the order
-    /// the materials were first used.
+    /// the materials were first used, each over a block of vertices of its own (in the order
+    /// its triangles first use them). Shapes of every material are built one after another, so
+    /// a material's vertices would otherwise be spread over the whole world, and every frame
+    /// would pose and copy the whole world's vertices once per material.
     pub fn finish(self) -> Environment {
+        let mut new_of = vec![u32::MAX; self.positions.len()];
+        let mut positions = Vec::with_capacity(self.positions.len());
         let meshes = self
             .meshes
             .into_iter()
-            .map(|(m, indices)| EnvMesh {
-                name: format!("class-{}-r{:.2}", m.class, m.reflectance),
-                indices,
-                double_sided: true,
-                reflectance: m.reflectance,
-                class: m.class,
+            .map(|(m, mut indices)| {
+                for i in &mut indices {
+                    let n = &mut new_of[*i as usize];
+                    if *n == u32::MAX {
+                        *n = positions.len() as u32;
+                        positions.push(self.positions[*i as usize]);
+                    }
+                    *i = *n;
+                }
+                EnvMesh { name: format!("class-{}-r{:.2}", m.class, m.reflectance), indices, double_sided: true, reflectance: m.reflectance, class: m.class }
             })
             .collect();
-        Environment { positions: self.positions, meshes }
+        Environment { positions, meshes }
     }
 }
 

@@ -51,6 +51,26 @@ fn layouts_differ_between_sequences_and_repeat_for_a_seed() {
     }
 }
 
+/// Each material of a built world (a mesh, its things all over the world) draws a block of
+/// vertices of its own: the draws' vertex ranges tile the world's positions once, so a frame
+/// poses and copies each vertex once. With the vertices in the order the shapes were built,
+/// each material's range spanned the whole world, and a frame posed it once per material.
+#[test]
+fn each_material_draws_a_block_of_vertices_of_its_own() {
+    for kind in [WorldKind::Street, WorldKind::Indoor] {
+        let w = World::build(kind, 7, 0, &params()).unwrap();
+        let mut ranges: Vec<(usize, usize)> = w.env.draws().iter().map(|d| (d.first_vertex, d.first_vertex + d.vertex_count)).collect();
+        assert!(ranges.len() >= 10, "{kind:?}: {} materials", ranges.len());
+        ranges.sort_unstable();
+        let mut end = 0;
+        for (a, b) in ranges {
+            assert_eq!(a, end, "{kind:?}: a draw's vertices start at {a}, the last ended at {end}");
+            end = b;
+        }
+        assert_eq!(end, w.env.positions.len(), "{kind:?}: every vertex drawn once");
+    }
+}
+
 #[test]
 fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
     let human_sized = ["bollard", "bin", "bush", "cabinet", "kiosk", "parking meter", "planter", "post box", "mannequin", "plant", "coat stand", "info stand", "display case", "shelf", "sculpture", "ticket machine", "vending machine"];
