@@ -250,6 +250,25 @@ pub struct Planner {
     vertices: Vec<DVec2>,
     vertex_clearance: Vec<f64>,
     shortcut: Vec<DVec2>,
+    /// What `cost` and `free` were built for ([`grid_key`]): a planner keeps them while it is
+    /// asked of the same grid and clearance (a long sequence plans hundreds of walks over one
+    /// street of millions of cells).
+    prepared: Option<GridKey>,
+}
+
+/// A grid and a clearance as [`Planner::prepare`] tells them apart: where its clearances lie
+/// and how many, its shape, origin and cell, 64 of its clearances spread over it, and the
+/// clearance asked. A planner is meant for one grid at a time (the sequence it plans);
+/// changing a grid's clearances in place between two walks of one planner is not.
+type GridKey = (usize, usize, [usize; 2], [u64; 3], u64, u64);
+
+fn grid_key(grid: &WalkableGrid, c: f64) -> GridKey {
+    let n = grid.clearance_m.len();
+    let mut sampled = 0xcbf2_9ce4_8422_2325u64;
+    for k in 0..64usize.min(n) {
+        sampled = (sampled ^ u64::from(grid.clearance_m[k * n / 64.min(n)].to_bits())).wrapping_mul(0x0100_0000_01b3);
+    }
+    (grid.clearance_m.as_ptr() as usize, n, [grid.nx, grid.ny], [grid.origin.x.to_bits(), grid.origin.y.to_bits(), grid.cell_m.to_bits()], sampled, c.to_bits())
 }
 
 /// Plans one walk; see the module docs. `clearance_m`: the least distance from the person's
@@ -365,6 +384,11 @@ impl Planner {
         let (nx, ny) = (grid.nx, grid.ny);
         let w = nx + 2;
         let n = w * (ny + 2);
+        let key = grid_key(grid, c);
+        if self.prepared == Some(key) && self.g.len() == n {
+            return;
+        }
+        self.prepared = Some(key);
         self.cost.clear();
         self.cost.resize(n, 0);
         self.free.clear();

@@ -147,6 +147,27 @@ fn kinematics_are_exact_and_c1() {
     assert!(arcs > 5, "the paths should turn ({arcs} arcs)");
 }
 
+/// A planner keeps its search grid while it is asked of the same grid and clearance, and
+/// builds it anew for another grid of the same size (two doors' widths) or another clearance:
+/// each walk is the one a fresh planner plans, whatever was planned before.
+#[test]
+fn a_reused_planner_plans_what_a_fresh_one_plans_over_any_grid() {
+    let (narrow, wide) = (two_rooms(0.9), two_rooms(3.0));
+    let mut planner = Planner::new();
+    let start = DVec2::new(3.0, 2.0);
+    for (k, (g, c)) in [(&narrow, 0.3), (&wide, 0.3), (&wide, 0.4), (&narrow, 0.3), (&narrow, 0.4)].into_iter().enumerate() {
+        for seed in 0..3 {
+            let reused = planner.plan_walk(&mut ChaCha8Rng::seed_from_u64(seed), g, c, 1.2, 10.0, Some(start));
+            let fresh = plan_walk(&mut ChaCha8Rng::seed_from_u64(seed), g, c, 1.2, 10.0, Some(start));
+            assert_eq!(reused, fresh, "walk {k}, seed {seed}");
+        }
+    }
+    // The two grids plan differently (through the narrow door or the wide one): the check above
+    // would see a search grid kept for the wrong one.
+    let through = |g: &WalkableGrid| plan_walk(&mut ChaCha8Rng::seed_from_u64(0), g, 0.3, 1.2, 10.0, Some(start));
+    assert_ne!(through(&narrow), through(&wide));
+}
+
 #[test]
 fn a_door_in_a_wall_is_walked_through_with_clearance() {
     let g = two_rooms(1.2);
