@@ -29,8 +29,11 @@ network). Where no rider is present the person IoU is semantic-kitti-api's. Prin
 IoU, precision and recall overall and by the point's range (the paper's 0-4, 4-8, 8+ m and
 the street's 8-16, 16-32, 32+ m), false-alarm points per scan, and the people found (half or
 more of their points called person) and missed: a person is one scan's person points of one
-nonzero instance (upper 16 bits), in the bin of their median range. Every file is checked
-before any is scored.
+nonzero instance (upper 16 bits), in the bin of their median range; and the people found by
+what stands just behind them (the labelled class with the most points 0-2 m behind them along
+the line of sight, within 0.8 m of it, 0.2-2 m above their feet, ground left out; "nothing"
+where none), where the surroundings, not the person, decide. Every file is checked before any
+is scored.
 
 Exit 0 when scored, 2 when the predictions do not match the ground truth (every missing or
 mismatched file named) or a file is not what its layout says.
@@ -378,6 +381,39 @@ UNLABELED_CLASSES: tuple[int, ...] = (0, 1, 52, 99)
 RIDER_CLASSES: tuple[int, ...] = (31, 32, 253, 255)
 
 
+#: What stands behind a person (:meth:`ScanReport.add_scan`): the labelled points this far
+#: behind the person's centre along the line of sight (m), within ``BEHIND_ACROSS_M`` of that
+#: line and ``BEHIND_UP_M`` above the person's lowest point, the ground's classes (road,
+#: parking, sidewalk, other-ground, lane-marking, terrain), people and riders left out.
+BEHIND_ALONG_M: tuple[float, float] = (0.0, 2.0)
+BEHIND_ACROSS_M: float = 0.8
+BEHIND_UP_M: tuple[float, float] = (0.2, 2.0)
+GROUND_CLASSES: tuple[int, ...] = (40, 44, 48, 49, 60, 72)
+
+
+def behind_class(xyz: np.ndarray, cls: np.ndarray, person: np.ndarray) -> int:
+    """The SemanticKITTI class with the most points behind the person whose points ``person``
+    marks (see ``BEHIND_ALONG_M``), 0 where nothing stands there. ``xyz`` f32 [n, 3] in the
+    sensor's frame, ``cls`` each point's class."""
+    centre = xyz[person, :2].astype(np.float64).mean(axis=0)
+    d = float(np.hypot(*centre))
+    if d <= 0.0:
+        return 0
+    u = centre / d
+    q = xyz[:, :2].astype(np.float64)
+    along = q @ u - d
+    across = np.abs(q @ np.array([-u[1], u[0]]))
+    z0 = float(xyz[person, 2].min())
+    up = xyz[:, 2] - z0
+    there = ((along >= BEHIND_ALONG_M[0]) & (along < BEHIND_ALONG_M[1]) & (across < BEHIND_ACROSS_M)
+             & (up >= BEHIND_UP_M[0]) & (up < BEHIND_UP_M[1])
+             & ~np.isin(cls, GROUND_CLASSES + PERSON_CLASSES + RIDER_CLASSES) & ~person)
+    if not there.any():
+        return 0
+    classes, counts = np.unique(cls[there], return_counts=True)
+    return int(classes[np.argmax(counts)])
+
+
 #: SemanticKITTI's class names (its semantic-kitti.yaml), for the false alarms by class.
 CLASS_NAMES: dict[int, str] = {
     0: "unlabeled", 1: "outlier", 10: "car", 11: "bicycle", 13: "bus", 15: "motorcycle", 16: "on-rails", 18: "truck",
@@ -437,9 +473,13 @@ class ScanReport:
     bins: list[PointCounts] = field(default_factory=lambda: [PointCounts() for _ in BINS + STREET_BINS])
     #: False-alarm points by their true SemanticKITTI class.
     false_alarm_classes: dict[int, int] = field(default_factory=dict)
+    #: People by what stands behind them (:func:`behind_class`; 0: nothing): [found, people].
+    behind: dict[int, list[int]] = field(default_factory=dict)
 
-    def add_scan(self, range_m: np.ndarray, truth_labels: np.ndarray, predicted: np.ndarray) -> None:
-        """One scan: its points' ranges (m), ground-truth and predicted SemanticKITTI labels."""
+    def add_scan(self, range_m: np.ndarray, truth_labels: np.ndarray, predicted: np.ndarray,
+                 xyz: np.ndarray | None = None) -> None:
+        """One scan: its points' ranges (m), ground-truth and predicted SemanticKITTI labels,
+        and their positions f32 [n, 3] (the people by what stands behind them; none without)."""
         cls = truth_labels & 0xFFFF
         unlabeled, rider = np.isin(cls, UNLABELED_CLASSES), np.isin(cls, RIDER_CLASSES)
         scored = ~(unlabeled | rider)
@@ -465,6 +505,12 @@ class ScanReport:
             middle = float(np.median(r[which == k]))
             self.overall.people += 1
             self.overall.people_found += found
+            if xyz is not None:
+                mine = np.zeros(person.shape, bool)
+                mine[np.flatnonzero(person)[which == k]] = True
+                tally = self.behind.setdefault(behind_class(xyz, cls, mine), [0, 0])
+                tally[0] += found
+                tally[1] += 1
             for (lo, hi), c in zip(BINS + STREET_BINS, self.bins):
                 if lo <= middle < hi:
                     c.people += 1
@@ -490,6 +536,10 @@ class ScanReport:
             "false_alarms_by_class": [
                 {"class": k, "name": CLASS_NAMES.get(k, str(k)), "points": n, "share": n / self.overall.fp}
                 for k, n in sorted(self.false_alarm_classes.items(), key=lambda kv: (-kv[1], kv[0]))
+            ],
+            "people_by_what_stands_behind": [
+                {"class": k, "name": "nothing" if k == 0 else CLASS_NAMES.get(k, str(k)), "people": n, "found": f}
+                for k, (f, n) in sorted(self.behind.items(), key=lambda kv: (-kv[1][1], kv[0]))
             ],
         }
 
@@ -531,8 +581,9 @@ def evaluate_scans(ground_truth: str | Path, predictions: str | Path, from_frame
     if problems:
         raise MismatchError(problems)
     for scan, labels, predicted, n in work:
-        report.add_scan(point_range(read_points(scan)), read_u32(labels, n, "labels", scan.name),
-                        read_u32(predicted, n, "predicted labels", scan.name))
+        points = read_points(scan)
+        report.add_scan(point_range(points), read_u32(labels, n, "labels", scan.name),
+                        read_u32(predicted, n, "predicted labels", scan.name), points[:, :3])
     return report
 
 
@@ -614,6 +665,9 @@ def format_scan_report(d: dict[str, Any]) -> str:
     if d["false_alarms_by_class"]:
         lines.append("false alarms by true class: " + ", ".join(f"{c['name']} {100 * c['share']:.0f} %"
                                                                 for c in d["false_alarms_by_class"][:8]))
+    if d.get("people_by_what_stands_behind"):
+        lines.append("people found by what stands 0-2 m behind them: " + ", ".join(
+            f"{c['name']} {c['found']}/{c['people']}" for c in d["people_by_what_stands_behind"]))
     return "\n".join(lines)
 
 

@@ -174,6 +174,32 @@ def test_bins_false_alarms_and_people_found_by_instance(tmp_path: Path, capsys: 
     assert lines[12] == "false alarms by true class: road 50 %, building 50 %"
 
 
+def test_people_are_counted_by_what_stands_behind_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A person found with a wall 1 m behind them (a fence in front does not count), one
+    missed with nothing behind: only the sidewalk under the space behind them and a bin beside
+    it, 1.5 m off their line of sight."""
+    seq, pred = tmp_path / "seq", tmp_path / "pred" / "predictions"
+    column = lambda x, y, z0, z1, n: np.stack([np.full(n, x), np.full(n, y), np.linspace(z0, z1, n)], axis=1)
+    parts = [
+        (column(10.0, 0.0, -1.7, 0.0, 12), 1 << 16 | 30, 30),   # person A, found
+        (column(11.0, 0.1, -1.4, 0.0, 6), 50, 0),               # a building 1 m behind A
+        (column(9.0, 0.0, -1.5, -0.5, 4), 51, 0),               # a fence 1 m before A
+        (column(0.0, 12.0, -1.7, 0.0, 12), 2 << 16 | 30, 0),    # person B, missed
+        (column(0.0, 13.0, -1.7, -1.7, 2), 48, 0),              # sidewalk behind B
+        (column(1.5, 13.0, -1.4, -0.6, 3), 99, 0),              # a bin 1.5 m off B's line of sight
+    ]
+    xyz = np.concatenate([p[0] for p in parts])
+    labels = np.concatenate([np.full(len(p[0]), p[1], np.uint32) for p in parts])
+    predicted = np.concatenate([np.full(len(p[0]), p[2], np.uint32) for p in parts])
+    write_scan(seq, "000000", xyz, labels, predicted, pred)
+    code, out, err = run(capsys, seq, tmp_path / "pred", "--json", tmp_path / "b.json")
+    assert (code, err) == (0, "")
+    d = json.loads((tmp_path / "b.json").read_text())
+    assert d["people_by_what_stands_behind"] == [{"class": 0, "name": "nothing", "people": 1, "found": 0},
+                                                 {"class": 50, "name": "building", "people": 1, "found": 1}]
+    assert out.splitlines()[-1] == "people found by what stands 0-2 m behind them: nothing 0/1, building 1/1"
+
+
 def test_mismatched_or_bad_files_exit_2_naming_each_and_write_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rng = np.random.default_rng(1)
     seq, pred = tmp_path / "seq", tmp_path / "pred" / "predictions"
