@@ -384,11 +384,14 @@ RIDER_CLASSES: tuple[int, ...] = (31, 32, 253, 255)
 #: What stands behind a person (:meth:`ScanReport.add_scan`): the labelled points this far
 #: behind the person's centre along the line of sight (m), within ``BEHIND_ACROSS_M`` of that
 #: line and ``BEHIND_UP_M`` above the person's lowest point, the ground's classes (road,
-#: parking, sidewalk, other-ground, lane-marking, terrain), people and riders left out.
+#: parking, sidewalk, other-ground, lane-marking, terrain), people, riders, unlabeled and
+#: outlier points left out.
 BEHIND_ALONG_M: tuple[float, float] = (0.0, 2.0)
 BEHIND_ACROSS_M: float = 0.8
 BEHIND_UP_M: tuple[float, float] = (0.2, 2.0)
 GROUND_CLASSES: tuple[int, ...] = (40, 44, 48, 49, 60, 72)
+#: Unlabeled and outlier points say nothing of what stands there.
+UNKNOWN_CLASSES: tuple[int, ...] = (0, 1)
 
 
 def behind_class(xyz: np.ndarray, cls: np.ndarray, person: np.ndarray) -> int:
@@ -407,7 +410,7 @@ def behind_class(xyz: np.ndarray, cls: np.ndarray, person: np.ndarray) -> int:
     up = xyz[:, 2] - z0
     there = ((along >= BEHIND_ALONG_M[0]) & (along < BEHIND_ALONG_M[1]) & (across < BEHIND_ACROSS_M)
              & (up >= BEHIND_UP_M[0]) & (up < BEHIND_UP_M[1])
-             & ~np.isin(cls, GROUND_CLASSES + PERSON_CLASSES + RIDER_CLASSES) & ~person)
+             & ~np.isin(cls, GROUND_CLASSES + PERSON_CLASSES + RIDER_CLASSES + UNKNOWN_CLASSES) & ~person)
     if not there.any():
         return 0
     classes, counts = np.unique(cls[there], return_counts=True)
