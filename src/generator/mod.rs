@@ -170,7 +170,7 @@ impl Generator {
         let (sensor, start) = match &self.inputs.sensor_poses {
             Some((times, poses)) => {
                 let starts = times.len() - frames + 1;
-                let start = ((rand::RngExt::random::<f64>(&mut rng) * starts as f64) as usize).min(starts - 1);
+                let start = crate::scene::even_index(rand::RngExt::random::<f64>(&mut rng), starts);
                 (Some(PoseTrack::from_poses(times, poses, start..start + frames)), Some(start))
             }
             None => (None, None),

@@ -87,6 +87,12 @@ fn material_class(m: &gltf::Material) -> u16 {
     extra.as_ref().and_then(|v| v.get("class")).and_then(|v| v.as_u64()).and_then(|c| u16::try_from(c).ok()).unwrap_or(0)
 }
 
+/// The index in `0..n` (n > 0) that `u`, drawn evenly in [0, 1), picks evenly: every even choice
+/// of a scene's things, people and paths draws this way, one number a choice.
+pub fn even_index(u: f64, n: usize) -> usize {
+    ((u * n as f64) as usize).min(n - 1)
+}
+
 /// glTF (y up) -> world (z up): `(x, y, z)_world = (x, -z, y)_gltf`, as Blender exports.
 pub fn world_from_gltf() -> DMat4 {
     DMat4::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])

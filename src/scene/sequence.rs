@@ -693,7 +693,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
         }
         // A fixed-order shuffle (Fisher-Yates) so the choice depends only on the stream.
         for i in (1..covering.len()).rev() {
-            let j = ((rng.random::<f64>() * (i + 1) as f64) as usize).min(i);
+            let j = crate::scene::even_index(rng.random::<f64>(), i + 1);
             covering.swap(i, j);
         }
         let paths: Vec<TrackPath> =
@@ -724,7 +724,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
             if !clear {
                 continue;
             }
-            let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
+            let model = crate::scene::even_index(rng.random::<f64>(), inp.models.len());
             let mean_speed = if duration > 0.0 { path.distance(duration) / duration } else { 0.0 };
             humans.push(HumanPlan {
                 model,
@@ -841,7 +841,7 @@ fn sample_synthetic_people(
     // The world's places within reach (`humans.at_places`).
     let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
     for k in 0..count {
-        let model = ((rng.random::<f64>() * inp.models.len() as f64) as usize).min(inp.models.len() - 1);
+        let model = crate::scene::even_index(rng.random::<f64>(), inp.models.len());
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
         let stands = hc.standing > 0.0 && rng.random::<f64>() < hc.standing;
         // Drawn only where asked for, as the other behaviours.
@@ -870,7 +870,7 @@ fn sample_synthetic_people(
             let at_place = at_place && attempt < TRIES / 2;
             let mut facing = None;
             if at_place {
-                let q = places[((u01() * places.len() as f64) as usize).min(places.len() - 1)];
+                let q = places[crate::scene::even_index(u01(), places.len())];
                 start = q.at;
                 facing = Some(q.facing_rad);
             }

@@ -241,7 +241,7 @@ pub(super) fn long_walk(
 
 /// One of `items` drawn evenly (None, and nothing drawn, when there are none).
 fn drawn<T: Copy>(rng: &mut impl rand::Rng, items: &[T]) -> Option<T> {
-    (!items.is_empty()).then(|| items[((rng.random::<f64>() * items.len() as f64) as usize).min(items.len() - 1)])
+    (!items.is_empty()).then(|| items[crate::scene::even_index(rng.random::<f64>(), items.len())])
 }
 
 /// A walk of `walk_s` seconds that slows to a stop at its end, and with `from_rest` gets going

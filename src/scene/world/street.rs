@@ -137,7 +137,7 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
     let mut movers = vec![movers::car(rng), movers::cyclist(rng)];
     let mut rest: Vec<bool> = std::iter::repeat_n(true, cars - 1).chain(std::iter::repeat_n(false, cyclists - 1)).collect();
     while !rest.is_empty() {
-        let k = ((rng.random::<f64>() * rest.len() as f64) as usize).min(rest.len() - 1);
+        let k = crate::scene::even_index(rng.random::<f64>(), rest.len());
         movers.push(if rest.swap_remove(k) { movers::car(rng) } else { movers::cyclist(rng) });
     }
     // Cars ahead of and behind the sensor's vehicle in its lane.
