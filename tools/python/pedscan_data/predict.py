@@ -1,7 +1,7 @@
 """Runs a trained network over pedscan sequences or real scans and writes its predictions.
 
     python -m pedscan_data.predict MODEL DATA --out PRED [--format h5|semantickitti]
-                                    [--device auto|cpu|cuda] [--export-onnx FILE]
+                                    [--device auto|cpu|cuda] [--export-onnx FILE] [--[no-]mirror]
     python -m pedscan_data.predict MODEL SCANS --out PRED [--sensor NAME|FILE.toml]
                                     [--pedscan BIN] [--per-point knn|cell] [--knn K,S,SIGMA,CUT]
 
@@ -32,6 +32,11 @@ t-N+1 .. t. A frame with fewer than N-1 predecessors (the first N-1 of a sequenc
 with the first frame's features repeated in place of the missing ones, as a robot that has
 just started would; the files record ``full_window_from = N-1``, and training and the
 experiments score only frames from there on (``evaluate --from-frame``).
+
+**Mirrored.** With ``--mirror`` each frame also goes through the network mirrored left for
+right and the two passes' outputs are averaged (:func:`stream`; twice the time); without
+``--mirror`` or ``--no-mirror``, as the model file's ``mirror`` says (the prediction its
+threshold was chosen for). The files record ``mirrored``.
 
 ``--export-onnx FILE`` writes the network (input [B, N, C, H, W]; outputs ``logits``
 [B,2,H,W] and ``velocity`` [B,3,H,W]) for ONNX Runtime, checked against PyTorch on a random
@@ -93,38 +98,54 @@ def sequence_inputs(seq: Sequence, intensity: bool, frames: slice = slice(None))
     return input_channels(r, i)
 
 
-def stream(net: Any, frames: Iterable[np.ndarray], device: Any, first: int = 0) -> Iterator[tuple[int, Any, Any, float]]:
+def stream(
+    net: Any, frames: Iterable[np.ndarray], device: Any, first: int = 0, mirror: bool = False,
+) -> Iterator[tuple[int, Any, Any, float]]:
     """Streams ``net`` over ``frames`` (each the inputs f32 [C,H,W] of one frame, in order):
     per frame t, (t, human margin f32 [H,W], velocity f32 [H,W,3], ms), the margin and velocity
     None before ``first``.
 
     Each frame is encoded once (frames before ``first`` too: the later ones need them); a
     frame with fewer than N-1 predecessors uses frame 0's features in place of the missing ones.
+
+    ``mirror``: every frame also goes through the network mirrored left for right (its columns
+    reversed: column c's azimuth pi (1 - 2 (c + 0.5) / W) goes to minus itself, the world
+    reflected in the sensor's x-z plane), and the outputs are the means of the two passes, the
+    mirrored one reversed back (its velocities' y negated back).
     """
     torch = _torch()
     n = net.cfg.frames
-    feats: list[Any] = []  # per frame, on the device: (inputs, features) of the last N frames only
+    passes = 2 if mirror else 1
+    feats: list[list[Any]] = [[] for _ in range(passes)]  # per pass, on the device: (inputs, features) of the last N frames
     for t, frame in enumerate(frames):
         start = time.perf_counter()
         margin = velocity = None
         with torch.inference_mode():
-            xk = torch.from_numpy(frame)[None].to(device)
-            s1, s2, f = net.encode(xk)
-            feats.append((xk, f))
-            if len(feats) > n:
-                feats.pop(0)
-            if t >= first:
-                window = [feats[0]] * (n - len(feats)) + feats
-                logits, vel = net.decode(
-                    s1, s2, torch.stack([e[1] for e in window], dim=1), torch.stack([e[0] for e in window], dim=1)
-                )
-                margin = (logits[0, 1] - logits[0, 0]).to("cpu").numpy()
-                velocity = vel[0].permute(1, 2, 0).to("cpu").numpy()
+            x = torch.from_numpy(frame)[None].to(device)
+            outs = []
+            for k in range(passes):
+                xk = x.flip(-1) if k else x
+                s1, s2, f = net.encode(xk)
+                feats[k].append((xk, f))
+                if len(feats[k]) > n:
+                    feats[k].pop(0)
+                if t >= first:
+                    window = [feats[k][0]] * (n - len(feats[k])) + feats[k]
+                    logits, vel = net.decode(
+                        s1, s2, torch.stack([e[1] for e in window], dim=1), torch.stack([e[0] for e in window], dim=1)
+                    )
+                    m, v = logits[0, 1] - logits[0, 0], vel[0]
+                    if k:
+                        m, v = m.flip(-1), v.flip(-1) * torch.tensor([1.0, -1.0, 1.0], dtype=v.dtype, device=v.device)[:, None, None]
+                    outs.append((m, v))
+            if outs:
+                margin = (sum(m for m, _ in outs) / passes).to("cpu").numpy()
+                velocity = (sum(v for _, v in outs) / passes).permute(1, 2, 0).to("cpu").numpy()
         yield t, margin, velocity, (time.perf_counter() - start) * 1e3
 
 
 def predict_sequence(
-    net: Any, seq: Sequence, device: Any, first: int = 0, chunk: int = 8
+    net: Any, seq: Sequence, device: Any, first: int = 0, chunk: int = 8, mirror: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, list[float]]:
     """Streams ``net`` over ``seq`` (:func:`stream`): the human margin f32 [T,H,W] (logit of
     human minus logit of background; human where it exceeds the model's threshold,
@@ -141,7 +162,7 @@ def predict_sequence(
     margin = np.zeros((seq.frames, seq.rows, seq.columns), dtype=np.float32)
     velocity = np.zeros((seq.frames, seq.rows, seq.columns, 3), dtype=np.float32)
     ms: list[float] = []
-    for t, m, v, frame_ms in stream(net, inputs(), device, first):
+    for t, m, v, frame_ms in stream(net, inputs(), device, first, mirror):
         if m is not None:
             margin[t], velocity[t] = m, v
         ms.append(frame_ms)
@@ -153,6 +174,12 @@ def human_margin(model: dict[str, Any]) -> float:
     ``human_threshold`` p (0.5, the softmax's argmax, unless calibrated on validation data)."""
     p = float(model.get("human_threshold", 0.5))
     return math.log(p / (1.0 - p))
+
+
+def mirrored(model: dict[str, Any], asked: bool | None) -> bool:
+    """Whether to predict mirrored (:func:`stream`): as asked, else as the model file's
+    ``mirror`` says (how its threshold is meant to be used)."""
+    return bool(model.get("mirror", False)) if asked is None else asked
 
 
 def write_h5(path: Path, labels: np.ndarray, velocity: np.ndarray, attrs: dict[str, Any]) -> None:
@@ -186,11 +213,14 @@ def write_kitti(root: Path, seq: Sequence, labels: np.ndarray, velocity: np.ndar
 
 
 def export_onnx(
-    net: Any, path: Path, rows: int, columns: int, atol: float = 1e-4, human_threshold: float = 0.5
+    net: Any, path: Path, rows: int, columns: int, atol: float = 1e-4, human_threshold: float = 0.5,
+    mirror: bool = False,
 ) -> float:
     """Writes the network as ONNX and checks ONNX Runtime against PyTorch on a random window;
     returns the largest difference. The file appears only once it is checked. Its metadata
-    ``human_threshold`` is the softmax probability above which a beam is human."""
+    ``human_threshold`` is the softmax probability above which a beam is human, ``mirror``
+    ("true" or "false") whether that threshold is for the mean of the frame's and the mirrored
+    frame's outputs (:func:`stream`), which a caller of the file then computes."""
     torch = _torch()
     import onnxruntime as ort
 
@@ -217,7 +247,7 @@ def export_onnx(
     onnx.helper.set_model_props(m, {
         "human_threshold": repr(float(human_threshold)), "frames": str(cfg.frames),
         "inputs": "range/10m, valid" + (", intensity" if cfg.intensity else ""),
-        "range_change": str(cfg.range_change).lower(),
+        "range_change": str(cfg.range_change).lower(), "mirror": str(bool(mirror)).lower(),
     })
     onnx.save(m, str(tmp))
     with torch.no_grad():
@@ -240,13 +270,15 @@ def after_warm_up(ms: list[float]) -> list[float]:
 
 def predict(
     model: str | os.PathLike[str], data: str | os.PathLike[str], out: Path, fmt: str = "h5",
-    device: str = "auto", first: int = 0, quiet: bool = False,
+    device: str = "auto", first: int = 0, quiet: bool = False, mirror: bool | None = None,
 ) -> dict[str, Any]:
-    """Predicts every sequence of ``data`` into ``out``; returns timing figures."""
+    """Predicts every sequence of ``data`` into ``out`` (``mirror``: see :func:`stream`; None:
+    as the model file asks, :func:`mirrored`); returns timing figures."""
     from .netio import load_net
 
     dev = pick_device(device)
     net, obj = load_net(model, dev)
+    mirror = mirrored(obj, mirror)
     cut = human_margin(obj)
     sequences = open_sequences(data)
     for seq in sequences:
@@ -260,14 +292,15 @@ def predict(
     out.mkdir(parents=True, exist_ok=True)
     all_ms: list[float] = []
     for k, seq in enumerate(sequences):
-        margin, velocity, ms = predict_sequence(net, seq, dev, first=first)
+        margin, velocity, ms = predict_sequence(net, seq, dev, first=first, mirror=mirror)
         labels = (margin > cut).astype(np.uint8)
         all_ms += after_warm_up(ms)
         if fmt == "h5":
             write_h5(
                 out / seq.path.name, labels, velocity,
                 {"frames_seen": net.cfg.frames, "full_window_from": net.cfg.frames - 1,
-                 "human_threshold": float(obj.get("human_threshold", 0.5)), "model": Path(model).name},
+                 "human_threshold": float(obj.get("human_threshold", 0.5)), "model": Path(model).name,
+                 "mirrored": int(mirror)},
             )
         else:
             write_kitti(out, seq, labels, velocity)
@@ -313,7 +346,7 @@ def check_grid(grid: Grid, net: Any, obj: dict[str, Any], model: Any) -> list[st
 
 def predict_scans(
     model: str | os.PathLike[str], scans: Path, out: Path, sensor: str | None = None, pedscan: Path | None = None,
-    knn: Knn | None = Knn(), device: str = "auto", quiet: bool = False,
+    knn: Knn | None = Knn(), device: str = "auto", quiet: bool = False, mirror: bool | None = None,
 ) -> dict[str, Any]:
     """Predicts every scan of a SemanticKITTI sequence folder or dataset root, per point, into
     ``out`` (module docs; ``knn`` None: each point takes its cell's prediction). Returns what
@@ -328,6 +361,7 @@ def predict_scans(
     dev = pick_device(device)
     net, obj = load_net(model, dev)
     cut = human_margin(obj)
+    mirror = mirrored(obj, mirror)
     spec = sensor if sensor is not None else model_sensor(obj)
     notes = []
     if sensor is not None and model_sensor(obj) not in (None, sensor):
@@ -340,7 +374,7 @@ def predict_scans(
     record: dict[str, Any] = {
         "model": Path(model).name, "scans": str(scans), "frames_seen": net.cfg.frames,
         "full_window_from": net.cfg.frames - 1, "human_threshold": float(obj.get("human_threshold", 0.5)),
-        "per_point": "cell" if knn is None else "knn",
+        "per_point": "cell" if knn is None else "knn", "mirrored": mirror,
         "knn": None if knn is None else {"k": knn.k, "search": knn.search, "sigma": knn.sigma, "cutoff_m": knn.cutoff_m},
         "sequences": [], "notes": notes,
     }
@@ -368,7 +402,7 @@ def predict_scans(
                     yield input_channels(p.range_m, p.intensity if net.cfg.intensity else None)
 
             ms: list[float] = []
-            for _, margin, _, frame_ms in stream(net, inputs(), dev):
+            for _, margin, _, frame_ms in stream(net, inputs(), dev, mirror=mirror):
                 p = held.pop(0)
                 labels = point_labels(margin > cut, p.range_m, p.cells, read_points(p.file), knn)
                 labels.tofile(folder / f"{p.file.stem}.label")
@@ -415,6 +449,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--knn", default="5,5,1,1", metavar="K,SEARCH,SIGMA,CUTOFF_M",
                         help="scans: the kNN vote's neighbours, window, Gaussian sigma (cells) and range cutoff (default 5,5,1,1)")
+    parser.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
+                        help="also run each frame mirrored left for right and average the two passes (twice the time); "
+                        "default: as the model file says (the prediction its threshold was chosen for)")
     args = parser.parse_args(argv)
     from .netio import load_net
 
@@ -422,7 +459,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.export_onnx is not None:
             net, obj = load_net(args.model)
             h, w = (int(v) for v in args.onnx_grid.lower().split("x"))
-            diff = export_onnx(net, args.export_onnx, h, w, human_threshold=float(obj.get("human_threshold", 0.5)))
+            diff = export_onnx(net, args.export_onnx, h, w, human_threshold=float(obj.get("human_threshold", 0.5)),
+                               mirror=mirrored(obj, None))
             print(f"wrote {args.export_onnx} (ONNX Runtime against PyTorch: max difference {diff:.2g})")
             if args.data is None:
                 return 0
@@ -432,14 +470,15 @@ def main(argv: list[str] | None = None) -> int:
             if args.format is not None:
                 raise PedscanError(f"--format {args.format}: for pedscan data; scans are written per point in SemanticKITTI's layout")
             knn = Knn.parse(args.knn) if args.per_point == "knn" else None
-            rec = predict_scans(args.model, args.data, args.out, args.sensor, args.pedscan, knn, args.device)
+            rec = predict_scans(args.model, args.data, args.out, args.sensor, args.pedscan, knn, args.device,
+                                mirror=args.mirror)
             scans = sum(s["scans"] for s in rec["sequences"])
             print(f"wrote {scans} scans' predictions to {args.out} in {rec['seconds']:.1f} s; "
                   f"{rec['ms_per_frame_median']:.1f} ms per frame (median)")
             return 0
         if args.out.exists() and args.out.resolve() == args.data.resolve():
             raise PedscanError(f"--out {args.out}: the same folder as the data; give another")
-        res = predict(args.model, args.data, args.out, args.format or "h5", args.device)
+        res = predict(args.model, args.data, args.out, args.format or "h5", args.device, mirror=args.mirror)
     except (PedscanError, FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

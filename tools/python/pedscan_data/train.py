@@ -92,6 +92,10 @@ class TrainConfig:
     backdrop: float = 0.0
     """each person of a window is given, with this probability, a wall 0.5-2 m behind it
     (:func:`~pedscan_data.windows.backdrop_people`); 0: never"""
+    mirror: float = 0.0
+    """each window is mirrored left for right with this probability: its columns reversed (a
+    column's azimuth goes to minus itself: the scene reflected in the sensor's x-z plane) and its
+    velocities' y negated; 0: never"""
     init: dict[str, Any] | None = None
     """the model file the weights started from (name, SHA-256, its step), or None"""
     data: list[dict[str, Any]] = field(default_factory=list)
@@ -127,7 +131,7 @@ class StepWindows:
 
     def __init__(
         self, sequences: list[Sequence], frames: int, seed: int, intensity: bool, crop_columns: int = 0, widen_m: float = 0.0,
-        flank: float = 0.0, backdrop: float = 0.0,
+        flank: float = 0.0, backdrop: float = 0.0, mirror: float = 0.0,
     ) -> None:
         self.sequences = sequences
         self.frames = frames
@@ -137,6 +141,7 @@ class StepWindows:
         self.widen_m = widen_m
         self.flank = flank
         self.backdrop = backdrop
+        self.mirror = mirror
 
     def pick(self, i: int) -> tuple[int, int]:
         rng = np.random.default_rng([self.seed, i])
@@ -197,11 +202,16 @@ class StepWindows:
             c0 = int(np.random.default_rng([self.seed, i, 1]).integers(seq.columns))
             cols = (c0 + np.arange(self.crop_columns)) % seq.columns
             r, x, label, velocity = r[..., cols], x[..., cols], label[:, cols], velocity[:, cols]
+        if self.mirror > 0 and np.random.default_rng([self.seed, i, 5]).random() < self.mirror:
+            # Column c's azimuth is pi (1 - 2 (c + 0.5) / W): reversing the columns sends each
+            # to minus itself, the world reflected in the x-z plane, where velocities' y turns.
+            r, x, label = r[..., ::-1], np.ascontiguousarray(x[..., ::-1]), np.ascontiguousarray(label[:, ::-1])
+            velocity = np.ascontiguousarray(velocity[:, ::-1] * np.array([1.0, -1.0, 1.0], dtype=velocity.dtype))
         return {
             "x": torch.from_numpy(x),
             "label": torch.from_numpy(label.astype(np.int64)),
             "velocity": torch.from_numpy(np.ascontiguousarray(velocity.transpose(2, 0, 1))),
-            "valid": torch.from_numpy(r[-1] > 0),
+            "valid": torch.from_numpy(np.ascontiguousarray(r[-1] > 0)),
             "sequence": s,
             "frame": t,
         }
@@ -272,9 +282,10 @@ def validate(
     return out
 
 
-def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int) -> dict[str, Any]:
+def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int, mirror: bool = False) -> dict[str, Any]:
     """The human threshold that maximizes the IoU over the validation beams (frames
-    ``score_from`` onwards), found exactly by sorting the beams' margins.
+    ``score_from`` onwards), found exactly by sorting the beams' margins (``mirror``: the
+    margins of mirrored prediction, :func:`~pedscan_data.predict.stream`).
 
     The paper's class weight (background / human beams, ~25) makes the softmax's argmax call a
     beam human when it is about 1 in 25 likely: recall near 1, precision low. The threshold is
@@ -285,7 +296,7 @@ def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int)
     net.eval()
     margins, truth = [], []
     for seq in sequences:
-        m, _, _ = predict_sequence(net, seq, device, first=score_from)
+        m, _, _ = predict_sequence(net, seq, device, first=score_from, mirror=mirror)
         for t in range(score_from, seq.frames):
             label = seq.read("label", t)
             ok = (seq.read("range", t) > 0) & (label != NOT_SCORED)
@@ -299,7 +310,7 @@ def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int)
     called = m > 0
     argmax_iou = int(np.sum(y & called)) / int(np.sum(y | called))
     return {
-        "human_threshold": float(1.0 / (1.0 + np.exp(-cut))), "margin": cut, "beams": int(len(m)),
+        "human_threshold": float(1.0 / (1.0 + np.exp(-cut))), "margin": cut, "mirrored": mirror, "beams": int(len(m)),
         "human_beams": int(y.sum()), "iou_argmax": argmax_iou, "iou_calibrated": iou,
     }
 
@@ -321,12 +332,13 @@ def best_cut(margin: np.ndarray, human: np.ndarray) -> tuple[float, float]:
 
 
 def calibrate_model(model: Path, val: Path, device: Any, score_from: int) -> dict[str, Any]:
-    """Calibrates a model file's human threshold on validation sequences and writes it in."""
+    """Calibrates a model file's human threshold on validation sequences and writes it in,
+    for the prediction the file asks for (its ``mirror``: see :mod:`pedscan_data.predict`)."""
     from .netio import atomic_save, load_file, load_net
 
-    net, _ = load_net(model, device)
+    net, obj = load_net(model, device)
     seqs = check_sequences(sequence_paths(val), 1, str(val), net.cfg.intensity)
-    c = calibrate(net, seqs, device, score_from)
+    c = calibrate(net, seqs, device, score_from, mirror=bool(obj.get("mirror", False)))
     obj = load_file(model)
     obj["human_threshold"] = c["human_threshold"]
     obj.setdefault("training", {})["calibration"] = {**c, "score_from": score_from, "val": [s.path.name for s in seqs]}
@@ -424,6 +436,7 @@ def train(args: argparse.Namespace) -> int:
         batch=args.batch, crop_columns=args.crop_columns,
         lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights), class_weight_power=args.class_weight_power,
         height=args.height, widen_m=args.widen_m, flank=args.flank, backdrop=args.backdrop,
+        mirror=args.mirror,
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
@@ -433,7 +446,7 @@ def train(args: argparse.Namespace) -> int:
         raise PedscanError("--range-change needs --frames 2 or more (a single frame has no range change)")
     if not all(math.isfinite(v) and v >= 0 for v in (cfg.lr, cfg.decay, cfg.class_weight_power, cfg.widen_m, *cfg.loss_weights)):
         raise PedscanError("--lr, --decay, --loss-weights, --class-weight-power and --widen-m must be finite and not negative")
-    for flag, value in (("--flank", cfg.flank), ("--backdrop", cfg.backdrop)):
+    for flag, value in (("--flank", cfg.flank), ("--backdrop", cfg.backdrop), ("--mirror", cfg.mirror)):
         if not 0.0 <= value <= 1.0:
             raise PedscanError(f"{flag} {value}: a probability, 0 to 1")
     paths = training_paths(args.data)
@@ -523,7 +536,8 @@ def train(args: argparse.Namespace) -> int:
                 metrics.append(m)
     atomic_write_text(metrics_path, "".join(json.dumps(m) + "\n" for m in metrics))
 
-    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns, cfg.widen_m, cfg.flank, cfg.backdrop)
+    data = StepWindows(seqs, cfg.frames, cfg.seed, cfg.intensity, cfg.crop_columns, cfg.widen_m, cfg.flank, cfg.backdrop,
+                       cfg.mirror)
     sampler = range(start * cfg.batch, args.steps * cfg.batch)
     loader = torch.utils.data.DataLoader(
         data, batch_size=cfg.batch, sampler=sampler, num_workers=args.workers,
@@ -707,6 +721,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--backdrop", type=float, default=0.0, metavar="P",
                    help="give each person, with probability P, a wall 0.5-2 m behind it reaching past its sides, as "
                    "real people stand before stalls, shop fronts and parked cars (not in the paper; default 0)")
+    p.add_argument("--mirror", type=float, default=0.0, metavar="P",
+                   help="mirror each window left for right with probability P (columns reversed, velocities' y "
+                   "negated): streets seen with traffic on the other side (not in the paper; default 0)")
     p.add_argument("--init", type=Path, default=None, metavar="MODEL",
                    help="start from the weights of this model file (the same network options; fine-tuning)")
     p.add_argument("--workers", type=int, default=1, help="data-loading processes (default 1; 0: in the trainer)")

@@ -166,10 +166,11 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
     """The four settings' people, median margins and shares found (module docs)."""
     from .model import input_channels
     from .netio import load_net
-    from .predict import human_margin, model_sensor, stream
+    from .predict import human_margin, mirrored, model_sensor, stream
 
     net, obj = load_net(model, "cpu")
     cut = human_margin(obj)
+    mirror = mirrored(obj, None)  # the margins `predict` would give: mirrored where the file asks
     spec = model_sensor(obj)
     if spec is None:
         raise PedscanError(f"{model}: the model file does not say which sensor's grid it was trained on")
@@ -183,7 +184,7 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
         raise PedscanError(f"{empty}: no person at {band[0]:g}-{band[1]:g} m with {MIN_CELLS} cells or more")
 
     def margin(r: np.ndarray) -> np.ndarray:
-        return next(stream(net, [input_channels(r)], "cpu"))[1]
+        return next(stream(net, [input_channels(r)], "cpu", mirror=mirror))[1]
 
     def moved(source: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]], target: list[np.ndarray]) -> list[float]:
         out = []

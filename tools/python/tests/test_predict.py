@@ -35,6 +35,38 @@ def test_an_intensity_network_is_fed_the_sequences_intensity(sample: Path) -> No
             np.testing.assert_allclose(velocity[t], vel[0].permute(1, 2, 0).numpy(), rtol=1e-4, atol=1e-5)
 
 
+def test_a_mirrored_prediction_is_the_mean_of_both_passes_and_mirrors_with_its_input(sample: Path, tmp_path: Path) -> None:
+    """--mirror: per frame, the mean of the network's outputs on the frame and on the frame's
+    columns reversed (reversed back, its velocities' y negated back), over a 2-frame window; so
+    the frame mirrored gives the outputs mirrored, exactly, which one pass does not; the files
+    say so."""
+    net = net_for(2, width=4, seed=1)
+    seq = Sequence(sample / "seq_000000.h5")
+    x = input_channels(seq.read("range"))
+    turn = np.array([1.0, -1.0, 1.0], dtype=np.float32)
+    one, one_v, _ = zip(*[(m, v, ms) for _, m, v, ms in pr.stream(net, x, "cpu")])
+    flipped, flipped_v, _ = zip(*[(m, v, ms) for _, m, v, ms in pr.stream(net, np.ascontiguousarray(x[..., ::-1]), "cpu")])
+    both, both_v, _ = zip(*[(m, v, ms) for _, m, v, ms in pr.stream(net, x, "cpu", mirror=True)])
+    back, back_v, _ = zip(*[(m, v, ms) for _, m, v, ms in pr.stream(net, np.ascontiguousarray(x[..., ::-1]), "cpu", mirror=True)])
+    for t in range(seq.frames):
+        np.testing.assert_allclose(both[t], (one[t] + flipped[t][:, ::-1]) / 2, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(both_v[t], (one_v[t] + flipped_v[t][:, ::-1] * turn) / 2, rtol=1e-5, atol=1e-6)
+        np.testing.assert_array_equal(back[t][:, ::-1], both[t])
+        np.testing.assert_array_equal(back_v[t][:, ::-1] * turn, both_v[t])
+    assert not np.allclose(flipped[-1][:, ::-1], one[-1], atol=1e-3)  # one pass is not mirror-symmetric
+    # The model file's "mirror" is the default; --mirror / --no-mirror win over it.
+    model = save_model(net, tmp_path / "net.pt")
+    obj = torch.load(model, weights_only=True)
+    obj["mirror"] = True
+    torch.save(obj, tmp_path / "asks.pt")
+    for name, args, want in (("flag", [str(model), "--mirror"], 1), ("file", [str(tmp_path / "asks.pt")], 1),
+                             ("off", [str(tmp_path / "asks.pt"), "--no-mirror"], 0), ("plain", [str(model)], 0)):
+        assert pr.main([*args[:1], str(sample), "--out", str(tmp_path / name), "--device", "cpu", *args[1:]]) == 0
+        with h5py.File(tmp_path / name / "seq_000000.h5", "r") as f:
+            assert f.attrs["mirrored"] == want, name
+            np.testing.assert_array_equal(f["label"][()], (np.stack(both if want else one) > 0).astype(np.uint8))
+
+
 def test_predictions_are_written_as_documented_and_may_be_written_again(sample: Path, tmp_path: Path) -> None:
     net = net_for(2, width=4, seed=1)
     model = save_model(net, tmp_path / "net.pt", threshold=0.7)
@@ -48,7 +80,8 @@ def test_predictions_are_written_as_documented_and_may_be_written_again(sample: 
         seq = Sequence(src)
         margin, velocity, _ = pr.predict_sequence(net, seq, "cpu")
         with h5py.File(out / src.name, "r") as f:
-            assert dict(f.attrs) == {"frames_seen": 2, "full_window_from": 1, "human_threshold": 0.7, "model": "net.pt"}
+            assert dict(f.attrs) == {"frames_seen": 2, "full_window_from": 1, "human_threshold": 0.7, "model": "net.pt",
+                                     "mirrored": 0}
             t, h, w = seq.frames, seq.rows, seq.columns
             for name, shape, dtype in (("label", (t, h, w), np.uint8), ("velocity", (t, h, w, 3), np.float32)):
                 d = f[name]
@@ -180,7 +213,11 @@ def test_the_onnx_file_is_documented_and_refused_when_it_differs(tmp_path: Path)
     assert [o.shape[0] for o in sess.get_outputs()] == ["batch", "batch"]
     assert sess.get_modelmeta().custom_metadata_map == {
         "human_threshold": "0.625", "frames": "2", "inputs": "range/10m, valid, intensity", "range_change": "false",
+        "mirror": "false",
     }
+    pr.export_onnx(net, tmp_path / "mirrored.onnx", 8, 32, human_threshold=0.625, mirror=True)
+    meta = ort.InferenceSession(str(tmp_path / "mirrored.onnx"), providers=["CPUExecutionProvider"]).get_modelmeta()
+    assert meta.custom_metadata_map["mirror"] == "true"
     # A traced graph 1e-3 off is refused at the default 1e-4 and leaves no file. The check is
     # seeded, so a probe gives the exact difference: a tolerance of exactly that keeps the file.
     off = TracedOff(NetConfig(frames=2, width=4))
@@ -231,8 +268,8 @@ def test_the_timing_leaves_out_each_sequences_warm_up_and_progress_goes_to_stder
 ) -> None:
     real = pr.predict_sequence
 
-    def timed(net, seq, dev, first=0):
-        margin, velocity, ms = real(net, seq, dev, first=first)
+    def timed(net, seq, dev, first=0, mirror=False):
+        margin, velocity, ms = real(net, seq, dev, first=first, mirror=mirror)
         return margin, velocity, [100.0, 1.0, 2.0, 3.0][: len(ms)]
 
     monkeypatch.setattr(pr, "predict_sequence", timed)

@@ -89,6 +89,17 @@ def test_points_take_the_predictions_the_network_makes_on_the_grid(exported: Pat
             got = np.fromfile(knn / "sequences" / ss / "predictions" / f"{t:06d}.label", dtype="<u4")
             assert np.count_nonzero(got != np.where(want, 30, 0)) <= np.count_nonzero(~clear)
     assert checked > 20000
+    # --mirror: the points take the mirrored passes' mean, as the sequences get it.
+    mirrored = pr.predict_scans(model, scans, tmp_path / "mirrored", knn=None, quiet=True, mirror=True)
+    assert mirrored["mirrored"] is True and rec["mirrored"] is False
+    seq1 = Sequence(exported / "seq_000001.h5")
+    both, _, _ = pr.predict_sequence(net, seq1, "cpu", mirror=True)
+    for t in range(seq1.frames):
+        m = both[t].ravel()[seq1.read("range", t).ravel() > 0]
+        got = np.fromfile(tmp_path / "mirrored" / "sequences" / "01" / "predictions" / f"{t:06d}.label", dtype="<u4")
+        clear = np.abs(m - cut) > 1e-4
+        np.testing.assert_array_equal(got[clear], np.where(m[clear] > cut, 30, 0))
+        assert np.abs(m - truth["01"][t][0]).max() > 1e-4  # the mirrored pass changed the margins
     # The scores agree: per point on the export, per beam on the sequences' own predictions.
     pr.predict(model, exported, tmp_path / "h5", quiet=True)
     on_grid = evaluate(exported, tmp_path / "h5").as_dict()["overall"]

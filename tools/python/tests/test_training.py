@@ -440,8 +440,16 @@ def test_calibration_is_counted_from_the_validation_frames_and_written_into_the_
     assert c["iou_calibrated"] == pytest.approx(iou(m > c["margin"])) and c["iou_calibrated"] >= c["iou_argmax"]
     assert c["human_threshold"] == pytest.approx(1 / (1 + np.exp(-c["margin"])))
     obj = load_file(model)
-    assert obj["human_threshold"] == c["human_threshold"]
+    assert obj["human_threshold"] == c["human_threshold"] and c["mirrored"] is False
     assert obj["training"] == {"steps": 0, "calibration": {**c, "score_from": 1, "val": ["seq_000000.h5", "seq_000001.h5"]}}
+    # A file that predicts mirrored is calibrated on mirrored margins.
+    obj["mirror"] = True
+    torch.save(obj, tmp_path / "mirrored.pt")
+    cm = tr.calibrate_model(tmp_path / "mirrored.pt", sample, "cpu", 1)
+    mm = np.concatenate([pr.predict_sequence(net, Sequence(p), "cpu", mirror=True)[0][1:][Sequence(p).read("range", slice(1, None)) > 0]
+                         for p in sorted(sample.glob("seq_*.h5"))]).astype(np.float64)
+    assert cm["mirrored"] is True and not np.allclose(mm, m, atol=1e-4)
+    assert (cm["margin"], cm["iou_calibrated"]) == tr.best_cut(mm, y)
 
 
 def test_one_frame_sequences_validate_and_calibrate_a_model_with_or_without_a_training_record(
@@ -630,6 +638,8 @@ TRAIN_OPTIONS = [
     (["--backdrop"], float, 0.0, False, None, "P", "give each person, with probability P, a wall 0.5-2 m behind it "
      "reaching past its sides, as real people stand before stalls, shop fronts and parked cars (not in the paper; "
      "default 0)"),
+    (["--mirror"], float, 0.0, False, None, "P", "mirror each window left for right with probability P (columns reversed, "
+     "velocities' y negated): streets seen with traffic on the other side (not in the paper; default 0)"),
     (["--init"], Path, None, False, None, "MODEL", "start from the weights of this model file (the same network options; "
      "fine-tuning)"),
     (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
@@ -765,6 +775,34 @@ def test_widened_windows_are_the_drawn_ones_with_wider_people_and_their_velociti
     assert grew >= 4
     assert run_train(sample, "--frames", "1", "--out", sample.parent / "neg", "--widen-m", "-1") == 2
     assert not (sample.parent / "neg").exists()
+
+
+def test_mirrored_windows_are_the_drawn_ones_left_for_right(sample: Path) -> None:
+    """--mirror: the same sequence, frame and crop at each step; a mirrored window is the
+    plain one with its columns reversed and its velocities' y negated; about P of the windows
+    are, reproducibly; a value outside 0-1 is refused."""
+    seqs = tr.check_sequences(tr.training_paths([sample]), 2, str(sample), False)
+    plain = tr.StepWindows(seqs, 2, 5, False, crop_columns=64)
+    mirrored = tr.StepWindows(seqs, 2, 5, False, crop_columns=64, mirror=0.5)
+    flipped = 0
+    for i in range(16):
+        a, b = plain[i], mirrored[i]
+        assert (a["sequence"], a["frame"]) == (b["sequence"], b["frame"])
+        if torch.equal(a["x"], b["x"]) and torch.equal(a["velocity"], b["velocity"]):
+            assert torch.equal(a["label"], b["label"])
+            continue
+        flipped += 1
+        assert torch.equal(b["x"], a["x"].flip(-1)) and torch.equal(b["label"], a["label"].flip(-1))
+        assert torch.equal(b["valid"], a["valid"].flip(-1))
+        v = a["velocity"].flip(-1)
+        assert torch.equal(b["velocity"][[0, 2]], v[[0, 2]]) and torch.equal(b["velocity"][1], -v[1])
+        assert all(torch.equal(x, y) for x, y in zip(b.values(), mirrored[i].values()) if isinstance(x, torch.Tensor))
+    assert 4 <= flipped <= 12
+    assert any((seqs[0].read("velocity", 1)[..., 1] != 0).ravel())  # the y that turns is there to turn
+    for bad in ("1.5", "-0.1", "nan"):
+        out = sample.parent / "mirror"
+        assert run_train(sample, "--frames", "1", "--out", out, "--mirror", bad) == 2
+        assert not out.exists()
 
 
 def widened_windows_and(sample: Path, **option: float) -> tuple[list, Any, list[tuple[int, dict, dict]]]:
