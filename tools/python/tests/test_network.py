@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 from pathlib import Path
 
 import numpy as np
@@ -312,7 +314,9 @@ def onnx_matches(net: SequenceNet, obj: dict, onnx: Path, rows: int, columns: in
     import onnxruntime as ort
 
     sess = ort.InferenceSession(str(onnx), providers=["CPUExecutionProvider"])
-    assert float(sess.get_modelmeta().custom_metadata_map["human_threshold"]) == obj["human_threshold"]
+    meta = sess.get_modelmeta().custom_metadata_map
+    assert float(meta["human_threshold"]) == obj["human_threshold"]
+    assert meta.get("mirror", "false") == str(bool(obj.get("mirror", False))).lower()  # what the threshold is for
     rng = np.random.default_rng(0)
     r = rng.uniform(0.5, far_m, (net.cfg.frames, rows, columns)).astype(np.float32)
     r[rng.random(r.shape) < 0.1] = 0
@@ -428,3 +432,6 @@ def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matche
     assert predict_main([str(models / "hdl64e.pt"), str(tmp_path / "seq"), "--out", str(tmp_path / "p")]) == 0
     labels = np.fromfile(tmp_path / "p" / "predictions" / "000000.label", "<u4")
     assert len(labels) == 5000 and set(np.unique(labels)) <= {0, 30}
+    # Its threshold was chosen for mirrored prediction, which predict then makes by default.
+    assert obj["mirror"] is True and "mirrored" in obj["provenance"]["prediction"]
+    assert json.loads((tmp_path / "p" / "predict.json").read_text())["mirrored"] is True
