@@ -211,7 +211,7 @@ class StepWindows:
             "x": torch.from_numpy(x),
             "label": torch.from_numpy(label.astype(np.int64)),
             "velocity": torch.from_numpy(np.ascontiguousarray(velocity.transpose(2, 0, 1))),
-            "valid": torch.from_numpy(np.ascontiguousarray(r[-1] > 0)),
+            "valid": torch.from_numpy(r[-1] > 0),
             "sequence": s,
             "frame": t,
         }
@@ -335,10 +335,11 @@ def calibrate_model(model: Path, val: Path, device: Any, score_from: int) -> dic
     """Calibrates a model file's human threshold on validation sequences and writes it in,
     for the prediction the file asks for (its ``mirror``: see :mod:`pedscan_data.predict`)."""
     from .netio import atomic_save, load_file, load_net
+    from .predict import mirrored
 
     net, obj = load_net(model, device)
     seqs = check_sequences(sequence_paths(val), 1, str(val), net.cfg.intensity)
-    c = calibrate(net, seqs, device, score_from, mirror=bool(obj.get("mirror", False)))
+    c = calibrate(net, seqs, device, score_from, mirror=mirrored(obj, None))
     obj = load_file(model)
     obj["human_threshold"] = c["human_threshold"]
     obj.setdefault("training", {})["calibration"] = {**c, "score_from": score_from, "val": [s.path.name for s in seqs]}
