@@ -155,26 +155,35 @@ thread_local! {
 }
 
 /// The candidates of one layer for a footprint: the triangles `hits` gives for `beams` and
-/// their one-rings, each once and in triangle order, with their corners from `corners` (sensor
-/// frame), those the footprint's pyramid may hold (`outside` false), into `out`.
+/// their one-rings, each once and in triangle order, those the footprint's pyramid may hold
+/// (`outside` false on their corners from `corners`), into `out` with their corners in the
+/// sensor frame (`place` of those). A beam that meets a triangle an earlier one met adds
+/// nothing; `corners` may give another frame than the sensor's (the world, about the beam's
+/// origin: the pyramid turned with it), so that the many triangles outside it are never moved.
+#[allow(clippy::too_many_arguments)]
 fn footprint_candidates(
     geom: &FrameGeometry,
     hits: &BeamHits,
     beams: &[usize],
     outside: &dyn Fn(&[DVec3; 3]) -> bool,
     corners: &dyn Fn(usize, u32) -> [DVec3; 3],
+    place: &dyn Fn([DVec3; 3]) -> [DVec3; 3],
     triangles: &mut Vec<(u32, usize)>,
     out: &mut Vec<(u32, [DVec3; 3], bool)>,
 ) {
     triangles.clear();
     out.clear();
-    for &nb in beams {
+    let mut seeds = [crate::backend::NO_TRIANGLE; 5];
+    for (i, &nb) in beams.iter().enumerate() {
         let t = hits.triangle.get(nb).copied().unwrap_or(crate::backend::NO_TRIANGLE);
-        if t != crate::backend::NO_TRIANGLE && t < geom.triangle_count() {
+        if t != crate::backend::NO_TRIANGLE && t < geom.triangle_count() && !seeds[..i.min(5)].contains(&t) {
             // A one-ring lies in its triangle's mesh.
             let k = geom.mesh_index_of_triangle(t);
             triangles.push((t, k));
             triangles.extend(geom.neighbours_in_mesh(k, t).map(|n| (n, k)));
+        }
+        if i < 5 {
+            seeds[i] = t;
         }
     }
     triangles.sort_unstable();
@@ -182,7 +191,7 @@ fn footprint_candidates(
     for &(t, k) in triangles.iter() {
         let tri = corners(k, t);
         if !outside(&tri) {
-            out.push((t, tri, !geom.meshes[k].double_sided));
+            out.push((t, place(tri), !geom.meshes[k].double_sided));
         }
     }
 }
@@ -419,9 +428,21 @@ impl FootprintScene for SceneSurfaces<'_> {
         let near = if searched { NearBackground::Nothing } else { self.near_background(b) };
         SCRATCH.with_borrow_mut(|s| {
             let Scratch { triangles, people, env, .. } = s;
-            footprint_candidates(self.humans, self.human_hits, &beams, &outside, &|_, t| self.humans.triangle_f64(t), triangles, people);
+            let same = |tri: [DVec3; 3]| tri;
+            footprint_candidates(self.humans, self.human_hits, &beams, &outside, &|_, t| self.humans.triangle_f64(t), &same, triangles, people);
             if searched {
-                footprint_candidates(self.background, self.bg_hits, &beams, &outside, &|k, t| self.env_corners(frame, k, t), triangles, env);
+                match (&self.env_world, frame) {
+                    // Under a moving sensor the environment's triangles are culled in the world
+                    // (about the column's origin, the pyramid turned into the world), and only
+                    // those it may hold are turned into the column's sensor frame.
+                    (Some(e), Some((rot_t, origin))) => {
+                        let outside_world = outside_footprint(&dirs.map(|d| rot_t.transpose() * d));
+                        let world = |k: usize, t: u32| world_triangle_in_mesh(self.background, e.positions, e.meshes, k, t, origin).0;
+                        let turn = |tri: [DVec3; 3]| tri.map(|p| rot_t * p);
+                        footprint_candidates(self.background, self.bg_hits, &beams, &outside_world, &world, &turn, triangles, env);
+                    }
+                    _ => footprint_candidates(self.background, self.bg_hits, &beams, &outside, &|k, t| self.env_corners(frame, k, t), &same, triangles, env),
+                }
             }
             for (o, &dir) in out.iter_mut().zip(dirs).skip(1) {
                 let human = nearest_hit(people, dir);
@@ -707,6 +728,63 @@ mod tests {
             let unturned = on_plane(WALL, e.dirs[1], e.bg_hits.range_m[1] as f64, d);
             assert!((want - unturned).abs() > 1e-4, "ray {k}: the turn shows");
         }
+    }
+
+    /// Under a sensor that moves and turns during the sweep, a footprint at an edge (the beam
+    /// on a near wall, its neighbour across the silhouette on a far one: a search) meets, ray
+    /// by ray, what the nearest of all the environment's triangles placed in the beam's own
+    /// column frame gives: the candidates culled in the world lose none that a ray meets.
+    #[test]
+    fn under_a_moving_sensor_a_searched_footprint_meets_the_nearest_of_all_triangles() {
+        // Two quads of one mesh, not touching: a near wall ending at y = 0 and a far one, each
+        // narrower than the sensor's turn (a pyramid turned the wrong way would miss both).
+        let world: Vec<DVec3> = [(5.0, -0.3, -1.0), (5.0, 0.0, -1.0), (5.0, 0.0, 1.0), (5.0, -0.3, 1.0), (8.0, -0.5, -1.0), (8.0, 0.5, -1.0), (8.0, 0.5, 1.0), (8.0, -0.5, 1.0)]
+            .iter()
+            .map(|&(x, y, z)| DVec3::new(x, y, z))
+            .collect();
+        let indices = [0u32, 2, 1, 0, 3, 2, 4, 6, 5, 4, 7, 6];
+        let adjacency = std::sync::Arc::new(crate::geometry::Adjacency::build(&indices));
+        let mut background = FrameGeometry::default();
+        background.push_mesh_with_adjacency(&world.iter().map(|p| p.as_vec3().to_array()).collect::<Vec<_>>(), &indices, 0, false, Some(adjacency.clone()));
+        let env_meshes = vec![EnvDraw { first_vertex: 0, vertex_count: 8, local_indices: indices.to_vec(), double_sided: false, adjacency, reflectance: 0.25, class: 0 }];
+        let poses = vec![
+            DMat4::from_rotation_translation(glam::DQuat::from_rotation_z(0.3), DVec3::new(0.2, 0.03, 0.01)),
+            DMat4::from_rotation_translation(glam::DQuat::from_rotation_z(0.305), DVec3::new(0.25, 0.035, 0.01)),
+        ];
+        let mut e = EdgeScene::new();
+        e.background = background;
+        e.env_meshes = env_meshes;
+        e.wall = world;
+        e.poses = poses;
+        // Beam 0 just left of the near wall's edge as its column sees it, beam 1 past it.
+        let edge = {
+            let p = e.poses[0].inverse().transform_point3(DVec3::new(5.0, 0.0, 0.0));
+            p.y.atan2(p.x)
+        };
+        e.dirs = vec![DVec3::new((edge - 0.002).cos(), (edge - 0.002).sin(), 0.0), DVec3::new((edge + 0.01).cos(), (edge + 0.01).sin(), 0.0)];
+        e.human_hits = BeamHits { range_m: vec![0.0; 2], triangle: vec![crate::backend::NO_TRIANGLE; 2] };
+        // Every triangle in column `col`'s sensor frame, and the nearest along `dir`.
+        let all = |e: &EdgeScene, col: usize| -> Vec<(u32, [DVec3; 3], bool)> {
+            let s = e.scene();
+            (0..4u32).map(|t| (t, s.env_triangle(t, col).0, true)).collect()
+        };
+        let hit0 = nearest_hit(&all(&e, 0), e.dirs[0]).expect("beam 0 meets the near wall");
+        let hit1 = nearest_hit(&all(&e, 1), e.dirs[1]).expect("beam 1 meets the far wall");
+        assert!(hit0.1 < 2 && hit1.1 >= 2, "{hit0:?} {hit1:?}");
+        e.bg_hits = BeamHits { range_m: vec![hit0.0 as f32, hit1.0 as f32], triangle: vec![hit0.1, hit1.1] };
+        let s = e.scene();
+        let dirs = crate::sensor_model::footprint_dirs(edge - 0.002, 0.0, [6.0, 6.0]);
+        let mut out = [None; FOOTPRINT_RAYS];
+        out[0] = s.clean(0, hit0.0 as f32, 0);
+        s.cast_footprint(0, &[1], &dirs, &mut out);
+        let (mut near, mut far) = (0, 0);
+        for (k, (o, &d)) in out.iter().zip(&dirs).enumerate().skip(1) {
+            let (r, t) = nearest_hit(&all(&e, 0), d).expect("every ray meets a wall");
+            let o = o.unwrap_or_else(|| panic!("ray {k} meets a wall"));
+            assert_eq!(o.range_m, r, "ray {k}");
+            if t < 2 { near += 1 } else { far += 1 }
+        }
+        assert!(near > 0 && far > 0, "the footprint straddles the edge: {near} near, {far} far");
     }
 
     /// In the middle of the wall, every footprint ray meets the beam's own triangle or its
