@@ -66,6 +66,7 @@ from .scans import (
     Grid, Knn, ProjectedScan, ProjectFailed, find_pedscan, is_scan_layout, move_into_place, point_labels,
     projected_scans, read_points, scan_sequences, sensor_argument,
 )
+from .windows import MIRROR_VELOCITY
 
 #: How points take the grid's predictions by default: ``knn`` or ``cell``. (Measured on
 #: generated scans: see :func:`predict_scans`.)
@@ -136,7 +137,7 @@ def stream(
                     )
                     m, v = logits[0, 1] - logits[0, 0], vel[0]
                     if k:
-                        m, v = m.flip(-1), v.flip(-1) * torch.tensor([1.0, -1.0, 1.0], dtype=v.dtype, device=v.device)[:, None, None]
+                        m, v = m.flip(-1), v.flip(-1) * torch.tensor(MIRROR_VELOCITY, dtype=v.dtype, device=v.device)[:, None, None]
                     outs.append((m, v))
             if outs:
                 margin = (sum(m for m, _ in outs) / passes).to("cpu").numpy()

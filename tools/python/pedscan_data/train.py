@@ -56,7 +56,7 @@ import numpy as np
 
 from .evaluate import NOT_SCORED
 from .reader import PedscanError, Sequence, sequence_paths
-from .windows import backdrop_people, flank_people, widen_people
+from .windows import MIRROR_VELOCITY, backdrop_people, flank_people, widen_people
 
 #: The paper's loss weights: cross-entropy, background velocity, human velocity.
 PAPER_LOSS_WEIGHTS = (10_000.0, 1.0, 1_001.0)
@@ -206,7 +206,7 @@ class StepWindows:
             # Column c's azimuth is pi (1 - 2 (c + 0.5) / W): reversing the columns sends each
             # to minus itself, the world reflected in the x-z plane, where velocities' y turns.
             r, x, label = r[..., ::-1], np.ascontiguousarray(x[..., ::-1]), np.ascontiguousarray(label[:, ::-1])
-            velocity = np.ascontiguousarray(velocity[:, ::-1] * np.array([1.0, -1.0, 1.0], dtype=velocity.dtype))
+            velocity = np.ascontiguousarray(velocity[:, ::-1] * np.array(MIRROR_VELOCITY, dtype=velocity.dtype))
         return {
             "x": torch.from_numpy(x),
             "label": torch.from_numpy(label.astype(np.int64)),

@@ -32,6 +32,11 @@ def class_weight(label: np.ndarray, range_m: np.ndarray) -> float:
     return (int(np.count_nonzero(returned)) - humans) / humans
 
 
+#: A velocity mirrored left for right (the world reflected in the sensor's x-z plane, the range
+#: image's columns reversed): its y negated. Training's mirrored windows and ``predict
+#: --mirror`` both use it.
+MIRROR_VELOCITY = (1.0, -1.0, 1.0)
+
 #: A widened person's cells must lie this much nearer than what they cover, m.
 WIDEN_STEP_M = 0.3
 
