@@ -1,14 +1,14 @@
 """Averages the weights of trained networks into one model file (a uniform "model soup").
 
-    python -m pedscan_data.average MODEL MODEL [MODEL...] --out FILE --val DATA
+    python -m pedscan_data.average MODEL MODEL [MODEL...] --out FILE --val DATA [DATA...]
                                    [--score-from K] [--[no-]mirror] [--device auto|cpu|cuda]
 
 Networks fine-tuned from one file (runs of ``train --init`` from it, or one from another) often
 lie in one basin of the loss, where the mean of their weights predicts better than each of
 them (Izmailov et al. 2018, stochastic weight averaging; Wortsman et al. 2022, model soups).
 The network has no batch normalization, so the mean of its weights is the whole model; what
-is its own is the human threshold, calibrated on DATA (validation sequences, never a test
-set) as ``train`` calibrates, for the prediction the file asks for (one pass or mirrored).
+is its own is the human threshold, calibrated on DATA (validation sequences, several folders
+pooled; never a test set) as ``train`` calibrates, for the prediction the file asks for (one pass or mirrored).
 
 The files must describe one network (the same ``net``: frames, width, inputs, rows'
 elevations) on one grid (``sensor``), with the same weights' names and shapes, all finite;
@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -98,44 +97,28 @@ def averaged(models: list[Path], mirror: bool | None = None) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from .calibrate import check_arguments, write_calibrated
     from .netio import atomic_save, environment
     from .predict import pick_device
-    from .train import calibrate_model
 
-    if args.score_from is not None and args.score_from < 0:
-        raise PedscanError(f"--score-from {args.score_from}: not a frame index")
-    if not Path(args.val).exists():
-        raise PedscanError(f"--val {args.val}: no such file or folder")
+    out = check_arguments(args)
     obj = averaged([Path(m) for m in args.models], args.mirror)
-    device = pick_device(args.device)
-    obj["training"]["environment"] = environment(device)
-    out = Path(args.out)
-    if out.is_dir():
-        raise PedscanError(f"--out {out}: a folder (a model file is wanted)")
-    tmp = out.with_name(out.name + ".averaging")
-    try:
-        atomic_save(obj, tmp)
-        frames = int(obj["net"].get("frames", 1))
-        c = calibrate_model(tmp, Path(args.val), device, frames - 1 if args.score_from is None else args.score_from)
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    obj["training"]["environment"] = environment(pick_device(args.device))
+    c = write_calibrated(lambda tmp: atomic_save(obj, tmp), out, args)
     print(f"{out}: the mean of {len(args.models)} networks; human threshold {c['human_threshold']:.4f} "
-          f"(calibrated on {args.val}{', mirrored' if c['mirrored'] else ''}: IoU {c['iou_calibrated']:.4f})")
+          f"(calibrated on {', '.join(args.val)}{', mirrored' if c['mirrored'] else ''}: IoU {c['iou_calibrated']:.4f})")
     return 0
 
 
 def parser() -> argparse.ArgumentParser:
+    from .calibrate import add_arguments
+
     p = argparse.ArgumentParser(prog="python -m pedscan_data.average", description=__doc__.split("\n\n")[0])
     p.add_argument("models", nargs="+", metavar="MODEL", help="model files of one network (two or more)")
     p.add_argument("--out", required=True, metavar="FILE", help="the averaged model file")
-    p.add_argument("--val", required=True, metavar="DATA",
-                   help="validation sequences (a pedscan output folder or file) to calibrate its human threshold on")
-    p.add_argument("--score-from", type=int, metavar="K", help="calibrate on frames K onwards (default: the network's frames - 1)")
     p.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
                    help="whether the file predicts mirrored (default: as the files do, where they agree)")
-    p.add_argument("--device", default="auto", help="auto | cpu | cuda (default auto)")
+    add_arguments(p)
     return p
 
 

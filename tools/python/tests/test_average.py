@@ -52,7 +52,7 @@ def test_the_average_is_the_mean_of_the_weights_with_its_own_calibrated_threshol
                                for p, s in ((a, 100), (b, 200))]
     assert rec["sensor"] == "test16" and rec["environment"]["device"] == "cpu"
     assert obj["licence"] == "CC0 | CC BY-NC-SA 3.0" and obj["net"] == load_file(a)["net"]
-    assert not list(tmp_path.glob("*.averaging"))
+    assert not list(tmp_path.glob("*.calibrating"))
     # --no-mirror overrides the files: calibrated on one pass.
     assert av.main([str(a), str(b), "--out", str(out), "--val", str(sample), "--device", "cpu", "--no-mirror"]) == 0
     one = load_file(out)
@@ -86,7 +86,7 @@ def test_average_refuses_what_it_cannot_average_with_exit_2_and_writes_nothing(s
     for models, message in cases:
         assert av.main([*map(str, models), "--out", str(out), "--val", str(sample), "--device", "cpu"]) == 2, message
         assert message in capsys.readouterr().err
-        assert not out.exists() and not list(tmp_path.glob("*.averaging")), message
+        assert not out.exists() and not list(tmp_path.glob("*.calibrating")), message
     # Validation data that is not there, or holds no person to calibrate on: nothing written either.
     assert av.main([str(a), str(b), "--out", str(out), "--val", str(tmp_path / "none"), "--device", "cpu"]) == 2
     assert "--val" in capsys.readouterr().err and not out.exists()
@@ -94,10 +94,52 @@ def test_average_refuses_what_it_cannot_average_with_exit_2_and_writes_nothing(s
     empty.mkdir()
     assert av.main([str(a), str(b), "--out", str(out), "--val", str(empty), "--device", "cpu"]) == 2
     assert str(empty) in capsys.readouterr().err
-    assert not out.exists() and not list(tmp_path.glob("*.averaging"))
+    assert not out.exists() and not list(tmp_path.glob("*.calibrating"))
     # The file as it was is kept when a later average fails.
     assert av.main([str(a), str(b), "--out", str(out), "--val", str(sample), "--device", "cpu"]) == 0
     before = out.read_bytes()
     assert av.main([str(a), str(tmp_path / "nan.pt"), "--out", str(out), "--val", str(sample), "--device", "cpu"]) == 2
     assert out.read_bytes() == before
     assert np.isfinite(load_file(out)["human_threshold"])
+
+
+def test_calibrate_pools_validation_folders_and_writes_only_what_it_was_asked(sample: Path, tmp_path: Path,
+                                                                            capsys) -> None:
+    """`python -m pedscan_data.calibrate`: the threshold of a model file over several validation
+    folders pooled (as train calibrates, mirrored where the file predicts so), into --out or
+    the file itself; bad input is refused with exit 2 and nothing written."""
+    import shutil
+
+    from pedscan_data import calibrate as cal
+
+    (a, _) = two_models(tmp_path, mirror=True)
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copyfile(sample / "seq_000001.h5", other / "seq_000000.h5")
+    before = a.read_bytes()
+    out = tmp_path / "cal.pt"
+    assert cal.main([str(a), "--val", str(sample), str(other), "--out", str(out), "--device", "cpu"]) == 0
+    assert "2 folders, mirrored" in capsys.readouterr().out
+    assert a.read_bytes() == before
+    net, _ = load_net(a)
+    seqs = [Sequence(p) for p in (sample / "seq_000000.h5", sample / "seq_000001.h5", other / "seq_000000.h5")]
+    c = tr.calibrate(net, seqs, "cpu", 0, mirror=True)
+    obj = load_file(out)
+    assert obj["human_threshold"] == pytest.approx(c["human_threshold"]) and c["beams"] == obj["training"]["calibration"]["beams"]
+    assert obj["training"]["calibration"]["val"] == [f"{sample.name}/seq_000000.h5", f"{sample.name}/seq_000001.h5", "other/seq_000000.h5"]
+    # Pooled, the second sequence counts twice: not the threshold of the first folder alone.
+    alone = tr.calibrate(net, seqs[:2], "cpu", 0, mirror=True)
+    assert alone["beams"] < c["beams"]
+    # In place, without --out.
+    assert cal.main([str(a), "--val", str(sample), "--device", "cpu"]) == 0
+    assert load_file(a)["human_threshold"] == pytest.approx(alone["human_threshold"])
+    assert load_file(a)["training"]["calibration"]["val"] == ["seq_000000.h5", "seq_000001.h5"]
+    # Bad input: nothing written.
+    for args, message in (([str(tmp_path / "none.pt"), "--val", str(sample)], "none.pt"),
+                          ([str(a), "--val", str(sample), str(tmp_path / "nowhere")], "nowhere"),
+                          ([str(a), "--val", str(sample), "--score-from", "-1"], "--score-from")):
+        after = a.read_bytes()
+        assert cal.main([*args, "--out", str(tmp_path / "bad.pt"), "--device", "cpu"]) == 2, message
+        assert message in capsys.readouterr().err
+        assert not (tmp_path / "bad.pt").exists() and a.read_bytes() == after
+        assert not list(tmp_path.glob("*.calibrating"))
