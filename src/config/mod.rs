@@ -248,8 +248,9 @@ pub struct HumansConfig {
     /// [0, 0], the default, leaves the bodies unclothed.
     pub clothes_m: [f64; 2],
     /// Share of the standing people who stand at a place a built-in world makes for it:
-    /// behind a market stall's counter or in front of it, beside a beer-garden table (the
-    /// street's markets, `scene.markets`), where one within `spawn_radius_m` is free; the
+    /// behind a market stall's counter or in front of it, beside a beer-garden table, under a
+    /// pavilion (the street's markets, `scene.markets`) or a bus shelter, where one within
+    /// `spawn_radius_m` is free; the
     /// others, and everyone where there is none, are placed as before, 0..1.
     pub at_places: f64,
     /// Share of synthetic people who join the person placed before them: face to face 0.8-1.4 m

@@ -367,10 +367,11 @@ fn plaza(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64,
 }
 
 /// A market or beer garden behind the sidewalk, a building at its back: rows of open stalls
-/// under their roofs, of booths (huts open at the front above a counter) side by side, or of
-/// table sets under parasols, with aisles 1-2.5 m wide between them. They make places to
-/// stand at (`humans.at_places`: behind and before the counters, by the tables), where people
-/// show above a counter or a table with the stall's roof and posts or the booth's walls around
+/// under their roofs, of booths (huts open at the front above a counter) side by side, of
+/// table sets under parasols, or of pavilions (party tents on posts), with aisles 1-2.5 m wide
+/// between them. They make places to stand at (`humans.at_places`: behind and before the
+/// counters, by the tables, under the pavilions), where people show above a counter or a
+/// table with the stall's roof and posts, the booth's walls or the pavilion's sides around
 /// them at their own range, as the real people of a market do.
 fn market(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) {
     let depth = uni(rng, 8.0, 16.0);
@@ -381,19 +382,22 @@ fn market(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64
         Stalls,
         Booths,
         Tables,
+        Pavilions,
     }
     // Rows along the street. Stalls face the street or away; booths mostly face it.
     let mut y = uni(rng, 1.0, 2.0);
     loop {
         let row = match uni(rng, 0.0, 1.0) {
-            u if u < 0.35 => Row::Stalls,
-            u if u < 0.7 => Row::Booths,
-            _ => Row::Tables,
+            u if u < 0.3 => Row::Stalls,
+            u if u < 0.6 => Row::Booths,
+            u if u < 0.8 => Row::Tables,
+            _ => Row::Pavilions,
         };
         let across = match row {
             Row::Stalls => 2.2,
             Row::Booths => 2.6,
             Row::Tables => 1.6,
+            Row::Pavilions => uni(rng, 3.0, 4.5),
         };
         if y + across > depth - 1.0 {
             break;
@@ -406,6 +410,7 @@ fn market(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64
                 Row::Stalls => uni(rng, 2.0, 3.5),
                 Row::Booths => uni(rng, 2.0, 4.0),
                 Row::Tables => 2.2,
+                Row::Pavilions => uni(rng, 3.0, 6.0),
             };
             if x + len > xb - 0.5 {
                 break;
@@ -419,6 +424,10 @@ fn market(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64
                 Row::Booths => {
                     things::booth(b, rng, q, 0.0, facing, len);
                     count(counts, "booth");
+                }
+                Row::Pavilions => {
+                    things::pavilion(b, rng, q, 0.0, facing, len, across);
+                    count(counts, "pavilion");
                 }
                 Row::Tables => {
                     things::table_set(b, rng, q, 0.0, 0.0);

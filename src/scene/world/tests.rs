@@ -97,7 +97,7 @@ fn worlds_are_full_of_things_of_human_size_and_carry_classes() {
     assert!(trucks >= 2, "{trucks} parked trucks in four streets");
 }
 
-/// Markets: stalls and table sets (class 52 and 99) whose roofs and parasols are above 2 m, so
+/// Markets: stalls, pavilions and table sets (class 52 and 99) whose roofs and parasols are above 2 m, so
 /// that people stand under them, close by the counters and benches (the band
 /// `humans.by_things` draws from).
 #[test]
@@ -110,7 +110,7 @@ fn markets_have_stalls_and_room_to_stand_among_them_under_their_roofs() {
             continue;
         }
         markets += 1;
-        assert!(["stall", "booth", "table set"].iter().any(|k| w.counts.contains_key(k)), "{}", w.summary());
+        assert!(["stall", "booth", "table set", "pavilion"].iter().any(|k| w.counts.contains_key(k)), "{}", w.summary());
         let roofs: Vec<[DVec2; 3]> = w
             .env
             .meshes
@@ -346,9 +346,13 @@ fn cars_in_the_sensors_lane_keep_clear_of_its_vehicle() {
                 assert!(!m.overlaps(t, s, movers::EGO_HALF_M), "sequence {index}: a car on the sensor's vehicle at {t} s");
                 assert!(m.velocity(t).x * own.dir >= 0.0);
             }
+            // Where they start: ahead of the sensor's vehicle or behind it, within view.
+            let d0 = (m.position(0.0).x - sensor.position(0.0).x) * own.dir;
+            if d0.abs() < 60.0 {
+                if d0 > 0.0 { ahead += 1 } else { behind += 1 }
+            }
             let d = (m.position(duration).x - sensor.position(duration).x) * own.dir;
             if d.abs() < 60.0 {
-                if d > 0.0 { ahead += 1 } else { behind += 1 }
                 // Caught up: within a few seconds' gap behind, at the sensor's speed.
                 if d < 0.0 && d > -(movers::EGO_HALF_M.x + m.half.x + 2.0 + 2.0 * sensor.speed_mps) - 4.0 && (m.velocity(duration).x.abs() - sensor.speed_mps).abs() < 0.3 {
                     following += 1;
@@ -492,6 +496,47 @@ fn booths_are_huts_open_above_their_counters() {
     // In a street of markets, booths stand in rows of them.
     let w = World::build(WorldKind::Street, 3, 0, &WorldParams { markets: 1.0, ..params() }).unwrap();
     assert!(w.counts.get("booth").is_some_and(|&n| n >= 4), "{}", w.summary());
+}
+
+/// A pavilion is a roof on posts that people stand under: over each of its places the roof
+/// 0.8-1.3 m above their chest, the way they face open across it; a bus shelter's places have
+/// its roof overhead and its back panel behind them, facing the road. A street of markets has
+/// pavilions.
+#[test]
+fn people_stand_under_pavilions_and_bus_shelters() {
+    use rand::SeedableRng;
+    for (k, yaw) in [0.3, 2.0, -1.2].into_iter().enumerate() {
+        let mut b = shapes::Builder::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(k as u64);
+        things::pavilion(&mut b, &mut rng, DVec2::new(1.0, -2.0), 0.0, yaw, 4.0, 3.5);
+        let places = std::mem::take(&mut b.places);
+        let env = b.finish();
+        // Two lines of four (4 m long, one every 0.9 m), facing each other across it.
+        assert_eq!(places.len(), 8, "{places:?}");
+        assert_eq!(places.iter().filter(|q| (q.facing_rad - yaw).abs() < 1e-9).count(), 4, "{places:?}");
+        for q in &places {
+            let chest = q.at.extend(1.5);
+            let roof = first_hit(&env, chest, DVec3::Z, 3.0).expect("a roof overhead");
+            assert!((0.8..=1.3).contains(&roof), "roof {roof} m above the chest");
+            let dir = DVec3::new(q.facing_rad.cos(), q.facing_rad.sin(), 0.0);
+            assert_eq!(first_hit(&env, chest, dir, 1.5), None, "open across the pavilion");
+        }
+        let mut b = shapes::Builder::default();
+        things::shelter(&mut b, &mut rng, DVec2::new(1.0, -2.0), 0.0, yaw);
+        let places = std::mem::take(&mut b.places);
+        let env = b.finish();
+        assert!(places.len() >= 3, "{places:?}");
+        for q in &places {
+            assert!((q.facing_rad - yaw).abs() < 1e-9, "{q:?} faces the road");
+            let chest = q.at.extend(1.5);
+            assert!(first_hit(&env, chest, DVec3::Z, 1.2).is_some(), "the shelter's roof overhead");
+            let back = DVec3::new(-yaw.cos(), -yaw.sin(), 0.0);
+            assert!(first_hit(&env, chest, back, 1.5).is_some(), "its back panel behind");
+            assert_eq!(first_hit(&env, chest, -back, 3.0), None, "the road ahead");
+        }
+    }
+    let w = World::build(WorldKind::Street, 3, 0, &WorldParams { markets: 1.0, ..params() }).unwrap();
+    assert!(w.counts.get("pavilion").is_some_and(|&n| n >= 2), "{}", w.summary());
 }
 
 /// Indoors, robots and carts drive the hall's service aisle: nothing of the still world stands

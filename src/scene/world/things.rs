@@ -292,6 +292,9 @@ pub fn shelter(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) 
     if chance(rng, 0.6) {
         bench(b, rng, at(p, yaw, -d * 0.2, 0.0).truncate(), g, yaw);
     }
+    // Places: under the roof before the bench, facing the road (people waiting for the bus,
+    // the roof over their heads and the panels behind them).
+    counter_places(b, p, yaw, len, d * 0.3, yaw);
     0.5 * len
 }
 
@@ -645,6 +648,68 @@ pub fn table_set(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64
         }
     }
     0.5 * len
+}
+
+/// A pavilion (a market's or beer garden's party tent) facing `yaw`, `len` along its front and
+/// `depth` deep (3 m or more each): a flat roof 2.3-2.8 m up on posts at its corners and every
+/// 2-3 m between, a valance round its edge; its back and ends each open, closed to rail height
+/// (a low panel or a rail at 0.9-1.1 m) or walled up to the roof; now and then a high table
+/// or two inside. Places under the roof, 0.6 m in from its front and its back, facing across
+/// it, one every 0.9 m: people standing among its posts with the roof over their heads and
+/// its sides around them at their own range, as under a real market's tents.
+pub fn pavilion(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64, len: f64, depth: f64) -> f64 {
+    let m = material(rng, class::OTHER_STRUCTURE);
+    let h = uni(rng, 2.3, 2.8);
+    let (fwd, side) = (DVec2::new(yaw.cos(), yaw.sin()), DVec2::new(-yaw.sin(), yaw.cos()));
+    let point = |f: f64, l: f64| p + fwd * (f * depth * 0.5) + side * (l * len * 0.5);
+    let r = uni(rng, 0.025, 0.05);
+    let (along, across) = ((len / uni(rng, 2.0, 3.0)).ceil().max(1.0) as usize, (depth / 3.0).ceil().max(1.0) as usize);
+    for i in 0..=along {
+        let l = -1.0 + 2.0 * i as f64 / along as f64;
+        for f in [-1.0, 1.0] {
+            b.cylinder(m, point(f, l).extend(g), r, h, 6);
+        }
+    }
+    for j in 1..across {
+        let f = -1.0 + 2.0 * j as f64 / across as f64;
+        for l in [-1.0, 1.0] {
+            b.cylinder(m, point(f, l).extend(g), r, h, 6);
+        }
+    }
+    b.cuboid(m, p.extend(g + h), DVec3::new(depth + 0.1, len + 0.1, 0.05), yaw);
+    let valance = uni(rng, 0.1, 0.35);
+    for f in [-1.0, 1.0] {
+        b.cuboid(m, (p + fwd * (f * (depth * 0.5 + 0.05))).extend(g + h - valance), DVec3::new(0.02, len + 0.1, valance), yaw);
+    }
+    for l in [-1.0, 1.0] {
+        b.cuboid(m, (p + side * (l * (len * 0.5 + 0.05))).extend(g + h - valance), DVec3::new(depth + 0.1, 0.02, valance), yaw);
+    }
+    // The back and the two ends: open, to rail height or to the roof.
+    let low = uni(rng, 0.9, 1.1);
+    for (centre, size) in [(point(-1.0, 0.0), DVec2::new(0.03, len)), (point(0.0, -1.0), DVec2::new(depth, 0.03)), (point(0.0, 1.0), DVec2::new(depth, 0.03))] {
+        match uni(rng, 0.0, 1.0) {
+            u if u < 0.3 => {}
+            u if u < 0.55 => b.cuboid(m, centre.extend(g), size.extend(low), yaw),
+            u if u < 0.8 => {
+                let half = if size.x > size.y { fwd * (size.x * 0.5) } else { side * (size.y * 0.5) };
+                b.rod(m, (centre - half).extend(g + low), (centre + half).extend(g + low), 0.02, 4);
+            }
+            _ => b.cuboid(m, centre.extend(g), size.extend(h), yaw),
+        }
+    }
+    if chance(rng, 0.5) {
+        let t = material(rng, class::OTHER_OBJECT);
+        let n = if len > 4.5 && chance(rng, 0.5) { 2 } else { 1 };
+        for k in 0..n {
+            let q = p + side * (len * ((k as f64 + 0.5) / n as f64 - 0.5));
+            b.cylinder(t, q.extend(g), 0.03, 1.05, 6);
+            b.cylinder(t, q.extend(g + 1.05), 0.3, 0.03, 10);
+        }
+    }
+    for f in [-1.0, 1.0] {
+        counter_places(b, p, yaw, len, f * (depth * 0.5 - 0.6), if f > 0.0 { yaw + std::f64::consts::PI } else { yaw });
+    }
+    0.5 * len.max(depth)
 }
 
 /// A parasol 2.35-2.6 m high: a pole and a shallow cone 2.4-3.2 m across whose rim is above
