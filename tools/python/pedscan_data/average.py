@@ -118,6 +118,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="FILE", help="the averaged model file")
     p.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None,
                    help="whether the file predicts mirrored (default: as the files do, where they agree)")
+    p.add_argument("--val", required=True, nargs="+", metavar="DATA",
+                   help="validation sequences (pedscan output folders or files, pooled) to calibrate its threshold on")
     add_arguments(p)
     return p
 

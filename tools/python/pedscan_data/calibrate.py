@@ -61,9 +61,8 @@ def write_calibrated(save: Callable[[Path], None], out: Path, args: argparse.Nam
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The arguments of a calibrating command: ``--val``, ``--score-from``, ``--device``."""
-    p.add_argument("--val", required=True, nargs="+", metavar="DATA",
-                   help="validation sequences (pedscan output folders or files, pooled) to calibrate the human threshold on")
+    """The arguments a calibrating command shares besides its ``--val``: ``--score-from``,
+    ``--device``."""
     p.add_argument("--score-from", type=int, metavar="K", help="calibrate on frames K onwards (default: the network's frames - 1)")
     p.add_argument("--device", default="auto", help="auto | cpu | cuda (default auto)")
 
@@ -86,6 +85,8 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m pedscan_data.calibrate", description=__doc__.split("\n\n")[0])
     p.add_argument("model", metavar="MODEL", help="a model file (rewritten in place unless --out)")
     p.add_argument("--out", metavar="FILE", help="write the calibrated model here instead")
+    p.add_argument("--val", required=True, nargs="+", metavar="DATA",
+                   help="validation sequences (pedscan output folders or files), pooled")
     add_arguments(p)
     return p
 
