@@ -23,7 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .reader import PedscanError
+from .reader import PedscanError, sequence_paths
 
 
 def check_arguments(args: argparse.Namespace) -> Path:
@@ -32,8 +32,10 @@ def check_arguments(args: argparse.Namespace) -> Path:
     if args.score_from is not None and args.score_from < 0:
         raise PedscanError(f"--score-from {args.score_from}: not a frame index")
     for v in args.val:
-        if not Path(v).exists():
-            raise PedscanError(f"--val {v}: no such file or folder")
+        try:
+            sequence_paths(v)
+        except (PedscanError, FileNotFoundError) as e:
+            raise PedscanError(f"--val {e}") from e
     out = Path(args.out)
     if out.is_dir():
         raise PedscanError(f"--out {out}: a folder (a model file is wanted)")
@@ -43,7 +45,6 @@ def check_arguments(args: argparse.Namespace) -> Path:
 def write_calibrated(save: Callable[[Path], None], out: Path, args: argparse.Namespace) -> dict[str, Any]:
     """A model file that ``save`` writes, calibrated on ``args.val`` (pooled) and moved to
     ``out`` only once complete; on failure nothing is left (an earlier ``out`` stays)."""
-    from .netio import load_file
     from .predict import pick_device
     from .train import calibrate_model
 
@@ -51,8 +52,7 @@ def write_calibrated(save: Callable[[Path], None], out: Path, args: argparse.Nam
     tmp = out.with_name(out.name + ".calibrating")
     try:
         save(tmp)
-        frames = int(load_file(tmp)["net"].get("frames", 1))
-        c = calibrate_model(tmp, [Path(v) for v in args.val], device, frames - 1 if args.score_from is None else args.score_from)
+        c = calibrate_model(tmp, [Path(v) for v in args.val], device, args.score_from)
         os.replace(tmp, out)
     finally:
         if tmp.exists():

@@ -331,16 +331,19 @@ def best_cut(margin: np.ndarray, human: np.ndarray) -> tuple[float, float]:
     return cut, int(np.sum(human & called)) / int(np.sum(human | called))
 
 
-def calibrate_model(model: Path, val: Path | list[Path], device: Any, score_from: int) -> dict[str, Any]:
+def calibrate_model(model: Path, val: Path | list[Path], device: Any, score_from: int | None) -> dict[str, Any]:
     """Calibrates a model file's human threshold on validation sequences (one folder or file,
     or several pooled) and writes it in, for the prediction the file asks for (its
-    ``mirror``: see :mod:`pedscan_data.predict`). The record names the sequences by file name,
-    and by folder and file name where several folders are pooled."""
+    ``mirror``: see :mod:`pedscan_data.predict`), on frames ``score_from`` onwards (None: the
+    network's first full window). The record names the sequences by file name, and by folder
+    and file name where several folders are pooled."""
     from .netio import atomic_save, load_file, load_net
     from .predict import mirrored
 
     vals = list(val) if isinstance(val, (list, tuple)) else [val]
     net, obj = load_net(model, device)
+    if score_from is None:
+        score_from = net.cfg.frames - 1
     paths = [p for v in vals for p in sequence_paths(v)]
     seqs = check_sequences(paths, 1, ", ".join(map(str, vals)), net.cfg.intensity)
     c = calibrate(net, seqs, device, score_from, mirror=mirrored(obj, None))
