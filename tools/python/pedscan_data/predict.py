@@ -38,6 +38,10 @@ right and the two passes' outputs are averaged (:func:`stream`; twice the time);
 ``--mirror`` or ``--no-mirror``, as the model file's ``mirror`` says (the prediction its
 threshold was chosen for). The files record ``mirrored``.
 
+**Grown.** Where the model file has ``grow`` (``calibrate --grow``), a beam is human where the
+highest margin of its component of confident-enough neighbours exceeds the threshold
+(:mod:`pedscan_data.grow`); the HDF5 files record it as ``grow`` (JSON), ``predict.json`` too.
+
 ``--export-onnx FILE`` writes the network (input [B, N, C, H, W]; outputs ``logits``
 [B,2,H,W] and ``velocity`` [B,3,H,W]) for ONNX Runtime, checked against PyTorch on a random
 window within 1e-4 before the file is kept.
@@ -61,6 +65,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from .grow import human_mask
 from .reader import PedscanError, Sequence, open_sequences
 from .scans import (
     Grid, Knn, ProjectedScan, ProjectFailed, find_pedscan, is_scan_layout, move_into_place, point_labels,
@@ -215,13 +220,15 @@ def write_kitti(root: Path, seq: Sequence, labels: np.ndarray, velocity: np.ndar
 
 def export_onnx(
     net: Any, path: Path, rows: int, columns: int, atol: float = 1e-4, human_threshold: float = 0.5,
-    mirror: bool = False,
+    mirror: bool = False, grow: dict[str, Any] | None = None,
 ) -> float:
     """Writes the network as ONNX and checks ONNX Runtime against PyTorch on a random window;
     returns the largest difference. The file appears only once it is checked. Its metadata
     ``human_threshold`` is the softmax probability above which a beam is human, ``mirror``
     ("true" or "false") whether that threshold is for the mean of the frame's and the mirrored
-    frame's outputs (:func:`stream`), which a caller of the file then computes."""
+    frame's outputs (:func:`stream`), which a caller of the file then computes; with ``grow``
+    (a model file's) also ``grow_margin`` and ``grow_step_m``, the region growing the threshold
+    is for (:mod:`pedscan_data.grow`)."""
     torch = _torch()
     import onnxruntime as ort
 
@@ -249,6 +256,7 @@ def export_onnx(
         "human_threshold": repr(float(human_threshold)), "frames": str(cfg.frames),
         "inputs": "range/10m, valid" + (", intensity" if cfg.intensity else ""),
         "range_change": str(cfg.range_change).lower(), "mirror": str(bool(mirror)).lower(),
+        **({"grow_margin": repr(float(grow["margin"])), "grow_step_m": repr(float(grow["step_m"]))} if grow else {}),
     })
     onnx.save(m, str(tmp))
     with torch.no_grad():
@@ -280,7 +288,7 @@ def predict(
     dev = pick_device(device)
     net, obj = load_net(model, dev)
     mirror = mirrored(obj, mirror)
-    cut = human_margin(obj)
+    cut, grow = human_margin(obj), obj.get("grow")
     sequences = open_sequences(data)
     for seq in sequences:
         if net.cfg.intensity and not seq.has("intensity"):
@@ -294,14 +302,18 @@ def predict(
     all_ms: list[float] = []
     for k, seq in enumerate(sequences):
         margin, velocity, ms = predict_sequence(net, seq, dev, first=first, mirror=mirror)
-        labels = (margin > cut).astype(np.uint8)
+        if grow:
+            labels = np.stack([human_mask(margin[t], seq.read("range", t), cut, grow) for t in range(seq.frames)])
+        else:
+            labels = margin > cut
+        labels = labels.astype(np.uint8)
         all_ms += after_warm_up(ms)
         if fmt == "h5":
             write_h5(
                 out / seq.path.name, labels, velocity,
                 {"frames_seen": net.cfg.frames, "full_window_from": net.cfg.frames - 1,
                  "human_threshold": float(obj.get("human_threshold", 0.5)), "model": Path(model).name,
-                 "mirrored": int(mirror)},
+                 "mirrored": int(mirror), **({"grow": json.dumps(grow)} if grow else {})},
             )
         else:
             write_kitti(out, seq, labels, velocity)
@@ -361,7 +373,7 @@ def predict_scans(
         raise PedscanError(f"--out {out}: not a folder")
     dev = pick_device(device)
     net, obj = load_net(model, dev)
-    cut = human_margin(obj)
+    cut, grow = human_margin(obj), obj.get("grow")
     mirror = mirrored(obj, mirror)
     spec = sensor if sensor is not None else model_sensor(obj)
     notes = []
@@ -375,7 +387,7 @@ def predict_scans(
     record: dict[str, Any] = {
         "model": Path(model).name, "scans": str(scans), "frames_seen": net.cfg.frames,
         "full_window_from": net.cfg.frames - 1, "human_threshold": float(obj.get("human_threshold", 0.5)),
-        "per_point": "cell" if knn is None else "knn", "mirrored": mirror,
+        "per_point": "cell" if knn is None else "knn", "mirrored": mirror, "grow": grow,
         "knn": None if knn is None else {"k": knn.k, "search": knn.search, "sigma": knn.sigma, "cutoff_m": knn.cutoff_m},
         "sequences": [], "notes": notes,
     }
@@ -405,7 +417,7 @@ def predict_scans(
             ms: list[float] = []
             for _, margin, _, frame_ms in stream(net, inputs(), dev, mirror=mirror):
                 p = held.pop(0)
-                labels = point_labels(margin > cut, p.range_m, p.cells, read_points(p.file), knn)
+                labels = point_labels(human_mask(margin, p.range_m, cut, grow), p.range_m, p.cells, read_points(p.file), knn)
                 labels.tofile(folder / f"{p.file.stem}.label")
                 ms.append(frame_ms)
                 done += 1
@@ -461,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
             net, obj = load_net(args.model)
             h, w = (int(v) for v in args.onnx_grid.lower().split("x"))
             diff = export_onnx(net, args.export_onnx, h, w, human_threshold=float(obj.get("human_threshold", 0.5)),
-                               mirror=mirrored(obj, None))
+                               mirror=mirrored(obj, None), grow=obj.get("grow"))
             print(f"wrote {args.export_onnx} (ONNX Runtime against PyTorch: max difference {diff:.2g})")
             if args.data is None:
                 return 0

@@ -282,7 +282,9 @@ def validate(
     return out
 
 
-def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int, mirror: bool = False) -> dict[str, Any]:
+def calibrate(
+    net: Any, sequences: list[Sequence], device: Any, score_from: int, mirror: bool = False, grow: bool = False,
+) -> dict[str, Any]:
     """The human threshold that maximizes the IoU over the validation beams (frames
     ``score_from`` onwards), found exactly by sorting the beams' margins (``mirror``: the
     margins of mirrored prediction, :func:`~pedscan_data.predict.stream`).
@@ -290,18 +292,25 @@ def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int,
     The paper's class weight (background / human beams, ~25) makes the softmax's argmax call a
     beam human when it is about 1 in 25 likely: recall near 1, precision low. The threshold is
     chosen on validation data, never on the test set.
+
+    ``grow``: region growing is chosen as well (:func:`~pedscan_data.grow.calibrate_grow`) and
+    kept where it beats the plain threshold by more than 0.001 IoU (``grow`` in the result, None
+    where it does not; the threshold is then for the grown margins).
     """
     from .predict import predict_sequence
 
     net.eval()
     margins, truth = [], []
+    frames = []
     for seq in sequences:
         m, _, _ = predict_sequence(net, seq, device, first=score_from, mirror=mirror)
         for t in range(score_from, seq.frames):
-            label = seq.read("label", t)
-            ok = (seq.read("range", t) > 0) & (label != NOT_SCORED)
+            label, rng = seq.read("label", t), seq.read("range", t)
+            ok = (rng > 0) & (label != NOT_SCORED)
             margins.append(m[t][ok])
             truth.append(label[ok] == 1)
+            if grow:
+                frames.append((m[t], rng, label == 1, ok))
     net.train()
     m, y = np.concatenate(margins).astype(np.float64), np.concatenate(truth)
     if not y.any():
@@ -309,10 +318,21 @@ def calibrate(net: Any, sequences: list[Sequence], device: Any, score_from: int,
     cut, iou = best_cut(m, y)
     called = m > 0
     argmax_iou = int(np.sum(y & called)) / int(np.sum(y | called))
-    return {
+    c = {
         "human_threshold": float(1.0 / (1.0 + np.exp(-cut))), "margin": cut, "mirrored": mirror, "beams": int(len(m)),
         "human_beams": int(y.sum()), "iou_argmax": argmax_iou, "iou_calibrated": iou,
     }
+    if grow:
+        from .grow import calibrate_grow
+
+        g = calibrate_grow(frames, cut)
+        c["grow_tried"] = g["tried"]
+        c["grow"] = None
+        if g["iou"] > iou + 0.001:
+            c["grow"] = {"margin": g["margin"], "step_m": g["step_m"]}
+            c.update(human_threshold=float(1.0 / (1.0 + np.exp(-g["cut"]))), margin=g["cut"], iou_calibrated=g["iou"],
+                     iou_plain=iou)
+    return c
 
 
 def best_cut(margin: np.ndarray, human: np.ndarray) -> tuple[float, float]:
@@ -331,12 +351,16 @@ def best_cut(margin: np.ndarray, human: np.ndarray) -> tuple[float, float]:
     return cut, int(np.sum(human & called)) / int(np.sum(human | called))
 
 
-def calibrate_model(model: Path, val: Path | list[Path], device: Any, score_from: int | None) -> dict[str, Any]:
+def calibrate_model(
+    model: Path, val: Path | list[Path], device: Any, score_from: int | None, grow: bool = False,
+) -> dict[str, Any]:
     """Calibrates a model file's human threshold on validation sequences (one folder or file,
     or several pooled) and writes it in, for the prediction the file asks for (its
     ``mirror``: see :mod:`pedscan_data.predict`), on frames ``score_from`` onwards (None: the
     network's first full window). The record names the sequences by file name, and by folder
-    and file name where several folders are pooled."""
+    and file name where several folders are pooled. ``grow``: region growing is calibrated as
+    well (:func:`calibrate`) and written as the file's ``grow`` (removed where it does not
+    help)."""
     from .netio import atomic_save, load_file, load_net
     from .predict import mirrored
 
@@ -346,9 +370,12 @@ def calibrate_model(model: Path, val: Path | list[Path], device: Any, score_from
         score_from = net.cfg.frames - 1
     paths = [p for v in vals for p in sequence_paths(v)]
     seqs = check_sequences(paths, 1, ", ".join(map(str, vals)), net.cfg.intensity)
-    c = calibrate(net, seqs, device, score_from, mirror=mirrored(obj, None))
+    c = calibrate(net, seqs, device, score_from, mirror=mirrored(obj, None), grow=grow)
     obj = load_file(model)
     obj["human_threshold"] = c["human_threshold"]
+    obj.pop("grow", None)
+    if c.get("grow"):
+        obj["grow"] = c["grow"]
     names = [s.path.name for s in seqs] if len(vals) == 1 else [f"{s.path.parent.name}/{s.path.name}" for s in seqs]
     obj.setdefault("training", {})["calibration"] = {**c, "score_from": score_from, "val": names}
     atomic_save(obj, model)
