@@ -317,6 +317,8 @@ def onnx_matches(net: SequenceNet, obj: dict, onnx: Path, rows: int, columns: in
     meta = sess.get_modelmeta().custom_metadata_map
     assert float(meta["human_threshold"]) == obj["human_threshold"]
     assert meta.get("mirror", "false") == str(bool(obj.get("mirror", False))).lower()  # what the threshold is for
+    grow = obj.get("grow")  # and the region growing it is for
+    assert (float(meta["grow_margin"]), float(meta["grow_step_m"])) == (grow["margin"], grow["step_m"]) if grow else "grow_margin" not in meta
     rng = np.random.default_rng(0)
     r = rng.uniform(0.5, far_m, (net.cfg.frames, rows, columns)).astype(np.float32)
     r[rng.random(r.shape) < 0.1] = 0
@@ -435,3 +437,7 @@ def test_the_shipped_street_network_records_its_grid_data_and_licence_and_matche
     # Its threshold was chosen for mirrored prediction, which predict then makes by default.
     assert obj["mirror"] is True and "mirrored" in obj["provenance"]["prediction"]
     assert json.loads((tmp_path / "p" / "predict.json").read_text())["mirrored"] is True
+    # It was chosen with region growing from confident beams, which predict then applies.
+    assert obj["grow"]["step_m"] > 0 and obj["grow"]["margin"] < np.log(obj["human_threshold"] / (1 - obj["human_threshold"]))
+    assert json.loads((tmp_path / "p" / "predict.json").read_text())["grow"] == obj["grow"]
+    assert "grown" in obj["provenance"]["prediction"]
