@@ -11,8 +11,9 @@ A person is one instance of class 30 or 254 in one scan whose median range lies 
 ``--range``, with at least 20 cells and spread over at most 2 m, its strays left out
 (:mod:`pedscan_data.people`).
 
-Per person the median human margin (logit of human minus background, over its cells) and
-whether it exceeds the model's threshold (found), in four settings:
+Per person the median human margin (logit of human minus background, over its cells; as
+``predict`` gives it: mirrored and grown where the model file asks) and whether it exceeds
+the model's threshold (found), in four settings:
 
 - ``real``: real people in their scans; ``generated``: generated people in theirs;
 - ``real in generated``: a real person's columns, ``--columns`` either side of it, every row,
@@ -164,13 +165,15 @@ def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[floa
 def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band: tuple[float, float] = (8.0, 24.0),
                pedscan: Path | None = None) -> dict[str, Any]:
     """The four settings' people, median margins and shares found (module docs)."""
+    from .grow import grown_margin
     from .model import input_channels
     from .netio import load_net
     from .predict import human_margin, mirrored, model_sensor, stream
 
     net, obj = load_net(model, "cpu")
     cut = human_margin(obj)
-    mirror = mirrored(obj, None)  # the margins `predict` would give: mirrored where the file asks
+    mirror = mirrored(obj, None)  # the margins `predict` would give: mirrored where the file asks,
+    grow = obj.get("grow")  # grown where it asks
     spec = model_sensor(obj)
     if spec is None:
         raise PedscanError(f"{model}: the model file does not say which sensor's grid it was trained on")
@@ -184,7 +187,8 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
         raise PedscanError(f"{empty}: no person at {band[0]:g}-{band[1]:g} m with {MIN_CELLS} cells or more")
 
     def margin(r: np.ndarray) -> np.ndarray:
-        return next(stream(net, [input_channels(r)], "cpu", mirror=mirror))[1]
+        m = next(stream(net, [input_channels(r)], "cpu", mirror=mirror))[1]
+        return grown_margin(m, r, float(grow["margin"]), float(grow["step_m"])) if grow else m
 
     def moved(source: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]], target: list[np.ndarray]) -> list[float]:
         out = []

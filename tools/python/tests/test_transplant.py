@@ -88,3 +88,13 @@ def test_alone_keeps_the_person_and_the_ground_and_narrower_takes_the_outer_eigh
     assert set(cols[~keep][rows[~keep] == 2]) == {100, 107}
     assert keep[rows == 3].all()
     assert set(cols[~keep][rows[~keep] == 4]) == {508, 3}
+
+
+def test_margins_are_grown_where_the_model_file_asks(scans: tuple[Path, Path], tmp_path: Path) -> None:
+    folder, model = scans
+    plain = transplant(model, folder, folder, columns=256, band=(0.0, 100.0))["settings"]["real"]
+    obj = torch.load(model, weights_only=True)
+    obj["grow"] = {"margin": -30.0, "step_m": 100.0}  # every returned beam joined: each takes its scan's highest
+    torch.save(obj, tmp_path / "grown.pt")
+    grown = transplant(tmp_path / "grown.pt", folder, folder, columns=256, band=(0.0, 100.0))["settings"]["real"]
+    assert grown["people"] == plain["people"] and grown["median_margin"] > plain["median_margin"]
