@@ -67,6 +67,23 @@ def grown_margin(margin: np.ndarray, range_m: np.ndarray, low: float, step_m: fl
     return out
 
 
+def model_grow(obj: dict[str, Any], model: Any) -> dict[str, float] | None:
+    """A model file's ``grow``, checked: None, or a finite ``margin`` and a positive finite
+    ``step_m``; PedscanError naming ``model`` otherwise."""
+    from .reader import PedscanError
+
+    g = obj.get("grow")
+    if g is None:
+        return None
+    try:
+        margin, step = float(g["margin"]), float(g["step_m"])
+    except (TypeError, KeyError, ValueError) as e:
+        raise PedscanError(f"{model}: its grow {g!r} is not a margin and a step_m ({e})") from e
+    if not (np.isfinite(margin) and np.isfinite(step) and step > 0):
+        raise PedscanError(f"{model}: its grow needs a finite margin and a positive step_m, not {g!r}")
+    return {"margin": margin, "step_m": step}
+
+
 def human_mask(margin: np.ndarray, range_m: np.ndarray, cut: float, grow: dict[str, Any] | None) -> np.ndarray:
     """Human beams of one frame: ``margin > cut``, or with ``grow`` (a model file's) the
     grown margins above it."""

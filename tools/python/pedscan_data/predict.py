@@ -65,7 +65,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .grow import human_mask
+from .grow import human_mask, model_grow
 from .reader import PedscanError, Sequence, open_sequences
 from .scans import (
     Grid, Knn, ProjectedScan, ProjectFailed, find_pedscan, is_scan_layout, move_into_place, point_labels,
@@ -291,7 +291,7 @@ def predict(
     dev = pick_device(device)
     net, obj = load_net(model, dev)
     mirror = mirrored(obj, mirror)
-    cut, grow = human_margin(obj), obj.get("grow")
+    cut, grow = human_margin(obj), model_grow(obj, model)
     sequences = open_sequences(data)
     for seq in sequences:
         if net.cfg.intensity and not seq.has("intensity"):
@@ -376,7 +376,7 @@ def predict_scans(
         raise PedscanError(f"--out {out}: not a folder")
     dev = pick_device(device)
     net, obj = load_net(model, dev)
-    cut, grow = human_margin(obj), obj.get("grow")
+    cut, grow = human_margin(obj), model_grow(obj, model)
     mirror = mirrored(obj, mirror)
     spec = sensor if sensor is not None else model_sensor(obj)
     notes = []
@@ -476,7 +476,7 @@ def main(argv: list[str] | None = None) -> int:
             net, obj = load_net(args.model)
             h, w = (int(v) for v in args.onnx_grid.lower().split("x"))
             diff = export_onnx(net, args.export_onnx, h, w, human_threshold=float(obj.get("human_threshold", 0.5)),
-                               mirror=mirrored(obj, None), grow=obj.get("grow"))
+                               mirror=mirrored(obj, None), grow=model_grow(obj, args.model))
             print(f"wrote {args.export_onnx} (ONNX Runtime against PyTorch: max difference {diff:.2g})")
             if args.data is None:
                 return 0

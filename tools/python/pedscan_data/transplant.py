@@ -165,7 +165,7 @@ def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[floa
 def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band: tuple[float, float] = (8.0, 24.0),
                pedscan: Path | None = None) -> dict[str, Any]:
     """The four settings' people, median margins and shares found (module docs)."""
-    from .grow import grown_margin
+    from .grow import grown_margin, model_grow
     from .model import input_channels
     from .netio import load_net
     from .predict import human_margin, mirrored, model_sensor, stream
@@ -173,7 +173,7 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
     net, obj = load_net(model, "cpu")
     cut = human_margin(obj)
     mirror = mirrored(obj, None)  # the margins `predict` would give: mirrored where the file asks,
-    grow = obj.get("grow")  # grown where it asks
+    grow = model_grow(obj, model)  # grown where it asks
     spec = model_sensor(obj)
     if spec is None:
         raise PedscanError(f"{model}: the model file does not say which sensor's grid it was trained on")

@@ -150,3 +150,20 @@ def test_a_grown_model_file_predicts_as_it_was_calibrated_and_plain_calibration_
     # Calibrated again without --grow: the threshold is for plain margins, the growing goes.
     assert cal.main([str(out), "--val", str(sample), "--device", "cpu"]) == 0
     assert "grow" not in load_file(out)
+
+
+def test_a_damaged_grow_in_a_model_file_is_refused_naming_the_file(sample: Path, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from pedscan_data.predict import main as predict_main
+
+    import torch
+
+    model = save_model(net_for(1, width=4, seed=2), tmp_path / "m.pt", threshold=0.5)
+    for bad in ({"margin": 1.0}, {"margin": "x", "step_m": 0.2}, {"margin": float("nan"), "step_m": 0.2},
+                {"margin": 1.0, "step_m": 0.0}, [1, 2]):
+        obj = load_file(model)
+        obj["grow"] = bad
+        torch.save(obj, tmp_path / "bad.pt")
+        assert predict_main([str(tmp_path / "bad.pt"), str(sample), "--out", str(tmp_path / "p")]) == 2
+        assert f"{tmp_path / 'bad.pt'}: its grow" in capsys.readouterr().err
+        assert not (tmp_path / "p").exists()
