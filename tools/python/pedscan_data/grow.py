@@ -84,12 +84,17 @@ def model_grow(obj: dict[str, Any], model: Any) -> dict[str, float] | None:
     return {"margin": margin, "step_m": step}
 
 
-def human_mask(margin: np.ndarray, range_m: np.ndarray, cut: float, grow: dict[str, Any] | None) -> np.ndarray:
-    """Human beams of one frame: ``margin > cut``, or with ``grow`` (a model file's) the
-    grown margins above it."""
+def as_predicted(margin: np.ndarray, range_m: np.ndarray, grow: dict[str, Any] | None) -> np.ndarray:
+    """One frame's margins as the threshold reads them: grown with ``grow`` (a model file's),
+    else as they are."""
     if not grow:
-        return margin > cut
-    return grown_margin(margin, range_m, float(grow["margin"]), float(grow["step_m"])) > cut
+        return margin
+    return grown_margin(margin, range_m, float(grow["margin"]), float(grow["step_m"]))
+
+
+def human_mask(margin: np.ndarray, range_m: np.ndarray, cut: float, grow: dict[str, Any] | None) -> np.ndarray:
+    """Human beams of one frame: its margins as predicted (:func:`as_predicted`) above ``cut``."""
+    return as_predicted(margin, range_m, grow) > cut
 
 
 def calibrate_grow(

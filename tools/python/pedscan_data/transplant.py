@@ -165,7 +165,7 @@ def collect(binary: Path, scans: Path, work: Path, sensor: str, band: tuple[floa
 def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band: tuple[float, float] = (8.0, 24.0),
                pedscan: Path | None = None) -> dict[str, Any]:
     """The four settings' people, median margins and shares found (module docs)."""
-    from .grow import grown_margin, model_grow
+    from .grow import as_predicted, model_grow
     from .model import input_channels
     from .netio import load_net
     from .predict import human_margin, mirrored, model_sensor, stream
@@ -187,8 +187,7 @@ def transplant(model: Path, real: Path, generated: Path, columns: int = 8, band:
         raise PedscanError(f"{empty}: no person at {band[0]:g}-{band[1]:g} m with {MIN_CELLS} cells or more")
 
     def margin(r: np.ndarray) -> np.ndarray:
-        m = next(stream(net, [input_channels(r)], "cpu", mirror=mirror))[1]
-        return grown_margin(m, r, float(grow["margin"]), float(grow["step_m"])) if grow else m
+        return as_predicted(next(stream(net, [input_channels(r)], "cpu", mirror=mirror))[1], r, grow)
 
     def moved(source: list[np.ndarray], people: list[tuple[int, np.ndarray, np.ndarray, float]], target: list[np.ndarray]) -> list[float]:
         out = []
