@@ -72,19 +72,7 @@ enum Command {
     /// then the triangle rate of the raster renderer against the ray caster (in `bench.md`).
     Bench(pedscan::commands::bench::BenchRequest),
     /// Contact sheet of human models at several gait phases, rendered by pedscan itself.
-    Sheet {
-        /// Output PNG.
-        #[arg(long, default_value = "humans.png")]
-        out: PathBuf,
-        /// Human models: folders of .glb files or files (default: the bundled humans).
-        #[arg(long)]
-        models: Vec<PathBuf>,
-        /// Gait phases, comma separated.
-        #[arg(long, value_delimiter = ',', default_value = "0,0.25,0.5,0.75")]
-        phases: Vec<f32>,
-        #[arg(long)]
-        validation: bool,
-    },
+    Sheet(pedscan::commands::sheet::SheetRequest),
     /// What a generated dataset holds: frames, people per frame, human beams per distance
     /// bin, class balance, walking speeds; with a PNG of the histograms.
     Stats {
@@ -155,9 +143,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let exe = std::env::current_exe().context("locating the pedscan executable")?;
             print!("{}", pedscan::commands::bench::bench(&exe, &req)?);
         }
-        Command::Sheet { out, models, phases, validation } => {
-            pedscan::commands::sheet::write_contact_sheet(&models, &phases, &out, validation)?;
-            eprintln!("wrote {}", out.display());
+        Command::Sheet(req) => {
+            pedscan::commands::sheet::write_contact_sheet(&req)?;
+            eprintln!("wrote {}", req.out.display());
         }
         Command::Stats { path, png, json } => {
             let stats = pedscan::commands::stats::Stats::of(&path)?;

@@ -18,7 +18,6 @@ use crate::backend::{BeamHits, NO_TRIANGLE};
 use crate::sensor::Sensor;
 use glam::{DMat4, DVec3, Mat4};
 use image::RgbImage;
-use std::path::Path;
 use std::sync::Arc;
 
 const DISTANCE_M: f64 = 3.2;
@@ -90,12 +89,36 @@ pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) ->
     Ok(img)
 }
 
-/// Loads `models` (none: the bundled people) and writes the sheet to `out` (temporary name,
-/// then rename).
-pub fn write_contact_sheet(model_paths: &[std::path::PathBuf], phases: &[f32], out: &Path, validation: bool) -> Result<()> {
+/// What `pedscan sheet` is asked for (its flags).
+#[derive(Clone, Debug, clap::Args)]
+pub struct SheetRequest {
+    /// Output PNG.
+    #[arg(long, default_value = "humans.png")]
+    pub out: std::path::PathBuf,
+    /// Human models: folders of .glb files or files (default: the bundled humans).
+    #[arg(long)]
+    pub models: Vec<std::path::PathBuf>,
+    /// Gait phases, comma separated.
+    #[arg(long, value_delimiter = ',', default_value = "0,0.25,0.5,0.75")]
+    pub phases: Vec<f32>,
+    /// Each model also carrying each kind of `humans.carrying` (a backpack, a bag, two
+    /// bags), a column each after the model's own.
+    #[arg(long)]
+    pub carrying: bool,
+    #[arg(long)]
+    pub validation: bool,
+}
+
+/// Loads the models (none: the bundled people; with `carrying`, each followed by it carrying
+/// each kind of [`crate::human::carry::CARRIED`]) and writes the sheet to `out` (temporary
+/// name, then rename).
+pub fn write_contact_sheet(req: &SheetRequest) -> Result<()> {
     let bundled = crate::config::Config::default().humans.models;
-    let files = crate::human::model_files(if model_paths.is_empty() { &bundled } else { model_paths })?;
-    let models = files.iter().map(|f| HumanModel::load(f, true)).collect::<Result<Vec<_>>>()?;
-    let img = contact_sheet(&models, phases, validation)?;
-    crate::output::png::save_png(&img, out)
+    let files = crate::human::model_files(if req.models.is_empty() { &bundled } else { &req.models })?;
+    let mut models = files.iter().map(|f| HumanModel::load(f, true)).collect::<Result<Vec<_>>>()?;
+    if req.carrying {
+        models = models.iter().flat_map(|m| std::iter::once(m.clone()).chain(crate::human::carry::CARRIED.map(|k| m.carrying(k)))).collect();
+    }
+    let img = contact_sheet(&models, &req.phases, req.validation)?;
+    crate::output::png::save_png(&img, &req.out)
 }

@@ -247,6 +247,11 @@ pub struct HumansConfig {
     /// model dressed in [`crate::human::clothes::CLOTHES_VARIANTS`] thicknesses over the range;
     /// [0, 0], the default, leaves the bodies unclothed.
     pub clothes_m: [f64; 2],
+    /// Share of people who carry something: a backpack, a bag in the right hand or bags in
+    /// both hands (each kind a third of them), skinned to the back or the hands
+    /// ([`crate::human::carry`]); part of the person (human beams, the person's instance),
+    /// 0..1.
+    pub carrying: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table, under a
     /// pavilion (the street's markets, `scene.markets`) or a bus shelter, where one within
@@ -649,6 +654,7 @@ impl Default for HumansConfig {
             before_things: 0.0,
             behind_things: 0.0,
             clothes_m: [0.0, 0.0],
+            carrying: 0.0,
             at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
@@ -913,7 +919,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("scene.markets", self.scene.markets)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("scene.markets", self.scene.markets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

@@ -77,7 +77,8 @@ impl RunInputs {
             let opening = opens_device.then(|| scope.spawn(|| gpu.open_early()));
             let loaded: Vec<Result<HumanModel>> = files.par_iter().map(|f| HumanModel::load(f, needs_animation)).collect();
             let opened = opening.map(|h| h.join());
-            let models = crate::human::clothes::dress(loaded.into_iter().collect::<Result<Vec<_>>>()?, cfg.humans.clothes_m);
+            let dressed = crate::human::clothes::dress(loaded.into_iter().collect::<Result<Vec<_>>>()?, cfg.humans.clothes_m);
+            let models = crate::human::carry::equip(dressed, cfg.humans.carrying);
             match opened {
                 Some(Err(_)) => Err(Error::Internal("opening the Vulkan device panicked".into())),
                 _ => Ok(models),

@@ -15,6 +15,7 @@
 //! curves. A model without a recorded stride uses Alexander's relation between relative
 //! stride and Froude number (see [`stride_length_m`]), and its feet slide where that differs.
 
+pub mod carry;
 pub(crate) mod checks;
 pub mod clothes;
 mod gait;

@@ -457,7 +457,7 @@ impl H5Writer {
                 (
                     "model",
                     "",
-                    "Model name (glTF file stem)",
+                    "Model name (glTF file stem, +clothesMM where dressed, +backpack, +bag or +bags where carrying)",
                     small(&hg, "model", &[n], &model).map_err(&e)?,
                 ),
                 (

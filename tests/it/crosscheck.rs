@@ -185,14 +185,17 @@ fn crowded_crosscheck_is_exact_on_every_projection() {
 /// The GPU's people path, forced on lavapipe (`debug.people = "proxies"`): conservative proxies
 /// drawn into the beam panorama and every covered beam cast exactly. Crowded (30 people, so
 /// proxies overlap and occlude each other), validation on: every human and background beam
-/// agrees with the reference and no instance is mixed up, on every projection. Without the key
-/// the same run takes the CPU path, so `people_path` shows which one was checked.
+/// agrees with the reference and no instance is mixed up, on every projection, and with everyone
+/// carrying something (`humans.carrying`). Without the key the same run takes the CPU path, so
+/// `people_path` shows which one was checked.
 #[test]
 fn the_gpu_people_path_forced_on_a_cpu_device_is_exact() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     std::fs::write(dir.join("proxies.toml"), "[debug]\npeople = \"proxies\"\n").unwrap();
-    for (projection, config) in [("beams", Some("proxies.toml")), ("cube", Some("proxies.toml")), ("beams", None)] {
+    // Everyone carrying a backpack or bags: the proxies cover what people carry too.
+    std::fs::write(dir.join("carrying.toml"), "[humans]\ncarrying = 1.0\n[debug]\npeople = \"proxies\"\n").unwrap();
+    for (projection, config) in [("beams", Some("proxies.toml")), ("cube", Some("proxies.toml")), ("beams", None), ("beams", Some("carrying.toml"))] {
         let mut args = vec!["crosscheck", "--projection", projection, "--sequences", "1", "--frames", "2", "--humans", "30", "--seed", "3", "--json", "cc.json"];
         if let Some(c) = config {
             args.extend(["--config", c]);

@@ -289,3 +289,38 @@ fn a_hostile_node_hierarchy_is_an_input_error_not_a_crash() {
     let e = HumanModel::load(&deep, false).unwrap_err();
     assert!(e.is_input() && e.to_string().contains("deep.glb"), "{e}");
 }
+
+/// `humans.carrying`: that share of the people carry a backpack, a bag or two (the model named
+/// NAME+KIND in the HDF5), every kind drawn, the same bytes at 1 and 2 threads; a share
+/// outside 0..1 or NaN is refused naming the key, nothing written.
+#[test]
+fn people_carry_backpacks_and_bags_where_asked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("c.toml"), "sensor = \"vlp16\"\n[humans]\ncount = [10, 10]\ncarrying = 0.5\n").unwrap();
+    let args = |out: &'static str| ["generate", "--config", "c.toml", "--backend", "raycast", "--sequences", "3", "--frames", "2", "--outputs", "range,label,instance", "--out", out];
+    common::ok(&common::pedscan_with_env(&args("a"), dir, &[("RAYON_NUM_THREADS", "1")]));
+    common::ok(&common::pedscan_with_env(&args("b"), dir, &[("RAYON_NUM_THREADS", "2")]));
+    let mut kinds = std::collections::BTreeMap::new();
+    for seq in 0..3 {
+        let f = format!("seq_{seq:06}.h5");
+        assert!(std::fs::read(dir.join("a").join(&f)).unwrap() == std::fs::read(dir.join("b").join(&f)).unwrap(), "{f} differs between 1 and 2 threads");
+        let h = hdf5::File::open(dir.join("a").join(&f)).unwrap();
+        let models: Vec<hdf5::types::VarLenUnicode> = h.dataset("humans/model").unwrap().read_raw().unwrap();
+        assert_eq!(models.len(), 10);
+        for m in &models {
+            let kind = m.as_str().split_once('+').map_or("none", |(_, k)| k).to_string();
+            *kinds.entry(kind).or_insert(0usize) += 1;
+        }
+    }
+    let none = kinds.get("none").copied().unwrap_or(0);
+    // 30 people, each carrying with probability 0.5: 15 expected, 5..25 is beyond 3.6 sigma.
+    assert!((5..=25).contains(&none), "{kinds:?}");
+    assert_eq!(kinds.keys().filter(|k| ["backpack", "bag", "bags"].contains(&k.as_str())).count(), 3, "{kinds:?}");
+    assert_eq!(kinds.len(), 4, "{kinds:?}");
+    for bad in ["1.5", "-0.1", "nan"] {
+        std::fs::write(dir.join("bad.toml"), format!("[humans]\ncarrying = {bad}\n")).unwrap();
+        common::expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.carrying");
+        assert!(!dir.join("x").exists(), "nothing written");
+    }
+}
