@@ -104,6 +104,20 @@ impl Adjacency {
         Adjacency { offsets, neighbours }
     }
 
+    /// This adjacency with `other`'s after it: the one-rings of a mesh whose first triangles
+    /// are `self`'s and whose last are `other`'s, sharing no vertex with them (their indices
+    /// shifted by `self`'s triangle count): what [`Adjacency::build`] gives for the joined
+    /// mesh, without building it again.
+    pub fn with_disjoint(&self, other: &Adjacency) -> Adjacency {
+        let tris = self.offsets.len().saturating_sub(1) as u32;
+        let base = self.offsets.last().copied().unwrap_or(0);
+        let mut offsets = if self.offsets.is_empty() { vec![0] } else { self.offsets.clone() };
+        offsets.extend(other.offsets.iter().skip(1).map(|o| o + base));
+        let mut neighbours = self.neighbours.clone();
+        neighbours.extend(other.neighbours.iter().map(|t| t + tris));
+        Adjacency { offsets, neighbours }
+    }
+
     /// Local triangles sharing a vertex with local triangle `t`.
     pub fn of(&self, t: u32) -> &[u32] {
         let t = t as usize;

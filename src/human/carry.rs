@@ -13,6 +13,7 @@ use super::{GaitStyle, HumanModel, Lod};
 use crate::geometry::Adjacency;
 use glam::{Mat4, Vec3};
 use rand::RngExt;
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// What a person can carry.
@@ -55,9 +56,10 @@ pub fn equip(models: Vec<HumanModel>, carrying: f64) -> Vec<HumanModel> {
     if carrying <= 0.0 {
         return models;
     }
+    // Each variant on its own thread; the order is the kinds' and then the models'.
     let mut out = models.clone();
     for kind in CARRIED {
-        out.extend(models.iter().map(|m| m.carrying(kind)));
+        out.par_extend(models.par_iter().map(|m| m.carrying(kind)));
     }
     out
 }
@@ -110,6 +112,10 @@ impl HumanModel {
             let near = (0..body.len()).min_by(|&a, &b| body[a].distance_squared(thing.at).total_cmp(&body[b].distance_squared(thing.at))).unwrap_or(0);
             let (j, w) = (lod0.joints[near], lod0.weights[near]);
             let blend = if joints.is_empty() { Mat4::IDENTITY } else { (0..4).fold(Mat4::ZERO, |acc, k| acc + joints[j[k] as usize] * w[k]) };
+            if !(blend.determinant().abs() > 1e-9) {
+                // A vertex bound to nothing (weights summing to 0): nowhere to hold it.
+                continue;
+            }
             let to_bind = blend.inverse();
             let corners: Vec<Vec3> = (0..8).map(|k| to_bind.transform_point3(Vec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), thing.hi, thing.lo))).collect();
             for lod in &mut m.lods {
@@ -180,10 +186,10 @@ fn add_box(lod: &mut Lod, corners: &[Vec3], j: [u16; 4], w: [f32; 4]) {
     lod.weights.extend(std::iter::repeat_n(w, 8));
     // Faces as quads (a, b, c, d) counter-clockwise seen from outside.
     const QUADS: [[u32; 4]; 6] = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
-    for [a, b, c, d] in QUADS {
-        lod.indices.extend([a, b, c, a, c, d].map(|k| base + k));
-    }
-    lod.adjacency = Arc::new(Adjacency::build(&lod.indices));
+    let local: Vec<u32> = QUADS.iter().flat_map(|&[a, b, c, d]| [a, b, c, a, c, d]).collect();
+    lod.indices.extend(local.iter().map(|k| base + k));
+    // The box shares no vertex with the body: its one-rings go after the body's.
+    lod.adjacency = Arc::new(lod.adjacency.with_disjoint(&Adjacency::build(&local)));
 }
 
 #[cfg(test)]

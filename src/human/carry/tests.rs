@@ -40,9 +40,10 @@ fn carried_things_hang_where_they_are_held_and_move_with_the_body() {
                 assert_eq!(a.positions.len(), b.positions.len() + 8 * boxes);
                 assert_eq!(a.indices.len(), b.indices.len() + 36 * boxes);
                 assert_eq!(&a.positions[..b.positions.len()], &b.positions[..]);
-                // The box's triangles have their one-rings (each meets the box's other 11).
-                let last = (a.indices.len() / 3 - 1) as u32;
-                assert!(!a.adjacency.of(last).is_empty());
+                // The one-rings as built for the whole mesh.
+                let whole = Adjacency::build(&a.indices);
+                assert!((0..(a.indices.len() / 3) as u32).all(|t| a.adjacency.of(t) == whole.of(t)), "{name} {kind:?}: one-rings");
+                assert!(!a.adjacency.of((a.indices.len() / 3 - 1) as u32).is_empty());
             }
             let stand = posed(&c, 0.0, 0.0);
             assert_eq!(&stand[..n], &body[..], "{name} {kind:?}: the body itself");
