@@ -120,10 +120,12 @@ fn flag_name(after_dashes: &str) -> &str {
     &after_dashes[..end]
 }
 
-/// Every `"--flag"` literal of each Python module that parses arguments.
+/// Every `"--flag"` literal of each Python module that parses arguments, and of the module
+/// whose `add_arguments` it calls.
 fn python_flags() -> BTreeMap<String, BTreeSet<String>> {
     let dir = root().join("tools/python/pedscan_data");
     let mut out = BTreeMap::new();
+    let mut shared = Vec::new();
     for entry in std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
         let path = entry.unwrap().path();
         let text = std::fs::read_to_string(&path).unwrap_or_default();
@@ -135,7 +137,16 @@ fn python_flags() -> BTreeMap<String, BTreeSet<String>> {
                 .collect();
             flags.insert("--help".into());
             out.insert(path.file_stem().unwrap().to_string_lossy().into_owned(), flags);
+            // A module that takes another's arguments (`from .calibrate import add_arguments`).
+            if let Some(i) = text.find(" import add_arguments") {
+                let from = text[..i].rsplit("from .").next().unwrap_or("").trim().to_string();
+                shared.push((path.file_stem().unwrap().to_string_lossy().into_owned(), from));
+            }
         }
+    }
+    for (module, from) in shared {
+        let more = out.get(&from).cloned().unwrap_or_else(|| panic!("{module} takes the arguments of {from}, which has none"));
+        out.get_mut(&module).unwrap().extend(more);
     }
     assert!(out.contains_key("train") && out.contains_key("evaluate"), "Python entry points found: {:?}", out.keys());
     out
