@@ -12,7 +12,6 @@
 use super::{GaitStyle, HumanModel, Lod};
 use crate::geometry::Adjacency;
 use glam::{Mat4, Vec3};
-use rand::RngExt;
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -51,7 +50,8 @@ const GAP_M: f32 = 0.01;
 const HANDLE_M: f32 = 0.03;
 
 /// The models people are drawn from: `models` as they are where `carrying` is 0; else them,
-/// then for each of [`CARRIED`] in its order each of them carrying it (see [`pick`]).
+/// then for each of [`CARRIED`] in its order each of them carrying it (a person's drawn by
+/// `crate::scene::pick_model`).
 pub fn equip(models: Vec<HumanModel>, carrying: f64) -> Vec<HumanModel> {
     if carrying <= 0.0 {
         return models;
@@ -62,20 +62,6 @@ pub fn equip(models: Vec<HumanModel>, carrying: f64) -> Vec<HumanModel> {
         out.par_extend(models.par_iter().map(|m| m.carrying(kind)));
     }
     out
-}
-
-/// A person's model among `n` loaded by [`equip`] with share `carrying`: a body drawn
-/// evenly, then, with probability `carrying`, a kind drawn evenly. With `carrying` 0 it draws
-/// exactly what an even draw over the models drew before (one number).
-pub fn pick(rng: &mut impl rand::Rng, n: usize, carrying: f64) -> usize {
-    let kinds = if carrying > 0.0 { CARRIED.len() } else { 0 };
-    let bodies = n / (kinds + 1);
-    let body = crate::scene::even_index(rng.random::<f64>(), bodies);
-    if kinds > 0 && rng.random::<f64>() < carrying {
-        body + bodies * (1 + crate::scene::even_index(rng.random::<f64>(), kinds))
-    } else {
-        body
-    }
 }
 
 /// A closed box in the standing pose (model frame): its lower and upper corners.

@@ -93,6 +93,21 @@ pub fn even_index(u: f64, n: usize) -> usize {
     ((u * n as f64) as usize).min(n - 1)
 }
 
+/// A person's model among `n` loaded by [`crate::human::carry::equip`] with share `carrying`:
+/// a body drawn evenly, then, with probability `carrying`, a kind of
+/// [`crate::human::carry::CARRIED`] drawn evenly. With `carrying` 0 it draws exactly what an
+/// even draw over the models drew before (one number).
+pub fn pick_model(rng: &mut impl rand::Rng, n: usize, carrying: f64) -> usize {
+    let kinds = if carrying > 0.0 { crate::human::carry::CARRIED.len() } else { 0 };
+    let bodies = n / (kinds + 1);
+    let body = even_index(rng.random::<f64>(), bodies);
+    if kinds > 0 && rng.random::<f64>() < carrying {
+        body + bodies * (1 + even_index(rng.random::<f64>(), kinds))
+    } else {
+        body
+    }
+}
+
 /// glTF (y up) -> world (z up): `(x, y, z)_world = (x, -z, y)_gltf`, as Blender exports.
 pub fn world_from_gltf() -> DMat4 {
     DMat4::from_cols_array(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])

@@ -724,7 +724,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
             if !clear {
                 continue;
             }
-            let model = crate::human::carry::pick(rng, inp.models.len(), hc.carrying);
+            let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
             let mean_speed = if duration > 0.0 { path.distance(duration) / duration } else { 0.0 };
             humans.push(HumanPlan {
                 model,
@@ -841,7 +841,7 @@ fn sample_synthetic_people(
     // The world's places within reach (`humans.at_places`).
     let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
     for k in 0..count {
-        let model = crate::human::carry::pick(rng, inp.models.len(), hc.carrying);
+        let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
         let stands = hc.standing > 0.0 && rng.random::<f64>() < hc.standing;
         // Drawn only where asked for, as the other behaviours.

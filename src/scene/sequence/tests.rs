@@ -947,3 +947,30 @@ fn people_asked_to_stand_at_places_stand_on_them() {
     cfg.humans.at_places = -0.1;
     assert!(cfg.validate().is_err());
 }
+
+/// `pick_model` draws exactly the even index of one number at `carrying` 0 (the draws that
+/// follow unchanged), and at 0.4 gives 40 % of the people something, the kinds and bodies
+/// evenly (`humans.carrying`).
+#[test]
+fn a_share_of_the_people_carry_each_kind_evenly() {
+    let mut a = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut b = a.clone();
+    for _ in 0..1000 {
+        assert_eq!(crate::scene::pick_model(&mut a, 7, 0.0), crate::scene::even_index(b.random::<f64>(), 7));
+    }
+    assert_eq!(a.random::<u64>(), b.random::<u64>());
+    let (bodies, draws) = (5, 40_000);
+    let mut counts = vec![0usize; bodies * 4];
+    for _ in 0..draws {
+        counts[crate::scene::pick_model(&mut a, bodies * 4, 0.4)] += 1;
+    }
+    let share = |from: usize, to: usize| counts[from..to].iter().sum::<usize>() as f64 / draws as f64;
+    assert!((share(bodies, 4 * bodies) - 0.4).abs() < 0.01, "{counts:?}");
+    for k in 1..4 {
+        assert!((share(k * bodies, (k + 1) * bodies) - 0.4 / 3.0).abs() < 0.01, "kind {k}: {counts:?}");
+    }
+    for body in 0..bodies {
+        let s = (0..4).map(|k| counts[k * bodies + body]).sum::<usize>() as f64 / draws as f64;
+        assert!((s - 0.2).abs() < 0.01, "body {body}: {counts:?}");
+    }
+}
