@@ -109,9 +109,10 @@ impl Adjacency {
     /// shifted by `self`'s triangle count): what [`Adjacency::build`] gives for the joined
     /// mesh, without building it again.
     pub fn with_disjoint(&self, other: &Adjacency) -> Adjacency {
-        let tris = self.offsets.len().saturating_sub(1) as u32;
-        let base = self.offsets.last().copied().unwrap_or(0);
-        let mut offsets = if self.offsets.is_empty() { vec![0] } else { self.offsets.clone() };
+        // `build` starts the offsets with 0 and adds one a triangle.
+        let tris = (self.offsets.len() - 1) as u32;
+        let base = self.offsets[self.offsets.len() - 1];
+        let mut offsets = self.offsets.clone();
         offsets.extend(other.offsets.iter().skip(1).map(|o| o + base));
         let mut neighbours = self.neighbours.clone();
         neighbours.extend(other.neighbours.iter().map(|t| t + tris));

@@ -117,7 +117,7 @@ pub fn write_contact_sheet(req: &SheetRequest) -> Result<()> {
     let files = crate::human::model_files(if req.models.is_empty() { &bundled } else { &req.models })?;
     let mut models = files.iter().map(|f| HumanModel::load(f, true)).collect::<Result<Vec<_>>>()?;
     if req.carrying {
-        models = models.iter().flat_map(|m| std::iter::once(m.clone()).chain(crate::human::carry::CARRIED.map(|k| m.carrying(k)))).collect();
+        models = models.iter().flat_map(|m| std::iter::once(m.clone()).chain(m.carrying_all())).collect();
     }
     let img = contact_sheet(&models, &req.phases, req.validation)?;
     crate::output::png::save_png(&img, &req.out)

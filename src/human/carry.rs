@@ -56,11 +56,17 @@ pub fn equip(models: Vec<HumanModel>, carrying: f64) -> Vec<HumanModel> {
     if carrying <= 0.0 {
         return models;
     }
-    // Each variant on its own thread; the order is the kinds' and then the models'.
-    let mut out = models.clone();
-    for kind in CARRIED {
-        out.par_extend(models.par_iter().map(|m| m.carrying(kind)));
+    // Each model's variants on its own thread (its standing pose found once for all kinds);
+    // the order is the kinds' and then the models'.
+    let variants: Vec<Vec<HumanModel>> = models.par_iter().map(HumanModel::carrying_all).collect();
+    let mut per_kind: Vec<Vec<HumanModel>> = CARRIED.iter().map(|_| Vec::with_capacity(models.len())).collect();
+    for each in variants {
+        for (kind, v) in per_kind.iter_mut().zip(each) {
+            kind.push(v);
+        }
     }
+    let mut out = models;
+    out.extend(per_kind.into_iter().flatten());
     out
 }
 
@@ -72,22 +78,45 @@ struct Held {
     at: Vec3,
 }
 
+/// A model standing, as the things it carries are placed: its joint matrices, LOD 0 skinned,
+/// and how far the walk swings each vertex ([`swings`]).
+struct Standing {
+    joints: Vec<Mat4>,
+    body: Vec<Vec3>,
+    swing: Vec<f32>,
+}
+
 impl HumanModel {
     /// This model carrying `kind`, named `NAME+KIND`.
     pub fn carrying(&self, kind: Carried) -> HumanModel {
+        self.carrying_from(&self.standing(), kind)
+    }
+
+    /// This model carrying each of [`CARRIED`], in its order.
+    pub fn carrying_all(&self) -> Vec<HumanModel> {
+        let standing = self.standing();
+        CARRIED.iter().map(|&kind| self.carrying_from(&standing, kind)).collect()
+    }
+
+    fn standing(&self) -> Standing {
         let mut joints = Vec::new();
         let stand = GaitStyle { walking: 0.0, ..GaitStyle::WALK };
         self.joint_matrices_styled(0.0, stand, &mut joints);
         let mut body = Vec::new();
         self.skin_into(0, &joints, &Mat4::IDENTITY, &mut body);
         let body: Vec<Vec3> = body.into_iter().map(Vec3::from).collect();
+        let swing = swings(self, &body);
+        Standing { joints, body, swing }
+    }
+
+    fn carrying_from(&self, standing: &Standing, kind: Carried) -> HumanModel {
+        let Standing { joints, body, swing } = standing;
         let h = self.height_m.max(1e-3);
         let s = h / 1.7;
-        let swing = if kind == Carried::Backpack { Vec::new() } else { swings(self, &body) };
         let held = match kind {
-            Carried::Backpack => vec![backpack(&body, h, s)],
-            Carried::Bag => vec![bag(&body, &swing, h, s, -1.0)],
-            Carried::Bags => vec![bag(&body, &swing, h, s, -1.0), bag(&body, &swing, h, s, 1.0)],
+            Carried::Backpack => vec![backpack(body, h, s)],
+            Carried::Bag => vec![bag(body, swing, h, s, -1.0)],
+            Carried::Bags => vec![bag(body, swing, h, s, -1.0), bag(body, swing, h, s, 1.0)],
         };
         let mut m = self.clone();
         m.name = format!("{}+{}", self.name, kind.name());
