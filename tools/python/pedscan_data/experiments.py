@@ -58,7 +58,10 @@ where they stand in it (a network trained at 0.8 m sees them nowhere near there 
 ``frames16-seedS``, on the same data and steps), and the results add the 16-frame network's lead
 per distance bin: each seed's, the mean and the spread, and each world's lead against the
 hall's (the paper's finding is a lead on far people; whether a world shows it more than the
-hall takes the spread over seeds to tell).
+hall takes the spread over seeds to tell). ``--average-tail F`` makes every run's weights the
+mean of those after each of its last F of the steps (``train --average-from``), so that a
+network is not decided by where its last step happened to land: the seeds' spread is then
+the networks', not their last steps'.
 
 Worlds (``--world``, default ``hall``; several, comma separated, run one after another):
 ``hall`` is the bundled environment, everything above, in ``DIR`` itself as before worlds
@@ -256,6 +259,12 @@ class Experiment:
         if args.max_minutes is not None and not (args.max_minutes > 0 and args.max_minutes < float("inf")):
             raise PedscanError(f"--max-minutes {args.max_minutes}: not a positive number of minutes")
         self.max_minutes: float | None = args.max_minutes
+        tail = args.average_tail
+        if tail is not None and not 0.0 < tail <= 1.0:
+            raise PedscanError(f"--average-tail {tail:g}: a share of the steps, above 0 and at most 1")
+        #: ``train --average-from`` for every run: the weights averaged over the last share of
+        #: the steps (None: the last step's, the paper's).
+        self.average_from: int | None = None if tail is None else round(self.scale.steps * (1.0 - tail))
         if self.recorded is not None and not self.recorded.exists():
             raise PedscanError(f"--recorded {self.recorded}: no such file or folder")
         # One state for all worlds: one scale per work folder, and the time of every stage.
@@ -424,6 +433,8 @@ class Experiment:
             "--val-every", str(self.scale.val_every), "--device", self.device, "--workers", str(self.workers),
             *r.get("flags", []),
         ]
+        if self.average_from is not None:
+            cmd += ["--average-from", str(self.average_from)]
         if (run / "run.json").is_file():
             cmd.append("--resume")
         return cmd
@@ -547,7 +558,8 @@ class Experiment:
                 info = json.loads(rj.read_text())
                 runs_info[name] = {"step": self.trained_step(self.work / "runs" / name),
                                    "environment": info.get("environment"), "parameters": info.get("parameters"),
-                                   "network": info.get("network")}
+                                   "network": info.get("network"),
+                                   "average_from": info.get("config", {}).get("average_from")}
         return {"datasets": {k: {**v, "flags": v["flags"]} for k, v in self.datasets().items()},
                 "runs": runs_info, "scores": scores}
 
@@ -656,6 +668,11 @@ def render_markdown(res: dict[str, Any]) -> str:
     if heights:
         lines[-2:-2] = [f"Every generated set's sensor stands {', '.join(sorted(heights))} m over the floor "
                         "(`--sensor-height`; the recorded sets: the recording's own).", ""]
+    averaged = sorted({(run["average_from"], w) for w, wr in [("hall", res), *res.get("worlds", {}).items()]
+                       for run in wr.get("runs", {}).values() if run.get("average_from") is not None})
+    if averaged:
+        lines[-2:-2] = [f"A network's weights are the mean of those after each step past step {k} "
+                        f"(`--average-tail`, `train --average-from`): {w}'s." for k, w in averaged] + [""]
     if any(w != "hall" for w, _ in worlds):
         lines += ["One block of rows per world: `hall` the bundled environment; `street` and `indoor` "
                   "pedscan's built-in worlds (`--background`, a new layout per sequence), with the hall's "
@@ -858,6 +875,9 @@ def parser() -> argparse.ArgumentParser:
                    help="train the 1- and 16-frame networks once per training seed (train --seed S; 0 is "
                    "frames1/frames16, S the runs frames1-seedS/frames16-seedS) and report the 16-frame lead "
                    "per distance bin over the seeds; only these runs (of them, --runs picks frames1 or frames16)")
+    p.add_argument("--average-tail", type=float, metavar="F",
+                   help="every run's weights are the mean of those after each of its last F of the steps (train "
+                   "--average-from; not in the paper; default: the last step's)")
     p.add_argument("--pedscan-flag", action="append", metavar="FLAG", help="a flag for every pedscan generate (repeatable)")
     p.add_argument("--world", type=world_list, default=["hall"], metavar="NAME[,NAME...]",
                    help=f"run Table 4 in these worlds, one after another (of {', '.join(WORLDS)}; default hall): "

@@ -29,6 +29,12 @@ RUN gets ``run.json`` (configuration, data, device and versions), ``checkpoint.p
 human velocity end-point error) and ``curves.png``. Exit 0 done, 2 bad input, 130 stopped by
 Ctrl-C or SIGTERM (the last checkpoint stays).
 
+``--average-from K``: the run's weights are the mean of the weights after each step past step
+K (steps K+1 to the end: stochastic weight averaging over the run's tail, with its decaying
+learning rate), so that where the last step happened to land (batch size 1 moves a network
+from one step to the next) does not decide the network; validation from then on scores the
+mean, and the checkpoint keeps it for ``--resume``.
+
 ``--max-minutes M`` bounds one sitting (a batch system's wall-clock limit, a lent GPU): after
 the first step that ends past M minutes of training the run checkpoints, validates and
 calibrates as at its end, logs ``{"kind": "time_limit", "step": K}`` and exits 0 with step K of
@@ -96,6 +102,9 @@ class TrainConfig:
     """each window is mirrored left for right with this probability: its columns reversed (a
     column's azimuth goes to minus itself: the scene reflected in the sensor's x-z plane) and its
     velocities' y negated; 0: never"""
+    average_from: int | None = None
+    """the weights the run gives (``model.pt``, validation, calibration) are the mean of the
+    weights after each step past this one (:class:`WeightMean`); None: the last step's"""
     init: dict[str, Any] | None = None
     """the model file the weights started from (name, SHA-256, its step), or None"""
     data: list[dict[str, Any]] = field(default_factory=list)
@@ -445,6 +454,61 @@ class Stop(Exception):
     pass
 
 
+class WeightMean:
+    """The running mean of a network's weights after each step past ``after`` (None: never):
+    ``mean += (w - mean) / n`` per tensor in float32, in the order of the steps, so a resumed
+    run's mean is the uninterrupted one's bit for bit."""
+
+    def __init__(self, net: Any, after: int | None) -> None:
+        self.source, self.after = net, after
+        self.count = 0
+        self.mean: dict[str, Any] = {}
+        self._net: Any = None
+
+    def add(self, step: int) -> None:
+        if self.after is None or step <= self.after:
+            return
+        self.count += 1
+        for k, v in self.source.state_dict().items():
+            v = v.detach()
+            if self.count == 1 or not v.is_floating_point():
+                self.mean[k] = v.clone()
+            else:
+                self.mean[k] += (v - self.mean[k]) / self.count
+        self._net = None
+
+    def weights(self) -> dict[str, Any] | None:
+        """The mean's weights on the CPU, or None before the first step averaged."""
+        return {k: v.cpu() for k, v in self.mean.items()} if self.count else None
+
+    def net(self) -> Any:
+        """A copy of the network holding the mean (for validation), or None before the first step averaged."""
+        if not self.count:
+            return None
+        if self._net is None:
+            import copy
+
+            self._net = copy.deepcopy(self.source)
+            self._net.load_state_dict(self.mean)
+        return self._net
+
+    def state(self) -> dict[str, Any] | None:
+        return {"count": self.count, "mean": self.weights()} if self.count else None
+
+    def load(self, state: dict[str, Any] | None, step: int) -> None:
+        """The checkpoint's mean at its ``step``: absent where no step was averaged yet."""
+        want = 0 if self.after is None else max(0, step - self.after)
+        got = int(state["count"]) if state else 0
+        if got != want:
+            raise ValueError(f"its weight mean holds {got} steps where step {step} needs {want}")
+        if state:
+            device = next(iter(self.source.state_dict().values())).device
+            self.mean = {k: v.to(device) for k, v in state["mean"].items()}
+            if self.mean.keys() != self.source.state_dict().keys():
+                raise ValueError("its weight mean is of another network")
+        self.count = got
+
+
 def load_init(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     """``--init``: what run.json records of the model file (name, SHA-256, its training step),
     and the file."""
@@ -472,7 +536,7 @@ def train(args: argparse.Namespace) -> int:
         batch=args.batch, crop_columns=args.crop_columns,
         lr=args.lr, decay=args.decay, loss_weights=tuple(args.loss_weights), class_weight_power=args.class_weight_power,
         height=args.height, widen_m=args.widen_m, flank=args.flank, backdrop=args.backdrop,
-        mirror=args.mirror,
+        mirror=args.mirror, average_from=args.average_from,
     )
     if cfg.frames < 1 or cfg.batch < 1 or cfg.width < 2:
         raise PedscanError("--frames, --batch must be at least 1 and --width at least 2")
@@ -485,6 +549,8 @@ def train(args: argparse.Namespace) -> int:
     for flag, value in (("--flank", cfg.flank), ("--backdrop", cfg.backdrop), ("--mirror", cfg.mirror)):
         if not 0.0 <= value <= 1.0:
             raise PedscanError(f"{flag} {value}: a probability, 0 to 1")
+    if cfg.average_from is not None and not 0 <= cfg.average_from < args.steps:
+        raise PedscanError(f"--average-from {cfg.average_from}: a step from 0 to --steps - 1 ({args.steps - 1})")
     paths = training_paths(args.data)
     seqs = check_sequences(paths, cfg.frames, ", ".join(map(str, args.data)), cfg.intensity)
     val_seqs = check_sequences(sequence_paths(args.val), 1, str(args.val), cfg.intensity) if args.val else []
@@ -527,6 +593,7 @@ def train(args: argparse.Namespace) -> int:
             raise PedscanError(f"--init {args.init}: a network of other options (differs in: {', '.join(diff)}); "
                                "give its flags (--frames, --width, --height, ...)")
         net.load_state_dict(init[1]["state_dict"])
+    mean = WeightMean(net, cfg.average_from)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: 1.0 / (1.0 + cfg.decay * k))
     if args.resume:
@@ -548,6 +615,7 @@ def train(args: argparse.Namespace) -> int:
                 sched.load_state_dict(ck["scheduler"])
                 torch.set_rng_state(ck["torch_rng"])
                 start = int(ck["step"])
+                mean.load(ck.get("mean"), start)
             except (KeyError, RuntimeError, ValueError, TypeError) as e:
                 raise RunError(f"{ckpt_path}: a damaged checkpoint ({e})") from e
     elif run.exists() and any(run.iterdir()):
@@ -584,12 +652,15 @@ def train(args: argparse.Namespace) -> int:
     def save(step: int) -> None:
         weights = {k: v.detach().cpu() for k, v in net.state_dict().items()}
         training = {"step": step, "config": config, "environment": env, "sensor": sensor}
+        if mean.count:
+            training["averaged_steps"] = [step - mean.count + 1, step]
         atomic_save({
             "format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": weights, "optimizer": opt.state_dict(),
             "scheduler": sched.state_dict(), "torch_rng": torch.get_rng_state(), "step": step, "training": training,
+            "mean": mean.state(),
         }, ckpt_path)
-        atomic_save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": weights, "training": training},
-                    run / "model.pt")
+        atomic_save({"format": MODEL_FORMAT, "net": net.cfg.as_dict(), "state_dict": mean.weights() or weights,
+                     "training": training}, run / "model.pt")
 
     def log(m: dict[str, Any]) -> None:
         metrics.append(m)
@@ -634,6 +705,7 @@ def train(args: argparse.Namespace) -> int:
             opt.step()
             sched.step()
             step += 1
+            mean.add(step)
             acc.append(loss.item())
             for k, v in parts.items():
                 terms[k] = terms.get(k, 0.0) + v
@@ -656,8 +728,8 @@ def train(args: argparse.Namespace) -> int:
                      "wall_s": time.perf_counter() - t_start})
                 acc, terms = [], {}
             if val_seqs and (step % args.val_every == 0 or last):
-                v = validate(net, val_seqs, device, score_from)[0]
-                log({"kind": "val", "step": step, **v})
+                v = validate(mean.net() or net, val_seqs, device, score_from)[0]
+                log({"kind": "val", "step": step, **v, **({"weights": "mean"} if mean.count else {})})
                 if not args.quiet:
                     o = v["overall"]
                     print(f"\n  step {step}: validation IoU {o['iou'] or 0:.4f} "
@@ -760,6 +832,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--mirror", type=float, default=0.0, metavar="P",
                    help="mirror each window left for right with probability P (columns reversed, velocities' y "
                    "negated): streets seen with traffic on the other side (not in the paper; default 0)")
+    p.add_argument("--average-from", type=int, default=None, metavar="K",
+                   help="the run's weights (model.pt, validation, calibration) are the mean of those after each step "
+                   "past step K (not in the paper; default: the last step's)")
     p.add_argument("--init", type=Path, default=None, metavar="MODEL",
                    help="start from the weights of this model file (the same network options; fine-tuning)")
     p.add_argument("--workers", type=int, default=1, help="data-loading processes (default 1; 0: in the trainer)")

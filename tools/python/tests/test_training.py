@@ -136,6 +136,50 @@ def test_an_interrupted_run_resumed_ends_like_an_uninterrupted_one(sample: Path,
     assert load_file(tmp_path / "b" / "model.pt")["training"]["step"] == 9
 
 
+def test_averaged_weights_are_the_mean_of_the_steps_past_k_and_resume_to_the_same_bits(
+        sample: Path, tmp_path: Path, capsys) -> None:
+    common = ["--frames", "2", "--width", "4", "--log-every", "1", "--checkpoint-every", "1"]
+    # The plain run's weights after steps 4, 5 and 6, from its checkpoints.
+    plain = []
+    for k in (4, 5, 6):
+        assert run_train(sample, "--out", tmp_path / "p", *common, "--steps", "6", "--stop-at-step", str(k),
+                         *(["--resume"] if k > 4 else [])) == (130 if k < 6 else 0)
+        plain.append(load_file(tmp_path / "p" / "checkpoint.pt")["state_dict"])
+    assert run_train(sample, "--out", tmp_path / "a", *common, "--steps", "6", "--average-from", "3",
+                     "--val", sample, "--val-every", "6", "--no-calibrate") == 0
+    model = load_file(tmp_path / "a" / "model.pt")
+    ckpt = load_file(tmp_path / "a" / "checkpoint.pt")
+    assert model["training"]["averaged_steps"] == [4, 6] and model["training"]["config"]["average_from"] == 3
+    for k, v in model["state_dict"].items():
+        want = (plain[0][k] + plain[1][k] + plain[2][k]) / 3
+        assert torch.allclose(v, want, rtol=1e-5, atol=1e-7), k
+        # The checkpoint keeps the last step's own weights to train on (the plain run's step 6).
+        assert torch.equal(ckpt["state_dict"][k], plain[2][k]), k
+    assert not all(torch.equal(model["state_dict"][k], plain[2][k]) for k in model["state_dict"])
+    # Validation scored the mean: the same as validating the model file.
+    net = load_net(tmp_path / "a" / "model.pt", torch.device("cpu"))[0]
+    v = last_validation(tmp_path / "a")
+    assert v["weights"] == "mean"
+    assert v["overall"] == tr.validate(net, tr.check_sequences(tr.sequence_paths(sample), 1, "val", False),
+                                       torch.device("cpu"), 1)[0]["overall"]
+    # Stopped inside the averaged tail and resumed: the same bits.
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--steps", "6", "--average-from", "3",
+                     "--stop-at-step", "5") == 130
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--steps", "6", "--average-from", "3", "--resume") == 0
+    b = load_file(tmp_path / "b" / "model.pt")["state_dict"]
+    assert all(torch.equal(b[k], v) for k, v in load_file(tmp_path / "a" / "model.pt")["state_dict"].items())
+    # A checkpoint whose mean does not fit its step, and a K past the run, are refused.
+    ck = load_file(tmp_path / "b" / "checkpoint.pt")
+    ck["mean"] = None
+    torch.save(ck, tmp_path / "b" / "checkpoint.pt")
+    capsys.readouterr()
+    assert run_train(sample, "--out", tmp_path / "b", *common, "--steps", "7", "--average-from", "3", "--resume") == 2
+    assert "its weight mean holds 0 steps where step 6 needs 3" in capsys.readouterr().err
+    assert run_train(sample, "--out", tmp_path / "c", *common, "--steps", "6", "--average-from", "6") == 2
+    assert "--average-from 6: a step from 0 to --steps - 1 (5)" in capsys.readouterr().err
+    assert not (tmp_path / "c").exists()
+
+
 def test_a_time_budget_ends_the_sitting_like_an_end_and_resume_finishes_it(sample: Path, tmp_path: Path,
                                                                         capsys) -> None:
     """--max-minutes: the first step past the budget is checkpointed, validated and calibrated
@@ -640,6 +684,8 @@ TRAIN_OPTIONS = [
      "default 0)"),
     (["--mirror"], float, 0.0, False, None, "P", "mirror each window left for right with probability P (columns reversed, "
      "velocities' y negated): streets seen with traffic on the other side (not in the paper; default 0)"),
+    (["--average-from"], int, None, False, None, "K", "the run's weights (model.pt, validation, calibration) are the "
+     "mean of those after each step past step K (not in the paper; default: the last step's)"),
     (["--init"], Path, None, False, None, "MODEL", "start from the weights of this model file (the same network options; "
      "fine-tuning)"),
     (["--workers"], int, 1, False, None, None, "data-loading processes (default 1; 0: in the trainer)"),
