@@ -25,8 +25,10 @@ const SENSOR_HEIGHT_M: f64 = 0.95;
 /// Columns of the virtual sensor around azimuth 0 kept per cell.
 const CELL_COLS: usize = 150;
 
-/// Renders the sheet: one column per model, one row per phase; returns the image.
-pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) -> Result<RgbImage> {
+/// Renders the sheet: one column per model, one row per phase, and with `seat_m` a last row
+/// of each model seated on a seat that high ([`crate::human::GaitStyle::seat_m`]; the seat
+/// itself not drawn); returns the image.
+pub fn contact_sheet(models: &[HumanModel], phases: &[f32], seat_m: Option<f32>, validation: bool) -> Result<RgbImage> {
     if models.is_empty() || phases.is_empty() {
         return Err(Error::input("sheet", "no models or no phases"));
     }
@@ -47,7 +49,10 @@ pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) ->
     let scale = 1u32;
     let label_h = 14u32;
     let (cw, ch) = (CELL_COLS as u32, rows as u32);
-    let mut img = RgbImage::from_pixel(cw * models.len() as u32, label_h + ch * phases.len() as u32, image::Rgb([255, 255, 255]));
+    let walk = crate::human::GaitStyle::WALK;
+    let rows_drawn: Vec<(f32, crate::human::GaitStyle)> =
+        phases.iter().map(|&p| (p, walk)).chain(seat_m.map(|s| (0.0, crate::human::GaitStyle { seat_m: s, ..walk }))).collect();
+    let mut img = RgbImage::from_pixel(cw * models.len() as u32, label_h + ch * rows_drawn.len() as u32, image::Rgb([255, 255, 255]));
     let mut geom = FrameGeometry::default();
     let mut hits = BeamHits::default();
     let (mut joints, mut skinned) = (Vec::new(), Vec::new());
@@ -56,11 +61,11 @@ pub fn contact_sheet(models: &[HumanModel], phases: &[f32], validation: bool) ->
         let name = &m.name;
         let tw = text_width(name, scale);
         draw_text(&mut img, (mi as u32 * cw + cw.saturating_sub(tw) / 2) as i64, 3, name, scale, [0, 0, 0]);
-        for (pi, &phase) in phases.iter().enumerate() {
+        for (pi, &(phase, style)) in rows_drawn.iter().enumerate() {
             // Person at (DISTANCE, 0) on the floor walking towards +y; sensor at the origin.
             let world_from_body = DMat4::from_translation(DVec3::new(DISTANCE_M, 0.0, -SENSOR_HEIGHT_M))
                 * DMat4::from_rotation_z(std::f64::consts::FRAC_PI_2);
-            m.joint_matrices(phase, &mut joints);
+            m.joint_matrices_styled(phase, style, &mut joints);
             let t: Mat4 = (world_from_body * MODEL_TO_BODY.as_dmat4()).as_mat4();
             m.skin_into(0, &joints, &t, &mut skinned);
             geom.clear();
@@ -105,6 +110,10 @@ pub struct SheetRequest {
     /// bags), a column each after the model's own.
     #[arg(long)]
     pub carrying: bool,
+    /// A last row of each model seated on a seat this high, m (`humans.sitting`; the seat
+    /// not drawn).
+    #[arg(long, value_name = "M")]
+    pub seated: Option<f32>,
     #[arg(long)]
     pub validation: bool,
 }
@@ -119,6 +128,9 @@ pub fn write_contact_sheet(req: &SheetRequest) -> Result<()> {
     if req.carrying {
         models = models.iter().flat_map(|m| std::iter::once(m.clone()).chain(m.carrying_all())).collect();
     }
-    let img = contact_sheet(&models, &req.phases, req.validation)?;
+    if let Some(s) = req.seated.filter(|s| !(s.is_finite() && *s > 0.0 && *s < 2.0)) {
+        return Err(Error::input("--seated", format!("{s} m is not a seat's height (0 to 2 m)")));
+    }
+    let img = contact_sheet(&models, &req.phases, req.seated, req.validation)?;
     crate::output::png::save_png(&img, &req.out)
 }

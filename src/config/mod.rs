@@ -252,6 +252,14 @@ pub struct HumansConfig {
     /// ([`crate::human::carry`]); part of the person (human beams, the person's instance),
     /// 0..1.
     pub carrying: f64,
+    /// Share of the people who sit on a seat a built-in world makes: a bench (the street's, a
+    /// bus shelter's, a lobby's), a chair at a table (the café's), a beer-garden bench, one
+    /// within `spawn_radius_m` of the sensor's start free of the others by `min_separation_m`;
+    /// seated the whole sequence, facing the seat's way, the standing pose lowered onto it
+    /// with the thighs forward and the hands on them ([`crate::human::GaitStyle::seat_m`]).
+    /// Where the world has no free seat, or the model's skeleton cannot sit, the person is
+    /// placed as if not drawn. 0..1.
+    pub sitting: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table, under a
     /// pavilion (the street's markets, `scene.markets`) or a bus shelter, where one within
@@ -655,6 +663,7 @@ impl Default for HumansConfig {
             behind_things: 0.0,
             clothes_m: [0.0, 0.0],
             carrying: 0.0,
+            sitting: 0.0,
             at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
@@ -919,7 +928,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("scene.markets", self.scene.markets)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("humans.sitting", self.humans.sitting), ("scene.markets", self.scene.markets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

@@ -20,7 +20,7 @@ impl Generator {
                 .iter()
                 .map(|h| {
                     let m = &self.inputs.models[h.model];
-                    HumanMeta { height_m: m.nominal_height_m(), weight_kg: m.weight_kg.unwrap_or(0.0), model: m.name.clone() }
+                    HumanMeta { height_m: m.nominal_height_m(), weight_kg: m.weight_kg.unwrap_or(0.0), model: m.name.clone(), seat_m: (h.seat_m > 0.0).then_some(h.seat_m as f32) }
                 })
                 .collect(),
             movers: plan.world.as_ref().map_or_else(Vec::new, |w| {

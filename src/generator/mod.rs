@@ -188,11 +188,11 @@ impl Generator {
             Some(kind) => Some(World::build(kind, self.cfg.seed, index, &self.world_params())?),
             None => None,
         };
-        let (grid, sensor_arc, places, doors) = match &world {
-            Some(w) => (Some(&w.grid), w.sensor, &w.places[..], &w.doors[..]),
-            None => (grid, None, &[][..], &[][..]),
+        let (grid, sensor_arc, places, doors, seats) = match &world {
+            Some(w) => (Some(&w.grid), w.sensor, &w.places[..], &w.doors[..], &w.seats[..]),
+            None => (grid, None, &[][..], &[][..], &[][..]),
         };
-        let inputs = PlanInputs { rate_hz: self.inputs.sensor.rate_hz, grid, models: &self.inputs.models, tracks: &self.inputs.tracks, sensor, floor_z_m, sensor_arc, places, doors };
+        let inputs = PlanInputs { rate_hz: self.inputs.sensor.rate_hz, grid, models: &self.inputs.models, tracks: &self.inputs.tracks, sensor, floor_z_m, sensor_arc, places, doors, seats };
         let mut plan = sample_plan(&mut rng, &self.cfg, &inputs)?;
         plan.recording_start = if self.inputs.recording.is_some() { start } else { None };
         plan.floor_z_m = floor_z_m;

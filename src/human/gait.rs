@@ -25,11 +25,14 @@ pub struct GaitStyle {
     /// Per foot (left, right): where the path's turns put it beside the straight walk, body
     /// frame (see [`FootShift`]); zero on a straight path.
     pub feet: [FootShift; 2],
+    /// Seated on a seat this high above the floor, m ([`HumanModel::can_sit`]): the standing
+    /// pose lowered onto it, the walk and the rest of the style ignored. 0: not seated.
+    pub seat_m: f32,
 }
 
 impl GaitStyle {
     /// The model's own walk.
-    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2] };
+    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2], seat_m: 0.0 };
 }
 
 /// A planar rigid move of one foot in the body frame (x forward, y left, yaw about z up),
@@ -55,9 +58,9 @@ impl FootShift {
 /// (first metatarsophalangeal) during the forefoot rocker.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Leg {
-    thigh: usize,
-    shank: usize,
-    foot: usize,
+    pub(super) thigh: usize,
+    pub(super) shank: usize,
+    pub(super) foot: usize,
     ankle: Vec3,
     heel: Vec3,
     mtp: Vec3,
@@ -84,7 +87,8 @@ impl HumanModel {
 
     /// Global transforms (model frame) of the joints at time `t` (s) of the walk in `style`.
     pub(super) fn joint_globals(&self, t: f32, style: GaitStyle, out: &mut Vec<Mat4>) {
-        let walk = style.walking.clamp(0.0, 1.0);
+        let seated = style.seat_m > 0.0 && self.can_sit();
+        let walk = if seated { 0.0 } else { style.walking.clamp(0.0, 1.0) };
         out.clear();
         if self.joint_nodes.is_empty() {
             return;
@@ -117,6 +121,9 @@ impl HumanModel {
         if let (Some((legs, root)), true) = (self.legs, walk > 0.0 && self.stride_length_m.is_some() && self.cycle_s > 0.0) {
             let phase = t / self.cycle_s;
             self.place_feet(&mut local, &mut global, legs, root, phase, 1.0 + walk * (style.stride - 1.0), walk, style.feet);
+        }
+        if seated {
+            self.seat(&mut local, &mut global, style.seat_m);
         }
         out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
     }
@@ -273,35 +280,52 @@ impl HumanModel {
             cache.fill(None);
         }
         for (leg, (&(_, knee0, _, _), &(target, foot_rot))) in legs.iter().zip(anim.iter().zip(&targets)) {
-            let (hip_m, knee_m, ankle_m) =
-                (global_of(nodes, local, cache, leg.thigh), global_of(nodes, local, cache, leg.shank), global_of(nodes, local, cache, leg.foot));
-            let (hip, knee, ankle) = (pos(hip_m), pos(knee_m), pos(ankle_m));
-            let (l1, l2) = ((knee - hip).length(), (ankle - knee).length());
-            let to = target - hip;
-            let d = to.length().clamp((l1 - l2).abs() + 1e-4, (l1 + l2) * 0.9999);
-            let dir = to.normalize_or_zero();
-            // The knee stays in the plane of the hip, the target and the animated knee.
-            let pole = knee0 - hip - dir * (knee0 - hip).dot(dir);
-            let side = pole.normalize_or_zero();
-            let cos_a = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d)).clamp(-1.0, 1.0);
-            let new_knee = hip + l1 * (cos_a * dir + (1.0 - cos_a * cos_a).sqrt() * side);
-            // Thigh: turn the hip->knee direction onto the new one.
-            let turn1 = arc((knee - hip).normalize_or_zero(), (new_knee - hip).normalize_or_zero());
-            self.set_global_rotation(local, cache, leg.thigh, turn1 * Quat::from_mat4(&hip_m).normalize());
-            // Shank: with the thigh turned, turn the knee->ankle direction onto the target.
-            let knee_m = global_of(nodes, local, cache, leg.shank);
-            let (knee_now, ankle_now) = (pos(knee_m), pos(global_of(nodes, local, cache, leg.foot)));
-            let turn2 = arc((ankle_now - knee_now).normalize_or_zero(), (target - knee_now).normalize_or_zero());
-            self.set_global_rotation(local, cache, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
-            // Foot: its animated orientation, turned with the path.
-            self.set_global_rotation(local, cache, leg.foot, foot_rot);
+            // The knee in the plane of the hip, the target and the animated knee; the foot in
+            // its animated orientation, turned with the path.
+            self.solve_leg(local, cache, leg, target, knee0, foot_rot);
         }
+    }
+
+    /// Re-solves one leg of the pose `local` as a two-bone chain (hip -> knee -> ankle): the
+    /// ankle onto `target` (or as near as the leg reaches), the knee bent in the plane of the
+    /// hip, the target and `knee_toward`, then the foot turned to the global `foot_rot`.
+    pub(super) fn solve_leg(
+        &self,
+        local: &mut [(Vec3, Quat, Vec3)],
+        cache: &mut [Option<Mat4>],
+        leg: &Leg,
+        target: Vec3,
+        knee_toward: Vec3,
+        foot_rot: Quat,
+    ) {
+        let pos = |m: Mat4| m.w_axis.truncate();
+        let nodes = &self.nodes;
+        let (hip_m, knee_m, ankle_m) =
+            (global_of(nodes, local, cache, leg.thigh), global_of(nodes, local, cache, leg.shank), global_of(nodes, local, cache, leg.foot));
+        let (hip, knee, ankle) = (pos(hip_m), pos(knee_m), pos(ankle_m));
+        let (l1, l2) = ((knee - hip).length(), (ankle - knee).length());
+        let to = target - hip;
+        let d = to.length().clamp((l1 - l2).abs() + 1e-4, (l1 + l2) * 0.9999);
+        let dir = to.normalize_or_zero();
+        let pole = knee_toward - hip - dir * (knee_toward - hip).dot(dir);
+        let side = pole.normalize_or_zero();
+        let cos_a = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d)).clamp(-1.0, 1.0);
+        let new_knee = hip + l1 * (cos_a * dir + (1.0 - cos_a * cos_a).sqrt() * side);
+        // Thigh: turn the hip->knee direction onto the new one.
+        let turn1 = arc((knee - hip).normalize_or_zero(), (new_knee - hip).normalize_or_zero());
+        self.set_global_rotation(local, cache, leg.thigh, turn1 * Quat::from_mat4(&hip_m).normalize());
+        // Shank: with the thigh turned, turn the knee->ankle direction onto the target.
+        let knee_m = global_of(nodes, local, cache, leg.shank);
+        let (knee_now, ankle_now) = (pos(knee_m), pos(global_of(nodes, local, cache, leg.foot)));
+        let turn2 = arc((ankle_now - knee_now).normalize_or_zero(), (target - knee_now).normalize_or_zero());
+        self.set_global_rotation(local, cache, leg.shank, turn2 * Quat::from_mat4(&knee_m).normalize());
+        self.set_global_rotation(local, cache, leg.foot, foot_rot);
     }
 
     /// Sets node `i`'s local rotation so that its global rotation is `rotation` (its parent's
     /// global transform as `local` has it; scales are 1 in a walking skeleton); `cache` holds
     /// the globals of `local` before and after.
-    fn set_global_rotation(&self, local: &mut [(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], i: usize, rotation: Quat) {
+    pub(super) fn set_global_rotation(&self, local: &mut [(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], i: usize, rotation: Quat) {
         let parent = match self.nodes[i].parent {
             Some(p) => Quat::from_mat4(&global_of(&self.nodes, local, cache, p)).normalize(),
             None => Quat::IDENTITY,
@@ -320,7 +344,7 @@ pub(super) fn global_rest(nodes: &[NodeRest], i: usize) -> Mat4 {
     }
 }
 
-fn global_of(nodes: &[NodeRest], local: &[(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], i: usize) -> Mat4 {
+pub(super) fn global_of(nodes: &[NodeRest], local: &[(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], i: usize) -> Mat4 {
     if let Some(m) = cache[i] {
         return m;
     }

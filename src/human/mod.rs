@@ -21,6 +21,7 @@ pub mod clothes;
 mod gait;
 mod load;
 pub mod proxy;
+mod sit;
 mod skin;
 
 pub use gait::{stride_length_m, FootShift, GaitStyle, LEG_LENGTH_FRACTION, TOE_OFF, UNDER_HIP};
@@ -211,6 +212,10 @@ pub struct HumanModel {
     /// bundled people's (`upperleg01`, `lowerleg01`, `foot`, `.L` / `.R`): the stride can be
     /// scaled. Otherwise the model walks its own stride.
     legs: Option<([Leg; 2], usize)>,
+    /// Each arm's upper arm and forearm (left, right), when the skeleton names them like the
+    /// bundled people's (`upperarm01`, `lowerarm01`, `.L` / `.R`): a seated person's hands go
+    /// to the thighs ([`GaitStyle::seat_m`]).
+    arms: Option<[[usize; 2]; 2]>,
 }
 impl HumanModel {
     /// Nominal height: the metadata's label when present, else the measured rest height.
@@ -297,6 +302,7 @@ mod tests {
                 arm: false,
             }],
             legs: None,
+            arms: None,
         };
         let mut joints = Vec::new();
         model.joint_matrices(0.25, &mut joints);
@@ -370,6 +376,7 @@ pub(crate) mod tests_support {
             inverse_bind: vec![Mat4::IDENTITY],
             channels: Vec::new(),
             legs: None,
+            arms: None,
         }
     }
 }

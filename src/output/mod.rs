@@ -62,6 +62,8 @@ pub struct HumanMeta {
     pub weight_kg: f32,
     /// Model name (file stem of the glTF, e.g. `h1700_w60`).
     pub model: String,
+    /// Seated the whole sequence on a seat this high, m (`humans.sitting`); None: not seated.
+    pub seat_m: Option<f32>,
 }
 
 /// One mover of a sequence (a car, a cyclist).

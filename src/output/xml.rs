@@ -57,6 +57,9 @@ impl XmlWriter {
             e.push_attribute(("model", h.model.as_str()));
             e.push_attribute(("height_m", x.human_text[k].0.as_str()));
             e.push_attribute(("weight_kg", x.human_text[k].1.as_str()));
+            if let Some(s) = h.seat_m {
+                e.push_attribute(("seated_m", format!("{s:.3}").as_str()));
+            }
             x.w.write_event(Event::Empty(e)).map_err(io)?;
         }
         Ok(x)

@@ -13,6 +13,7 @@ use rand::RngExt;
 use std::sync::Arc;
 
 use long::{long_walk, walk_the_sensor, Crowd, LONG_TRIES};
+use together::companion;
 pub use long::{LEAVE_M, LONG_SEQUENCE_S};
 pub use pauses::Pauses;
 
@@ -405,6 +406,9 @@ pub struct HumanPlan {
     /// Stride over the model's own (the legs re-solved for it; `stride_m` is this times the
     /// model's stride), 1 = the animation as built.
     pub stride_scale: f64,
+    /// Seated on a seat this high above the floor the whole sequence (`humans.sitting`), m; 0:
+    /// not seated.
+    pub seat_m: f64,
 }
 
 /// A person's state at one instant (world frame).
@@ -424,12 +428,14 @@ pub struct HumanAt {
     /// Where the path's turns move each foot (left, right) in the body frame so that a planted
     /// foot keeps its place and heading on the ground (see [`HumanPlan::foot_shifts`]).
     pub feet: [FootShift; 2],
+    /// The person's seat ([`HumanPlan::seat_m`]).
+    pub seat_m: f64,
 }
 
 impl HumanAt {
     /// How the person walks at this instant (for posing its model).
     pub fn style(&self) -> GaitStyle {
-        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet }
+        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet, seat_m: self.seat_m as f32 }
     }
 }
 
@@ -477,6 +483,7 @@ impl HumanPlan {
             stride_scale: self.stride_scale,
             walking,
             feet,
+            seat_m: self.seat_m,
         }
     }
 
@@ -561,6 +568,8 @@ pub struct PlanInputs<'a> {
     /// [`crate::scene::world::World::places`] and [`crate::scene::world::World::doors`]).
     pub places: &'a [crate::scene::world::Place],
     pub doors: &'a [crate::scene::world::Place],
+    /// Seats people sit on (`humans.sitting`; [`crate::scene::world::World::seats`]).
+    pub seats: &'a [crate::scene::world::Seat],
 }
 
 /// Tries at joining the person placed before (`humans.groups`) before placing one alone.
@@ -568,38 +577,6 @@ const JOIN_TRIES: usize = 20;
 
 /// How far a person standing at a place turns from its way (`humans.at_places`), either side.
 const PLACE_FACING_RAD: f64 = std::f64::consts::FRAC_PI_6;
-
-/// A companion for `leader` of model `model`: face to face 0.8-1.4 m away when the leader
-/// stands, else side by side 0.75-0.95 m to its left or right, at its pace.
-fn companion(rng: &mut impl rand::Rng, leader: &HumanPlan, model: usize, m: &HumanModel) -> HumanPlan {
-    let still = leader.trajectory.velocity(0.0).length() == 0.0 && !matches!(leader.trajectory, HumanPath::Paused(..));
-    let trajectory = if still {
-        let c = leader.trajectory.position(0.0);
-        let a = rng.random::<f64>() * std::f64::consts::TAU;
-        let d = 0.8 + 0.6 * rng.random::<f64>();
-        let p = c.truncate() + d * DVec2::new(a.cos(), a.sin());
-        // Facing the leader, give or take 20 degrees.
-        let heading = a + std::f64::consts::PI + (rng.random::<f64>() - 0.5) * 0.7;
-        HumanPath::Arc(Trajectory::fixed(p, c.z, heading))
-    } else {
-        let side = if rng.random::<f64>() < 0.5 { -1.0 } else { 1.0 };
-        HumanPath::Beside(Box::new(leader.trajectory.clone()), side * (0.75 + 0.2 * rng.random::<f64>()))
-    };
-    HumanPlan {
-        model,
-        // The leader's walking speed, also when it starts the sequence stopped.
-        stride_m: match &leader.trajectory {
-            _ if still => m.gait_stride_m(0.0),
-            HumanPath::Paused(p, _) => m.gait_stride_m(p.velocity(0.0).length()),
-            t => m.gait_stride_m(t.velocity(0.0).length()),
-        },
-        trajectory,
-        phase0: rng.random::<f64>(),
-        motion: leader.motion,
-        arm_swing: 1.0,
-        stride_scale: 1.0,
-    }
-}
 
 /// One or two stops of 1-6 s anywhere in a sequence of `duration` s (one may be under way at
 /// its start).
@@ -734,6 +711,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
                 motion: hc.motion,
                 arm_swing: 1.0,
                 stride_scale: 1.0,
+                seat_m: 0.0,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -840,6 +818,7 @@ fn sample_synthetic_people(
     let mut planner = inp.grid.map(|_| crate::scene::planner::Planner::new());
     // The world's places within reach (`humans.at_places`).
     let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
+    let seats: Vec<crate::scene::world::Seat> = inp.seats.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
     for k in 0..count {
         let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
@@ -860,6 +839,17 @@ fn sample_synthetic_people(
                 free && off_sensor && apart
             })
         };
+        // Seated on a free seat, where drawn to (drawn only where asked for).
+        if hc.sitting > 0.0 && rng.random::<f64>() < hc.sitting {
+            let apart = |p: &HumanPlan| times_s.iter().all(|&t| {
+                let q = p.position_m(t).truncate();
+                q.distance(sensor.position(t).truncate()) >= hc.min_separation_m && humans.iter().all(|h| h.position_m(t).truncate().distance(q) >= hc.min_separation_m)
+            });
+            if let Some(p) = seats::seat(rng, &seats, (model, &inp.models[model]), inp.floor_z_m, hc.motion, apart) {
+                humans.push(p);
+                continue;
+            }
+        }
         for attempt in 0..TRIES {
             let mut u01 = || rng.random::<f64>();
             let r = hc.spawn_radius_m * u01().sqrt();
@@ -918,6 +908,7 @@ fn sample_synthetic_people(
                     motion: hc.motion,
                     arm_swing: 1.0,
                     stride_scale: 1.0,
+                    seat_m: 0.0,
                 });
                 break;
             }
@@ -967,6 +958,7 @@ fn sample_synthetic_people(
                 motion: hc.motion,
                 arm_swing: 1.0,
                 stride_scale: 1.0,
+                seat_m: 0.0,
             };
             if placeable(&plan) {
                 placed = Some(plan);
@@ -995,6 +987,8 @@ fn sample_synthetic_people(
 
 mod long;
 mod pauses;
+mod seats;
+mod together;
 
 #[cfg(test)]
 mod tests;

@@ -128,6 +128,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         motion,
         arm_swing: 1.0,
         stride_scale: 1.0,
+        seat_m: 0.0,
     };
     assert_eq!(plan(0.0, MotionMode::Full).at(2.0).walking, 0.0);
     assert_eq!(plan(0.05, MotionMode::Full).at(2.0).walking, 0.5);
@@ -214,7 +215,7 @@ fn sampled_strides_vary_within_the_configured_factor() {
     let mut cfg = pedscan::config::Config::default();
     cfg.humans.count = [6, 6];
     cfg.humans.stride_variation = [0.95, 1.05];
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
     let (mut inside, mut spread) = (0, (f64::INFINITY, 0.0f64));
     for seed in 0..20 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();

@@ -324,3 +324,45 @@ fn people_carry_backpacks_and_bags_where_asked() {
         assert!(!dir.join("x").exists(), "nothing written");
     }
 }
+
+/// `humans.sitting`: in the street, that share of the people sit on its benches (the XML's
+/// `seated_m`, at a bench's height), are seen (human beams) and still; the same bytes at 1
+/// and 2 threads; a share outside 0..1 or NaN is refused naming the key, nothing written.
+#[test]
+fn people_sit_on_the_streets_benches_where_asked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("c.toml"), "sensor = \"vlp16\"\n[humans]\ncount = [8, 8]\nsitting = 0.5\nspawn_radius_m = 30.0\n[scene]\nbackground = \"street\"\nmarkets = 1.0\nsensor_height_m = 1.73\n").unwrap();
+    let args = |out: &'static str| ["generate", "--config", "c.toml", "--backend", "raycast", "--sequences", "2", "--frames", "2", "--out", out];
+    common::ok(&common::pedscan_with_env(&args("a"), dir, &[("RAYON_NUM_THREADS", "1")]));
+    common::ok(&common::pedscan_with_env(&args("b"), dir, &[("RAYON_NUM_THREADS", "2")]));
+    let (mut seated, mut seen) = (0, 0);
+    for seq in 0..2 {
+        for ext in ["h5", "xml"] {
+            let f = format!("seq_{seq:06}.{ext}");
+            assert!(std::fs::read(dir.join("a").join(&f)).unwrap() == std::fs::read(dir.join("b").join(&f)).unwrap(), "{f} differs between 1 and 2 threads");
+        }
+        let xml = std::fs::read_to_string(dir.join("a").join(format!("seq_{seq:06}.xml"))).unwrap();
+        let people: Vec<&str> = xml.lines().filter(|l| l.trim_start().starts_with("<human ") && l.contains("model=")).collect();
+        assert_eq!(people.len(), 8, "{xml}");
+        for (k, line) in people.iter().enumerate() {
+            let Some(s) = line.split("seated_m=\"").nth(1) else { continue };
+            let seat: f64 = s.split('"').next().unwrap().parse().unwrap();
+            assert!([0.45, 0.46, 0.47].iter().any(|h| (seat - h).abs() < 1e-9), "{line}");
+            seated += 1;
+            // In the last frame: still, and seen where anything of it is.
+            let id = format!("<human id=\"{}\" ", k + 1);
+            let last = xml.lines().filter(|l| l.trim_start().starts_with(&id) && l.contains("speed_mps")).last().unwrap();
+            assert!(last.contains("speed_mps=\"0.000\""), "{last}");
+            seen += usize::from(!last.contains("beams=\"0\""));
+        }
+    }
+    // 16 people, each drawn to sit with probability 0.5 (a bench is seldom taken): 3..13.
+    assert!((3..=13).contains(&seated), "{seated} of 16 seated");
+    assert!(seen > 0, "no seated person seen");
+    for bad in ["1.5", "-0.1", "nan"] {
+        std::fs::write(dir.join("bad.toml"), format!("[humans]\nsitting = {bad}\n")).unwrap();
+        common::expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.sitting");
+        assert!(!dir.join("x").exists(), "nothing written");
+    }
+}

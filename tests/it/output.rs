@@ -31,6 +31,7 @@ fn meta(index: usize, frames: usize, humans: usize, outputs: OutputSet) -> Seque
                 height_m: 1.6 + 0.1 * k as f32,
                 weight_kg: 60.0 + 5.0 * k as f32,
                 model: if k == 0 { "h1700_w60".into() } else { format!("odd<&\"'>{k}") },
+                seat_m: (k == 1).then_some(0.45),
             })
             .collect(),
         movers: Vec::new(),
@@ -386,6 +387,7 @@ fn xml_is_well_formed_and_matches_the_frames() {
     let mut models = Vec::new();
     let mut depth = 0;
     let mut provenance = 0;
+    let mut seated = Vec::new();
     loop {
         let ev = r.read_event().unwrap();
         let (e, empty) = match &ev {
@@ -441,6 +443,8 @@ fn xml_is_well_formed_and_matches_the_frames() {
                     beams_in_frame.push(attr(&e, "beams").parse().unwrap());
                 } else {
                     models.push(attr(&e, "model"));
+                    // Seated people say on what (`humans.sitting`), the others nothing.
+                    seated.push(e.try_get_attribute("seated_m").unwrap().map(|_| attr(&e, "seated_m")));
                 }
             }
             "provenance" => {
@@ -456,6 +460,7 @@ fn xml_is_well_formed_and_matches_the_frames() {
     assert_eq!(frames_seen, 3);
     assert_eq!(provenance, 1, "one <provenance> element");
     assert_eq!(models, m.humans.iter().map(|h| h.model.clone()).collect::<Vec<_>>());
+    assert_eq!(seated, [None, Some("0.450".to_string())]);
 }
 
 #[test]

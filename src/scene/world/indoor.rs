@@ -59,9 +59,9 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
     *counts.entry(what).or_insert(0) += 1;
 }
 
-/// Builds one floor, and the traffic of its service aisle (none where the hall has no room
-/// for one).
-pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Vec<LaneTraffic>) {
+/// Builds one floor, the traffic of its service aisle (none where the hall has no room for
+/// one) and the seats people sit on (benches, the café's chairs).
+pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Vec<LaneTraffic>, Vec<super::Seat>) {
     let mut b = Builder::default();
     let (w, d) = (uni(rng, 24.0, 45.0), uni(rng, 16.0, 30.0));
     let mut rooms = vec![Room::new(DVec2::new(-w * 0.5, -d * 0.5), DVec2::new(w * 0.5, d * 0.5), uni(rng, 3.5, 7.0), false)];
@@ -180,7 +180,8 @@ pub fn build(rng: &mut impl Rng, _p: &WorldParams, counts: &mut BTreeMap<&'stati
         let specs = (0..n).map(|_| if chance(rng, 0.6) { movers::robot(rng) } else { movers::cart(rng) }).collect();
         vec![LaneTraffic { lane, movers: specs, ego: None, count_as: None }]
     });
-    (b.finish(), traffic)
+    let seats = std::mem::take(&mut b.seats);
+    (b.finish(), traffic, seats)
 }
 
 /// A service aisle along the hall's length (world x): its centre line's y, 3 m or more from

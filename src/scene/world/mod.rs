@@ -26,7 +26,7 @@ use std::collections::BTreeMap;
 
 pub use crate::config::WorldKind;
 pub use movers::{Mover, MoverKind};
-pub use shapes::Place;
+pub use shapes::{Place, Seat};
 
 /// What a world is built for besides its random stream.
 #[derive(Clone, Copy, Debug)]
@@ -66,6 +66,10 @@ pub struct World {
     /// Doorways people come out of in a long sequence (the street's buildings): a point of
     /// the doorway's floor, in from the facade, and the way out.
     pub doors: Vec<Place>,
+    /// Seats people sit on (`humans.sitting`): the benches' (two or three each, 0.46 m), the
+    /// chairs at tables (0.47 m) and the beer-garden benches (0.45 m); the walkable area marks
+    /// them as obstacles, so a seated person is placed on one without it.
+    pub seats: Vec<Seat>,
     /// Its footprint (xy bounds), m.
     pub bounds: (DVec2, DVec2),
     /// The movers driving through it ([`World::add_movers`]); their meshes are the last of
@@ -111,11 +115,11 @@ impl World {
     pub fn build(kind: WorldKind, seed: u64, index: usize, p: &WorldParams) -> Result<World> {
         let mut rng = world_rng(seed, index);
         let mut counts = BTreeMap::new();
-        let (env, sensor, traffic, [places, doors]) = match kind {
+        let (env, sensor, traffic, [places, doors], seats) = match kind {
             WorldKind::Street => street::build(&mut rng, p, &mut counts),
             WorldKind::Indoor => {
-                let (env, traffic) = indoor::build(&mut rng, p, &mut counts);
-                (env, None, traffic, [Vec::new(), Vec::new()])
+                let (env, traffic, seats) = indoor::build(&mut rng, p, &mut counts);
+                (env, None, traffic, [Vec::new(), Vec::new()], seats)
             }
         };
         let what = || format!("scene.background = \"{}\" (sequence {index})", kind.name());
@@ -150,7 +154,7 @@ impl World {
         }
         let draws = env.draws();
         let mover_of_draw = vec![NO_MOVER; draws.len()];
-        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, places, doors, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
+        Ok(World { kind, seed, index, env, draws, grid, sensor, counts, places, doors, seats, bounds: (lo, hi), movers: Vec::new(), mover_of_draw, traffic })
     }
 
     /// Drives the world's traffic over `duration_s` around the people at their floor

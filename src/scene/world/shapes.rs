@@ -55,6 +55,8 @@ pub struct Builder {
     pub places: Vec<Place>,
     /// Doorways people come out of (a building's ground floor).
     pub doors: Vec<Place>,
+    /// Seats people sit on (benches, chairs).
+    pub seats: Vec<Seat>,
 }
 
 /// A place a person stands at ([`super::World::places`]): floor xy, and the way they face
@@ -63,6 +65,15 @@ pub struct Builder {
 pub struct Place {
     pub at: DVec2,
     pub facing_rad: f64,
+}
+
+/// A seat a person sits on ([`super::World::seats`]): the floor point under a seated
+/// person's hip joints, the way they face, and the seat's top, world z.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Seat {
+    pub at: DVec2,
+    pub facing_rad: f64,
+    pub top_z_m: f64,
 }
 
 impl Builder {

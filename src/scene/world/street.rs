@@ -73,11 +73,13 @@ fn count(counts: &mut BTreeMap<&'static str, usize>, what: &'static str) {
 /// cyclists for the oncoming lane and 1-3 cars for the sensor's (drawn after everything else,
 /// in that order, so the layout of a seed is the same with or without them, and the oncoming
 /// traffic with or without the sensor's lane's), the places people stand at
-/// ([`World::places`]) and the doorways they come out of ([`World::doors`]), in that order.
+/// ([`World::places`]) and the doorways they come out of ([`World::doors`]), in that order,
+/// and the seats people sit on ([`World::seats`]).
 ///
 /// [`World::places`]: super::World::places
 /// [`World::doors`]: super::World::doors
-pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Vec<LaneTraffic>, [Vec<super::Place>; 2]) {
+/// [`World::seats`]: super::World::seats
+pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static str, usize>) -> (Environment, Option<Trajectory>, Vec<LaneTraffic>, [Vec<super::Place>; 2], Vec<super::Seat>) {
     let mut b = Builder::default();
     let speed = uni(rng, p.sensor_speed_mps[0], p.sensor_speed_mps[1]);
     let run = speed * p.duration_s.max(0.0);
@@ -158,7 +160,8 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
         LaneTraffic { lane, movers, ego: None, count_as: None },
         LaneTraffic { lane: own_lane, movers: own_movers, ego: Some(ego), count_as: Some("car in the sensor lane") },
     ];
-    (b.finish(), Some(sensor), traffic, places)
+    let seats = std::mem::take(&mut b.seats);
+    (b.finish(), Some(sensor), traffic, places, seats)
 }
 
 /// Length of a raised crossing's ramps, m.

@@ -4,7 +4,7 @@
 //! drawn per thing. Every function places one thing standing on ground height `g` at `p`, facing
 //! `yaw`, and returns its footprint's radius (m) for spacing.
 
-use super::shapes::{Builder, Material, Place};
+use super::shapes::{Builder, Material, Place, Seat};
 use super::{at, chance, uni};
 use glam::{DVec2, DVec3};
 use rand::{Rng, RngExt};
@@ -187,6 +187,14 @@ pub fn bench(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) ->
     for s in [-0.4, 0.4] {
         let q = p + s * len * DVec2::new(-yaw.sin(), yaw.cos());
         b.cuboid(m, q.extend(g), DVec3::new(0.4, 0.06, 0.4), yaw);
+    }
+    // Seats: one every 0.7 m or more along it (people keep that apart), the hips 0.05 m ahead
+    // of the seat's middle.
+    let n = (len / 0.7) as usize;
+    for k in 0..n {
+        let along = ((k as f64 + 0.5) / n as f64 - 0.5) * len;
+        let q = at(p, yaw, 0.05, 0.0).truncate() + along * DVec2::new(-yaw.sin(), yaw.cos());
+        b.seats.push(Seat { at: q, facing_rad: yaw, top_z_m: g + 0.46 });
     }
     0.5 * len
 }
@@ -453,6 +461,8 @@ pub fn table(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) ->
         for k in 0..chairs {
             let a = yaw + k as f64 * std::f64::consts::FRAC_PI_2;
             let q = at(p, a, r + 0.3, 0.0).truncate();
+            // Its seat: the hips over the middle, facing the table.
+            b.seats.push(Seat { at: q, facing_rad: a + std::f64::consts::PI, top_z_m: g + 0.47 });
             b.cuboid(cm, q.extend(g + 0.43), DVec3::new(0.42, 0.42, 0.04), a);
             b.cuboid(cm, at(q, a, 0.2, g + 0.47), DVec3::new(0.03, 0.42, 0.42), a);
             for (dx, dy) in [(-0.18, -0.18), (0.18, -0.18), (0.18, 0.18), (-0.18, 0.18)] {
@@ -635,6 +645,10 @@ pub fn table_set(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64
         }
         let q = p + side * (s * off);
         b.cuboid(m, q.extend(g + 0.42), DVec3::new(len, 0.25, 0.03), yaw);
+        // Seats on it, where the places are behind it, facing the table.
+        for e in [-0.25, 0.25] {
+            b.seats.push(Seat { at: at(q, yaw, e * len, 0.0).truncate(), facing_rad: (-s * side.y).atan2(-s * side.x), top_z_m: g + 0.45 });
+        }
         for e in [-0.4, 0.4] {
             b.cuboid(m, at(q, yaw, e * len, g), DVec3::new(0.04, 0.22, 0.42), yaw);
         }

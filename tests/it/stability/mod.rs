@@ -221,6 +221,7 @@ fn far_plan(origin: DVec2) -> SequencePlan {
         motion: MotionMode::Static,
         arm_swing: 1.0,
         stride_scale: 1.0,
+        seat_m: 0.0,
     };
     SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0, world: None }
 }
