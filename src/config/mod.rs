@@ -254,11 +254,12 @@ pub struct HumansConfig {
     pub carrying: f64,
     /// Share of the people who sit on a seat a built-in world makes: a bench (the street's, a
     /// bus shelter's, a lobby's), a chair at a table (the café's), a beer-garden bench, one
-    /// within `spawn_radius_m` of the sensor's start free of the others by `min_separation_m`;
-    /// seated the whole sequence, facing the seat's way, the standing pose lowered onto it
-    /// with the thighs forward and the hands on them ([`crate::human::GaitStyle::seat_m`]).
-    /// Where the world has no free seat, or the model's skeleton cannot sit, the person is
-    /// placed as if not drawn. 0..1.
+    /// within `spawn_radius_m` of the sensor's start, the others `min_separation_m` from the
+    /// middle of the seated body; seated the whole sequence, facing the seat's way, the
+    /// standing pose lowered onto it with the thighs forward and the hands over them
+    /// ([`crate::human::GaitStyle::seat_m`]). Where the world has no free seat, or the model
+    /// cannot sit ([`crate::human::HumanModel::can_sit`]), the person is placed as one not
+    /// drawn to sit. 0..1.
     pub sitting: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table, under a

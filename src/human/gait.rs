@@ -25,8 +25,9 @@ pub struct GaitStyle {
     /// Per foot (left, right): where the path's turns put it beside the straight walk, body
     /// frame (see [`FootShift`]); zero on a straight path.
     pub feet: [FootShift; 2],
-    /// Seated on a seat this high above the floor, m ([`HumanModel::can_sit`]): the standing
-    /// pose lowered onto it, the walk and the rest of the style ignored. 0: not seated.
+    /// Seated on a seat this high above the floor, m: the standing pose lowered onto it where
+    /// the model can sit ([`HumanModel::can_sit`]), else the standing pose; the walk and the
+    /// rest of the style ignored. 0: not seated.
     pub seat_m: f32,
 }
 
@@ -87,8 +88,9 @@ impl HumanModel {
 
     /// Global transforms (model frame) of the joints at time `t` (s) of the walk in `style`.
     pub(super) fn joint_globals(&self, t: f32, style: GaitStyle, out: &mut Vec<Mat4>) {
+        // Asked to sit, a model stands (and sits where it can).
         let seated = style.seat_m > 0.0 && self.can_sit();
-        let walk = if seated { 0.0 } else { style.walking.clamp(0.0, 1.0) };
+        let walk = if style.seat_m > 0.0 { 0.0 } else { style.walking.clamp(0.0, 1.0) };
         out.clear();
         if self.joint_nodes.is_empty() {
             return;

@@ -225,7 +225,7 @@ impl HumanModel {
             legs: None,
             arms: None,
         };
-        let arm = |side: &str| Some([node_named(&format!("upperarm01.{side}"))?, node_named(&format!("lowerarm01.{side}"))?]);
+        let arm = |side: &str| Some([node_named(&format!("upperarm01.{side}"))?, node_named(&format!("lowerarm01.{side}"))?, node_named(&format!("wrist.{side}"))?]);
         model.arms = arm("L").zip(arm("R")).map(|(l, r)| [l, r]);
         if let (Some(l), Some(r), Some(&root)) = (leg("L"), leg("R"), model.joint_nodes.first()) {
             model.legs = model.plant_legs([l, r]).map(|legs| (legs, root));

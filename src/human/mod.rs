@@ -212,10 +212,10 @@ pub struct HumanModel {
     /// bundled people's (`upperleg01`, `lowerleg01`, `foot`, `.L` / `.R`): the stride can be
     /// scaled. Otherwise the model walks its own stride.
     legs: Option<([Leg; 2], usize)>,
-    /// Each arm's upper arm and forearm (left, right), when the skeleton names them like the
-    /// bundled people's (`upperarm01`, `lowerarm01`, `.L` / `.R`): a seated person's hands go
-    /// to the thighs ([`GaitStyle::seat_m`]).
-    arms: Option<[[usize; 2]; 2]>,
+    /// Each arm's upper arm, forearm and wrist (left, right), when the skeleton names them like
+    /// the bundled people's (`upperarm01`, `lowerarm01`, `wrist`, `.L` / `.R`): a seated
+    /// person's hands go to the thighs ([`GaitStyle::seat_m`]).
+    arms: Option<[[usize; 3]; 2]>,
 }
 impl HumanModel {
     /// Nominal height: the metadata's label when present, else the measured rest height.

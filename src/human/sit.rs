@@ -18,10 +18,11 @@ const UPPER_ARM_RAD: f32 = 0.2;
 const FOREARM_RAD: f32 = 0.45;
 
 impl HumanModel {
-    /// Whether the model can sit ([`GaitStyle::seat_m`]): its skeleton names its legs like the
-    /// bundled people's. A model that cannot stands where asked to sit.
+    /// Whether the model can sit ([`GaitStyle::seat_m`]): its skeleton names its legs and arms
+    /// like the bundled people's (hanging arms would reach into the seat), and it carries
+    /// nothing on its back (a backpack would go through a seat's back).
     pub fn can_sit(&self) -> bool {
-        self.legs.is_some()
+        self.legs.is_some() && self.arms.is_some() && !self.name.ends_with(&format!("+{}", super::carry::Carried::Backpack.name()))
     }
 
     /// Seats the pose `local` (the standing pose) on a seat `seat_m` above the floor: the
@@ -49,7 +50,7 @@ impl HumanModel {
             let target = Vec3::new(ankle0.x, (knee.y - l2).max(ankle0.y), hip.z + FEET_FORWARD * l1);
             self.solve_leg(local, cache, leg, target, knee + Vec3::Y * l1, foot_rot);
         }
-        for [upper, lower] in self.arms.into_iter().flatten() {
+        for [upper, lower, _] in self.arms.into_iter().flatten() {
             for (node, rad) in [(upper, UPPER_ARM_RAD), (lower, FOREARM_RAD)] {
                 let g = Quat::from_mat4(&global_of(nodes, local, cache, node)).normalize();
                 self.set_global_rotation(local, cache, node, Quat::from_rotation_x(-rad) * g);

@@ -835,15 +835,15 @@ fn sample_synthetic_people(
                 let p = plan.position_m(t).truncate();
                 let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
                 let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
-                let apart = humans.iter().all(|h| h.position_m(t).truncate().distance(p) >= hc.min_separation_m);
+                let apart = humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m);
                 free && off_sensor && apart
             })
         };
         // Seated on a free seat, where drawn to (drawn only where asked for).
         if hc.sitting > 0.0 && rng.random::<f64>() < hc.sitting {
             let apart = |p: &HumanPlan| times_s.iter().all(|&t| {
-                let q = p.position_m(t).truncate();
-                q.distance(sensor.position(t).truncate()) >= hc.min_separation_m && humans.iter().all(|h| h.position_m(t).truncate().distance(q) >= hc.min_separation_m)
+                let q = p.footprint_m(t);
+                q.distance(sensor.position(t).truncate()) >= hc.min_separation_m && humans.iter().all(|h| h.footprint_m(t).distance(q) >= hc.min_separation_m)
             });
             if let Some(p) = seats::seat(rng, &seats, (model, &inp.models[model]), inp.floor_z_m, hc.motion, apart) {
                 humans.push(p);

@@ -88,7 +88,7 @@ impl Crowd<'_> {
     pub(super) fn clear_at(&self, p: DVec2, t: f64) -> bool {
         self.grid.clearance(p) >= self.clearance_m
             && self.sensor.is_none_or(|s| p.distance(s.position(t).truncate()) >= self.separation_m)
-            && self.others.iter().all(|h| h.position_m(t).truncate().distance(p) >= self.separation_m)
+            && self.others.iter().all(|h| h.footprint_m(t).distance(p) >= self.separation_m)
     }
 }
 

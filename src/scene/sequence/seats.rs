@@ -4,7 +4,26 @@ use super::{HumanPath, HumanPlan};
 use crate::human::{HumanModel, MotionMode};
 use crate::scene::world::Seat;
 use crate::scene::Trajectory;
+use glam::DVec2;
 use rand::RngExt;
+
+/// How far ahead of a seated person's hips the middle of its folded body is (hips to toes,
+/// about 0.65 m), m: where others keep their distance from ([`HumanPlan::footprint_m`]).
+pub const SEATED_REACH_M: f64 = 0.3;
+
+impl HumanPlan {
+    /// The floor point others keep `humans.min_separation_m` from at `t_s`: the position, or a
+    /// seated person's [`SEATED_REACH_M`] ahead of it (the legs reach forward off the seat).
+    pub fn footprint_m(&self, t_s: f64) -> DVec2 {
+        let p = self.position_m(t_s).truncate();
+        if self.seat_m > 0.0 {
+            let h = self.trajectory.heading_rad(0.0);
+            p + SEATED_REACH_M * DVec2::new(h.cos(), h.sin())
+        } else {
+            p
+        }
+    }
+}
 
 /// Seats lower than this above the floor are not sat on, m.
 const LOWEST_SEAT_M: f64 = 0.2;

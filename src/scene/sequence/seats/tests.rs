@@ -1,4 +1,5 @@
 use super::super::*;
+use super::SEATED_REACH_M;
 use crate::scene::world::{World, WorldKind, WorldParams};
 use rand::SeedableRng;
 
@@ -36,8 +37,9 @@ fn people_drawn_to_sit_sit_on_the_worlds_seats() {
                     // before it and the sensor.
                     let taken = |s: &crate::scene::world::Seat| {
                         plan.times_s.iter().any(|&t| {
-                            s.at.distance(plan.sensor.position(t).truncate()) < cfg.humans.min_separation_m
-                                || plan.humans[..i].iter().any(|q| q.position_m(t).truncate().distance(s.at) < cfg.humans.min_separation_m)
+                            let mid = s.at + SEATED_REACH_M * DVec2::new(s.facing_rad.cos(), s.facing_rad.sin());
+                            mid.distance(plan.sensor.position(t).truncate()) < cfg.humans.min_separation_m
+                                || plan.humans[..i].iter().any(|q| q.footprint_m(t).distance(mid) < cfg.humans.min_separation_m)
                         })
                     };
                     let free = w.seats.iter().filter(|s| s.at.distance(s0) <= cfg.humans.spawn_radius_m && !taken(s)).count();
@@ -47,8 +49,11 @@ fn people_drawn_to_sit_sit_on_the_worlds_seats() {
                 };
                 assert_eq!((at.heading_rad, at.seat_m, at.velocity_mps), (s.facing_rad, s.top_z_m, glam::DVec3::ZERO));
                 assert_eq!(at.style().seat_m, s.top_z_m as f32);
+                // The others keep their distance from the middle of its folded body.
                 for q in &plan.humans[..i] {
-                    assert!(q.position_m(0.0).distance(p.position_m(0.0)) >= cfg.humans.min_separation_m);
+                    for &t in &plan.times_s {
+                        assert!(q.footprint_m(t).distance(p.footprint_m(t)) >= cfg.humans.min_separation_m);
+                    }
                 }
                 seated += 1;
             }
