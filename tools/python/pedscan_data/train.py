@@ -728,7 +728,8 @@ def train(args: argparse.Namespace) -> int:
                      "wall_s": time.perf_counter() - t_start})
                 acc, terms = [], {}
             if val_seqs and (step % args.val_every == 0 or last):
-                v = validate(mean.net() or net, val_seqs, device, score_from)[0]
+                averaged = mean.net()
+                v = validate(averaged if averaged is not None else net, val_seqs, device, score_from)[0]
                 log({"kind": "val", "step": step, **v, **({"weights": "mean"} if mean.count else {})})
                 if not args.quiet:
                     o = v["overall"]
