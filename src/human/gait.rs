@@ -241,12 +241,8 @@ impl HumanModel {
             pivot + Vec3::Z * (leg.flat_under_hip - k * stride * (u - UNDER_HIP)) + rot * (leg.ankle - pivot)
         };
         let pos = |m: Mat4| m.w_axis.truncate();
-        let nodes = &self.nodes;
         // Animated hips, knees, ankles and foot orientations; the targets.
-        let anim: [(Vec3, Vec3, Vec3, Quat); 2] = legs.map(|l| {
-            let f = global_of(nodes, local, cache, l.foot);
-            (pos(global_of(nodes, local, cache, l.thigh)), pos(global_of(nodes, local, cache, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
-        });
+        let anim = self.leg_joints(local, cache, legs);
         let stretch = anim.iter().map(|&(h, _, a, _)| (a - h).length()).fold(0.0f32, f32::max);
         let mut targets = [(Vec3::ZERO, Quat::IDENTITY); 2];
         for (i, (leg, &(_, _, ankle, rot))) in legs.iter().zip(&anim).enumerate() {
@@ -286,6 +282,17 @@ impl HumanModel {
             // its animated orientation, turned with the path.
             self.solve_leg(local, cache, leg, target, knee0, foot_rot);
         }
+    }
+
+    /// Each leg's hip, knee and ankle and its foot's global orientation in the pose `local`
+    /// (`cache` its globals).
+    pub(super) fn leg_joints(&self, local: &[(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], legs: [Leg; 2]) -> [(Vec3, Vec3, Vec3, Quat); 2] {
+        let pos = |m: Mat4| m.w_axis.truncate();
+        let nodes = &self.nodes;
+        legs.map(|l| {
+            let f = global_of(nodes, local, cache, l.foot);
+            (pos(global_of(nodes, local, cache, l.thigh)), pos(global_of(nodes, local, cache, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
+        })
     }
 
     /// Re-solves one leg of the pose `local` as a two-bone chain (hip -> knee -> ankle): the

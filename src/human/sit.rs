@@ -36,10 +36,7 @@ impl HumanModel {
         let Some((legs, root)) = self.legs else { return };
         let nodes = &self.nodes;
         let pos = |m: Mat4| m.w_axis.truncate();
-        let stand = legs.map(|l| {
-            let f = global_of(nodes, local, cache, l.foot);
-            (pos(global_of(nodes, local, cache, l.thigh)), pos(global_of(nodes, local, cache, l.shank)), pos(f), Quat::from_mat4(&f).normalize())
-        });
+        let stand = self.leg_joints(local, cache, legs);
         let hip_y = 0.5 * (stand[0].0.y + stand[1].0.y);
         local[root].0.y -= hip_y - (seat_m + HIP_OVER_SEAT * hip_y);
         cache.fill(None);

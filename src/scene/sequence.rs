@@ -830,22 +830,20 @@ fn sample_synthetic_people(
         let behind = hc.behind_things > 0.0 && rng.random::<f64>() < hc.behind_things;
         let mut placed = None;
         let mut tries = 0;
-        let placeable = |plan: &HumanPlan| {
+        // Clear of the sensor and the others at every frame; placeable where it stands on free
+        // floor too (a seat is an obstacle of the walkable area).
+        let clear = |plan: &HumanPlan| {
             times_s.iter().all(|&t| {
-                let p = plan.position_m(t).truncate();
-                let free = inp.grid.is_none_or(|g| g.clearance(p) >= hc.clearance_m);
-                let off_sensor = p.distance(sensor.position(t).truncate()) >= hc.min_separation_m;
-                let apart = humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m);
-                free && off_sensor && apart
+                let p = plan.footprint_m(t);
+                p.distance(sensor.position(t).truncate()) >= hc.min_separation_m && humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m)
             })
+        };
+        let placeable = |plan: &HumanPlan| {
+            times_s.iter().all(|&t| inp.grid.is_none_or(|g| g.clearance(plan.position_m(t).truncate()) >= hc.clearance_m)) && clear(plan)
         };
         // Seated on a free seat, where drawn to (drawn only where asked for).
         if hc.sitting > 0.0 && rng.random::<f64>() < hc.sitting {
-            let apart = |p: &HumanPlan| times_s.iter().all(|&t| {
-                let q = p.footprint_m(t);
-                q.distance(sensor.position(t).truncate()) >= hc.min_separation_m && humans.iter().all(|h| h.footprint_m(t).distance(q) >= hc.min_separation_m)
-            });
-            if let Some(p) = seats::seat(rng, &seats, (model, &inp.models[model]), inp.floor_z_m, hc.motion, apart) {
+            if let Some(p) = seats::seat(rng, &seats, (model, &inp.models[model]), inp.floor_z_m, hc.motion, clear) {
                 humans.push(p);
                 continue;
             }

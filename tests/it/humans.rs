@@ -318,11 +318,7 @@ fn people_carry_backpacks_and_bags_where_asked() {
     assert!((5..=25).contains(&none), "{kinds:?}");
     assert_eq!(kinds.keys().filter(|k| ["backpack", "bag", "bags"].contains(&k.as_str())).count(), 3, "{kinds:?}");
     assert_eq!(kinds.len(), 4, "{kinds:?}");
-    for bad in ["1.5", "-0.1", "nan"] {
-        std::fs::write(dir.join("bad.toml"), format!("[humans]\ncarrying = {bad}\n")).unwrap();
-        common::expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.carrying");
-        assert!(!dir.join("x").exists(), "nothing written");
-    }
+    refuses_shares_outside_0_1(dir, "humans", "carrying");
 }
 
 /// `humans.sitting`: in the street, that share of the people sit on its benches (the XML's
@@ -360,9 +356,15 @@ fn people_sit_on_the_streets_benches_where_asked() {
     // 16 people, each drawn to sit with probability 0.5 (a bench is seldom taken): 3..13.
     assert!((3..=13).contains(&seated), "{seated} of 16 seated");
     assert!(seen > 0, "no seated person seen");
+    refuses_shares_outside_0_1(dir, "humans", "sitting");
+}
+
+/// `generate` refuses `[table] key` at 1.5, -0.1 and NaN (exit 2, naming `table.key`) and
+/// writes nothing.
+fn refuses_shares_outside_0_1(dir: &std::path::Path, table: &str, key: &str) {
     for bad in ["1.5", "-0.1", "nan"] {
-        std::fs::write(dir.join("bad.toml"), format!("[humans]\nsitting = {bad}\n")).unwrap();
-        common::expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.sitting");
+        std::fs::write(dir.join("bad.toml"), format!("[{table}]\n{key} = {bad}\n")).unwrap();
+        common::expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, &format!("{table}.{key}"));
         assert!(!dir.join("x").exists(), "nothing written");
     }
 }
