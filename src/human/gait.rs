@@ -29,11 +29,16 @@ pub struct GaitStyle {
     /// the model can sit ([`HumanModel::can_sit`]), else the standing pose; the walk and the
     /// rest of the style ignored. 0: not seated.
     pub seat_m: f32,
+    /// Seated: how far ahead of the origin (the floor point under the hip joints) the feet may
+    /// reach, toes included, m; the ankles are drawn back under the knees to keep them within
+    /// it (a café table's foot ahead of its chair), though never behind the hips. Infinite:
+    /// where the pose puts them.
+    pub feet_room_m: f32,
 }
 
 impl GaitStyle {
     /// The model's own walk.
-    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2], seat_m: 0.0 };
+    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2], seat_m: 0.0, feet_room_m: f32::INFINITY };
 }
 
 /// A planar rigid move of one foot in the body frame (x forward, y left, yaw about z up),
@@ -65,6 +70,8 @@ pub(super) struct Leg {
     ankle: Vec3,
     heel: Vec3,
     mtp: Vec3,
+    /// The sole's front-most point (the toes' tip) ahead of the ankle in the rest pose, m.
+    pub(super) toes_m: f32,
     /// Forward (model z) translation of the flat foot from rest when its ankle passes under
     /// the hip (phase 0.25 after its heel strike).
     flat_under_hip: f32,
@@ -125,7 +132,7 @@ impl HumanModel {
             self.place_feet(&mut local, &mut global, legs, root, phase, 1.0 + walk * (style.stride - 1.0), walk, style.feet);
         }
         if seated {
-            self.seat(&mut local, &mut global, style.seat_m);
+            self.seat(&mut local, &mut global, style.seat_m, style.feet_room_m);
         }
         out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
     }
@@ -152,11 +159,13 @@ impl HumanModel {
         let mut out = Vec::with_capacity(2);
         for ([thigh, shank, foot, toe], side) in legs.into_iter().zip([1.0f32, -1.0]) {
             let ankle = at(foot);
-            let back = rest.iter().filter(|p| p.y < 0.01 && side * p.x > 0.02).map(|p| p.z).fold(f32::INFINITY, f32::min);
+            let sole = || rest.iter().filter(|p| p.y < 0.01 && side * p.x > 0.02).map(|p| p.z);
+            let (back, front) = (sole().fold(f32::INFINITY, f32::min), sole().fold(f32::NEG_INFINITY, f32::max));
             if !back.is_finite() {
                 return None;
             }
-            out.push(Leg { thigh, shank, foot, ankle, heel: Vec3::new(ankle.x, 0.0, back), mtp: at(toe), flat_under_hip: 0.0 });
+            let toes_m = front - ankle.z;
+            out.push(Leg { thigh, shank, foot, ankle, heel: Vec3::new(ankle.x, 0.0, back), mtp: at(toe), toes_m, flat_under_hip: 0.0 });
         }
         let (hip_l, ankle_l, heel_l) = (at(out[0].thigh).z, out[0].ankle.z, out[0].heel.z);
         for leg in &mut out {

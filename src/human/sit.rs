@@ -30,9 +30,11 @@ impl HumanModel {
     /// the seat, each leg re-solved (two-bone IK, the knee forward) with its ankle
     /// [`FEET_FORWARD`] of the thigh ahead of the hip and hanging a shank's length below the
     /// level thigh's knee, or on the floor where that is lower; the feet flat as they stand;
-    /// the arms (where the skeleton names them like the bundled people's) turned forward so
-    /// the hands rest on the thighs. `cache` holds the globals of `local` before and after.
-    pub(super) fn seat(&self, local: &mut [(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], seat_m: f32) {
+    /// the ankles drawn back, though not behind the hips, where the toes would reach more than
+    /// `feet_room_m` ahead of the origin; the arms (where the skeleton names them like the
+    /// bundled people's) turned forward so the hands rest on the thighs. `cache` holds the
+    /// globals of `local` before and after.
+    pub(super) fn seat(&self, local: &mut [(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], seat_m: f32, feet_room_m: f32) {
         let Some((legs, root)) = self.legs else { return };
         let nodes = &self.nodes;
         let pos = |m: Mat4| m.w_axis.truncate();
@@ -44,7 +46,8 @@ impl HumanModel {
             let (l1, l2) = ((knee0 - hip0).length(), (ankle0 - knee0).length());
             let hip = pos(global_of(nodes, local, cache, leg.thigh));
             let knee = hip + Vec3::Z * l1;
-            let target = Vec3::new(ankle0.x, (knee.y - l2).max(ankle0.y), hip.z + FEET_FORWARD * l1);
+            let ahead = (hip.z + FEET_FORWARD * l1).min(feet_room_m - leg.toes_m).max(hip.z);
+            let target = Vec3::new(ankle0.x, (knee.y - l2).max(ankle0.y), ahead);
             self.solve_leg(local, cache, leg, target, knee + Vec3::Y * l1, foot_rot);
         }
         for [upper, lower, _] in self.arms.into_iter().flatten() {

@@ -409,6 +409,8 @@ pub struct HumanPlan {
     /// Seated on a seat this high above the floor the whole sequence (`humans.sitting`), m; 0:
     /// not seated.
     pub seat_m: f64,
+    /// Seated: how far ahead of the position the feet may reach, m; infinite otherwise.
+    pub feet_room_m: f64,
 }
 
 /// A person's state at one instant (world frame).
@@ -428,14 +430,15 @@ pub struct HumanAt {
     /// Where the path's turns move each foot (left, right) in the body frame so that a planted
     /// foot keeps its place and heading on the ground (see [`HumanPlan::foot_shifts`]).
     pub feet: [FootShift; 2],
-    /// The person's seat ([`HumanPlan::seat_m`]).
+    /// The person's seat and the room for its feet ([`HumanPlan::seat_m`], `feet_room_m`).
     pub seat_m: f64,
+    pub feet_room_m: f64,
 }
 
 impl HumanAt {
     /// How the person walks at this instant (for posing its model).
     pub fn style(&self) -> GaitStyle {
-        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet, seat_m: self.seat_m as f32 }
+        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet, seat_m: self.seat_m as f32, feet_room_m: self.feet_room_m as f32 }
     }
 }
 
@@ -484,6 +487,7 @@ impl HumanPlan {
             walking,
             feet,
             seat_m: self.seat_m,
+            feet_room_m: self.feet_room_m,
         }
     }
 
@@ -712,6 +716,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
                 arm_swing: 1.0,
                 stride_scale: 1.0,
                 seat_m: 0.0,
+                feet_room_m: f64::INFINITY,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -907,6 +912,7 @@ fn sample_synthetic_people(
                     arm_swing: 1.0,
                     stride_scale: 1.0,
                     seat_m: 0.0,
+                    feet_room_m: f64::INFINITY,
                 });
                 break;
             }
@@ -957,6 +963,7 @@ fn sample_synthetic_people(
                 arm_swing: 1.0,
                 stride_scale: 1.0,
                 seat_m: 0.0,
+                feet_room_m: f64::INFINITY,
             };
             if placeable(&plan) {
                 placed = Some(plan);

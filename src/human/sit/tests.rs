@@ -101,3 +101,29 @@ fn a_model_that_cannot_sit_stands_where_asked_to() {
         assert_ne!(a, b, "{}: the walk is the standing pose", m.name);
     }
 }
+
+/// Where the room ahead of the seat is short (a café table's foot before its chair), the
+/// feet stay within it, toes included: the ankles drawn back under the knees, the thighs
+/// still forward, the hips where they were; with room to spare, the toes reach past it, so
+/// the room is what holds them back.
+#[test]
+fn a_seated_persons_feet_stay_within_the_room_ahead() {
+    for (name, room) in [("h1700_w60.glb", 0.45f32), ("h1800_w90.glb", 0.42), ("h1800_w90.glb", 0.55)] {
+        let m = bundled(name);
+        let (legs, _) = m.legs.unwrap();
+        let idx = |node: usize| m.joint_nodes.iter().position(|&n| n == node).unwrap();
+        let free = GaitStyle { seat_m: 0.47, ..GaitStyle::WALK };
+        let short = GaitStyle { feet_room_m: room, ..free };
+        let feet_reach = |style| skinned(&m, style).iter().filter(|p| p.y < 0.2).map(|p| p.z).fold(f32::MIN, f32::max);
+        assert!(feet_reach(free) > room + 0.02, "{name}: the toes reach {} m with room to spare", feet_reach(free));
+        assert!(feet_reach(short) <= room + 0.01, "{name}: the toes reach {} m, the room {room} m", feet_reach(short));
+        let (a, b) = (joints_at(&m, free), joints_at(&m, short));
+        for leg in &legs {
+            let (hip, knee, ankle) = (b[idx(leg.thigh)], b[idx(leg.shank)], b[idx(leg.foot)]);
+            assert!((hip - a[idx(leg.thigh)]).length() < 1e-5, "{name}: the hips moved");
+            assert!((knee - hip).z > 0.8 * (knee - hip).length(), "{name}: the thigh {} not forward", knee - hip);
+            assert!(ankle.z < a[idx(leg.foot)].z && ankle.z >= hip.z - 1e-4, "{name}: the ankle at {ankle}, the hip at {hip}");
+            assert!(-(ankle - knee).y > 0.8 * (ankle - knee).length(), "{name}: the shin {} not down", ankle - knee);
+        }
+    }
+}

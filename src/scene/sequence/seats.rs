@@ -56,6 +56,7 @@ pub(super) fn seat(
             arm_swing: 1.0,
             stride_scale: 1.0,
             seat_m: s.top_z_m - floor_z_m,
+            feet_room_m: s.feet_room_m,
         };
         apart(&plan).then_some(plan)
     })

@@ -13,6 +13,7 @@ fn plan(motion: MotionMode) -> HumanPlan {
         arm_swing: 1.0,
         stride_scale: 1.0,
         seat_m: 0.0,
+        feet_room_m: f64::INFINITY,
     }
 }
 

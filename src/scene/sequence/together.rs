@@ -36,5 +36,6 @@ pub(super) fn companion(rng: &mut impl rand::Rng, leader: &HumanPlan, model: usi
         arm_swing: 1.0,
         stride_scale: 1.0,
         seat_m: 0.0,
+        feet_room_m: f64::INFINITY,
     }
 }

@@ -68,12 +68,14 @@ pub struct Place {
 }
 
 /// A seat a person sits on ([`super::World::seats`]): the floor point under a seated
-/// person's hip joints, the way they face, and the seat's top, world z.
+/// person's hip joints, the way they face, the seat's top, world z, and how far ahead of `at`
+/// the floor is free for the feet (infinite where nothing stands there).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Seat {
     pub at: DVec2,
     pub facing_rad: f64,
     pub top_z_m: f64,
+    pub feet_room_m: f64,
 }
 
 impl Builder {

@@ -432,6 +432,44 @@ fn doorways_are_floored_and_people_come_out_of_them_facing_the_street() {
     }
 }
 
+/// The floor ahead of every seat is free where a seated person's feet go: nothing 1.5 cm above
+/// it meets a ray along the seat's way under either foot within its feet's room, or 0.6 m
+/// where the room is unbounded (the tallest bundled person's toes reach 0.57 m); the café
+/// chairs' room ends short of their table's foot and still leaves 0.4 m.
+#[test]
+fn seats_leave_the_floor_free_for_the_feet() {
+    let p = WorldParams { markets: 1.0, ..params() };
+    let (mut seats, mut cafe) = (0, 0);
+    for kind in [WorldKind::Street, WorldKind::Indoor] {
+        for index in 0..3 {
+            let w = World::build(kind, 5, index, &p).unwrap();
+            // Those within 80 m of the middle: the sensor drives the middle and people sit
+            // within a spawn radius of it (the lots' last furniture can overhang the street's ends).
+            for s in w.seats.iter().filter(|s| s.at.x.abs() < 80.0) {
+                let ahead = DVec2::from_angle(s.facing_rad);
+                let room = s.feet_room_m.min(0.6);
+                // The floor, 0.3 m ahead under the seat's front.
+                let above = (s.at + 0.3 * ahead).extend(s.top_z_m - 0.1);
+                let floor_z = above.z - first_hit(&w.env, above, DVec3::NEG_Z, 1.0).unwrap_or_else(|| panic!("{kind:?} {index}: {s:?}: no floor"));
+                assert!((0.44..0.48).contains(&(s.top_z_m - floor_z)), "{s:?}: the floor at {floor_z}");
+                for side in [-0.1, 0.1] {
+                    let o = (s.at + side * ahead.perp()).extend(floor_z + 0.015);
+                    let hit = first_hit(&w.env, o, ahead.extend(0.0), room);
+                    assert!(hit.is_none(), "{kind:?} {index}: {s:?}: something {hit:?} m ahead at the floor, within {room} m");
+                }
+                if s.feet_room_m.is_finite() {
+                    assert!(s.feet_room_m >= 0.4, "{s:?}");
+                    // The table's foot is there, just past the room.
+                    assert!(first_hit(&w.env, s.at.extend(floor_z + 0.015), ahead.extend(0.0), s.feet_room_m + 0.1).is_some(), "{s:?}");
+                    cafe += 1;
+                }
+                seats += 1;
+            }
+        }
+    }
+    assert!(seats > 50 && cafe > 5, "{seats} seats, {cafe} at café tables");
+}
+
 /// Where a horizontal ray from `o` along `dir` first meets `env` within `max_m`, m (None: clear).
 fn first_hit(env: &crate::scene::Environment, o: DVec3, dir: DVec3, max_m: f64) -> Option<f64> {
     let mut best: Option<f64> = None;

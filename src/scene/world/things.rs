@@ -194,7 +194,7 @@ pub fn bench(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) ->
     for k in 0..n {
         let along = ((k as f64 + 0.5) / n as f64 - 0.5) * len;
         let q = at(p, yaw, 0.05, 0.0).truncate() + along * DVec2::new(-yaw.sin(), yaw.cos());
-        b.seats.push(Seat { at: q, facing_rad: yaw, top_z_m: g + 0.46 });
+        b.seats.push(Seat { at: q, facing_rad: yaw, top_z_m: g + 0.46, feet_room_m: f64::INFINITY });
     }
     0.5 * len
 }
@@ -447,6 +447,9 @@ pub fn display_case(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: 
 }
 
 /// A table (0.72-0.76 m, or a standing table 1.05-1.15 m) with 0-4 chairs.
+/// The radius of a café table's foot plate (3 cm high), m.
+const TABLE_FOOT_M: f64 = 0.25;
+
 pub fn table(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
     let m = material(rng, class::OTHER_OBJECT);
     let standing = chance(rng, 0.3);
@@ -454,15 +457,17 @@ pub fn table(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) ->
     let r = if standing { uni(rng, 0.3, 0.4) } else { uni(rng, 0.4, 0.6) };
     b.cylinder(m, p.extend(g + h - 0.04), r, 0.04, 10);
     b.cylinder(m, p.extend(g), 0.04, h - 0.04, 6);
-    b.cylinder(m, p.extend(g), 0.25, 0.03, 8);
+    b.cylinder(m, p.extend(g), TABLE_FOOT_M, 0.03, 8);
     if !standing {
         let chairs = (rng.random::<f64>() * 5.0) as usize;
         let cm = material(rng, class::OTHER_OBJECT);
         for k in 0..chairs {
             let a = yaw + k as f64 * std::f64::consts::FRAC_PI_2;
             let q = at(p, a, r + 0.3, 0.0).truncate();
-            // Its seat: the hips over the middle, facing the table.
-            b.seats.push(Seat { at: q, facing_rad: a + std::f64::consts::PI, top_z_m: g + 0.47 });
+            // Its seat: the hips over the middle, facing the table, the feet kept 3 cm short of
+            // the table's foot.
+            let feet_room_m = r + 0.3 - TABLE_FOOT_M - 0.03;
+            b.seats.push(Seat { at: q, facing_rad: a + std::f64::consts::PI, top_z_m: g + 0.47, feet_room_m });
             b.cuboid(cm, q.extend(g + 0.43), DVec3::new(0.42, 0.42, 0.04), a);
             b.cuboid(cm, at(q, a, 0.2, g + 0.47), DVec3::new(0.03, 0.42, 0.42), a);
             for (dx, dy) in [(-0.18, -0.18), (0.18, -0.18), (0.18, 0.18), (-0.18, 0.18)] {
@@ -647,7 +652,7 @@ pub fn table_set(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64
         b.cuboid(m, q.extend(g + 0.42), DVec3::new(len, 0.25, 0.03), yaw);
         // Seats on it, where the places are behind it, facing the table.
         for e in [-0.25, 0.25] {
-            b.seats.push(Seat { at: at(q, yaw, e * len, 0.0).truncate(), facing_rad: (-s * side.y).atan2(-s * side.x), top_z_m: g + 0.45 });
+            b.seats.push(Seat { at: at(q, yaw, e * len, 0.0).truncate(), facing_rad: (-s * side.y).atan2(-s * side.x), top_z_m: g + 0.45, feet_room_m: f64::INFINITY });
         }
         for e in [-0.4, 0.4] {
             b.cuboid(m, at(q, yaw, e * len, g), DVec3::new(0.04, 0.22, 0.42), yaw);

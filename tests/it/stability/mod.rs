@@ -222,6 +222,7 @@ fn far_plan(origin: DVec2) -> SequencePlan {
         arm_swing: 1.0,
         stride_scale: 1.0,
         seat_m: 0.0,
+        feet_room_m: f64::INFINITY,
     };
     SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0, world: None }
 }

@@ -48,7 +48,7 @@ fn people_drawn_to_sit_sit_on_the_worlds_seats() {
                     continue;
                 };
                 assert_eq!((at.heading_rad, at.seat_m, at.velocity_mps), (s.facing_rad, s.top_z_m, glam::DVec3::ZERO));
-                assert_eq!(at.style().seat_m, s.top_z_m as f32);
+                assert_eq!((at.style().seat_m, at.style().feet_room_m), (s.top_z_m as f32, s.feet_room_m as f32));
                 // The others keep their distance from the middle of its folded body.
                 for q in &plan.humans[..i] {
                     for &t in &plan.times_s {
