@@ -98,6 +98,7 @@ from typing import Any
 from .leads import BIN_NAMES, SEED_FRAMES, fmt, iou_row, render_leads, render_recorded_seeds, run_seed, seed_leads, seed_run
 from .netio import atomic_write_text, save_figure
 from .reader import PedscanError
+from .train import PRECISIONS
 
 #: The paper's Table 4 (generated data): IoU over all, 0-4, 4-8, 8+ m per N.
 PAPER_TABLE4 = {
@@ -265,6 +266,8 @@ class Experiment:
         #: ``train --average-from`` for every run: the weights averaged over the last share of
         #: the steps (None: the last step's, the paper's).
         self.average_from: int | None = None if tail is None else round(self.scale.steps * (1.0 - tail))
+        #: ``train --precision`` for every run.
+        self.precision: str = args.precision
         if self.recorded is not None and not self.recorded.exists():
             raise PedscanError(f"--recorded {self.recorded}: no such file or folder")
         # One state for all worlds: one scale per work folder, and the time of every stage.
@@ -435,6 +438,8 @@ class Experiment:
         ]
         if self.average_from is not None:
             cmd += ["--average-from", str(self.average_from)]
+        if self.precision != "fp32":
+            cmd += ["--precision", self.precision]
         if (run / "run.json").is_file():
             cmd.append("--resume")
         return cmd
@@ -559,7 +564,8 @@ class Experiment:
                 runs_info[name] = {"step": self.trained_step(self.work / "runs" / name),
                                    "environment": info.get("environment"), "parameters": info.get("parameters"),
                                    "network": info.get("network"),
-                                   "average_from": info.get("config", {}).get("average_from")}
+                                   "average_from": info.get("config", {}).get("average_from"),
+                                   "precision": info.get("config", {}).get("precision", "fp32")}
         return {"datasets": {k: {**v, "flags": v["flags"]} for k, v in self.datasets().items()},
                 "runs": runs_info, "scores": scores}
 
@@ -673,6 +679,10 @@ def render_markdown(res: dict[str, Any]) -> str:
     if averaged:
         lines[-2:-2] = [f"A network's weights are the mean of those after each step past step {k} "
                         f"(`--average-tail`, `train --average-from`): {w}'s." for k, w in averaged] + [""]
+    bf16 = sorted({w for w, wr in [("hall", res), *res.get("worlds", {}).items()]
+                   for run in wr.get("runs", {}).values() if run.get("precision", "fp32") != "fp32"})
+    if bf16:
+        lines[-2:-2] = [f"Networks trained with their forward pass in bfloat16 (`--precision bf16`): {', '.join(bf16)}'s.", ""]
     if any(w != "hall" for w, _ in worlds):
         lines += ["One block of rows per world: `hall` the bundled environment; `street` and `indoor` "
                   "pedscan's built-in worlds (`--background`, a new layout per sequence), with the hall's "
@@ -875,6 +885,8 @@ def parser() -> argparse.ArgumentParser:
                    help="train the 1- and 16-frame networks once per training seed (train --seed S; 0 is "
                    "frames1/frames16, S the runs frames1-seedS/frames16-seedS) and report the 16-frame lead "
                    "per distance bin over the seeds; only these runs (of them, --runs picks frames1 or frames16)")
+    p.add_argument("--precision", choices=PRECISIONS, default="fp32",
+                   help="every run's training step in fp32 (default, the paper's) or bf16 (train --precision)")
     p.add_argument("--average-tail", type=float, metavar="F",
                    help="every run's weights are the mean of those after each of its last F of the steps (train "
                    "--average-from; not in the paper; default: the last step's)")

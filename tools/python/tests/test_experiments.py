@@ -197,32 +197,44 @@ def test_experiments_report_a_table4_row_block_per_world_with_scores(tmp_path: P
     assert (work / "results.png").stat().st_size > 1000
 
 
-def test_experiments_average_each_runs_tail_where_asked_and_say_so(tmp_path: Path, capsys) -> None:
-    """``--average-tail F``: every run trains with ``--average-from`` at the last F of the
-    scale's steps (smoke: 3 steps, so 0.5 averages those past step 2), and the
-    results say whose weights are means; none without it; a share outside (0, 1] is refused."""
+@pytest.mark.parametrize("flags, train_flag, value, config, says", [
+    (("--average-tail", "0.5"), "--average-from", "2", {"average_from": 2},
+     "A network's weights are the mean of those after each step past step 2 (`--average-tail`, "
+     "`train --average-from`): hall's."),
+    (("--precision", "bf16"), "--precision", "bf16", {"precision": "bf16"},
+     "Networks trained with their forward pass in bfloat16 (`--precision bf16`): hall's."),
+])
+def test_experiments_pass_a_training_option_to_every_run_and_say_so(
+        tmp_path: Path, flags: tuple[str, str], train_flag: str, value: str, config: dict, says: str) -> None:
+    """``--average-tail F`` (every run trains with ``--average-from`` at the last F of the
+    scale's steps: smoke's 3 steps, so 0.5 averages those past step 2) and ``--precision
+    bf16``: the flag reaches every run's training command, and the results say whose
+    networks it made; without it, neither."""
     plain = experiments(tmp_path)
-    assert "--average-from" not in plain["hall"].train_command("frames16")
-    every = experiments(tmp_path, "--average-tail", "0.5")
+    assert train_flag not in plain["hall"].train_command("frames16")
+    every = experiments(tmp_path, *flags)
     for world, run in (("hall", "frames16"), ("street", "frames1")):
         cmd = every[world].train_command(run)
-        assert cmd[cmd.index("--average-from") + 1] == "2", cmd
+        assert cmd[cmd.index(train_flag) + 1] == value, cmd
     work = tmp_path / "work"
     (work / "runs" / "frames16").mkdir(parents=True)
-    (work / "runs" / "frames16" / "run.json").write_text(json.dumps({"config": {"average_from": 2}}))
+    (work / "runs" / "frames16" / "run.json").write_text(json.dumps({"config": config}))
     (work / "scores").mkdir()
     (work / "scores" / "frames16--test.json").write_text(json.dumps(score(0.5)))
     every["hall"].check_scale()
     res = every["hall"].results([every["street"], every["indoor"]])
-    assert res["runs"]["frames16"]["average_from"] == 2
-    assert ("A network's weights are the mean of those after each step past step 2 (`--average-tail`, "
-            "`train --average-from`): hall's.") in (work / "results.md").read_text()
+    key = next(iter(config))
+    assert res["runs"]["frames16"][key] == config[key]
+    assert says in (work / "results.md").read_text()
     (work / "runs" / "frames16" / "run.json").write_text(json.dumps({"config": {}}))
     every["hall"].results([every["street"], every["indoor"]])
-    assert "the mean of those" not in (work / "results.md").read_text()
-    for bad in ("0", "1.5", "nan"):
-        with pytest.raises(PedscanError, match=f"--average-tail {bad}: a share of the steps"):
-            experiments(tmp_path, "--average-tail", bad)
+    assert says not in (work / "results.md").read_text()
+
+
+@pytest.mark.parametrize("bad", ["0", "1.5", "nan"])
+def test_experiments_refuse_an_average_tail_outside_0_1(tmp_path: Path, bad: str) -> None:
+    with pytest.raises(PedscanError, match=f"--average-tail {bad}: a share of the steps"):
+        experiments(tmp_path, "--average-tail", bad)
 
 
 def test_experiments_report_only_the_worlds_that_have_scores() -> None:
