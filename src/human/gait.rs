@@ -323,7 +323,8 @@ impl HumanModel {
         let (hip, knee, ankle) = (pos(hip_m), pos(knee_m), pos(ankle_m));
         let (l1, l2) = ((knee - hip).length(), (ankle - knee).length());
         let to = target - hip;
-        let d = to.length().clamp((l1 - l2).abs() + 1e-4, (l1 + l2) * 0.9999);
+        let shortest = (l1 - l2).abs() + 1e-4;
+        let d = to.length().clamp(shortest, ((l1 + l2) * 0.9999).max(shortest));
         let dir = to.normalize_or_zero();
         let pole = knee_toward - hip - dir * (knee_toward - hip).dot(dir);
         let side = pole.normalize_or_zero();

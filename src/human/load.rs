@@ -127,6 +127,17 @@ impl HumanModel {
             }
             None => (Vec::new(), Vec::new()),
         };
+        // A skeleton's node scaled to nothing collapses every joint under it onto one point
+        // (legs of no length, which no walk can be solved for).
+        for &j in &joint_nodes {
+            let mut n = Some(j);
+            while let Some(k) = n {
+                if nodes[k].scale.abs().min_element() < MIN_JOINT_SCALE {
+                    return Err(gltf_err(path, format!("node {k} has the scale {}, which collapses joint node {j} under it", nodes[k].scale)));
+                }
+                n = nodes[k].parent;
+            }
+        }
 
         // Walk animation: the one named "walk", else the first.
         let anim = doc

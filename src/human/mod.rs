@@ -96,6 +96,10 @@ pub const MAX_KEY_TIMES: usize = 4096;
 /// about 34,000); vertices may be three times as many.
 pub const MAX_MODEL_TRIANGLES: usize = 2_000_000;
 
+/// Smallest scale along any axis of a skeleton joint's node or its ancestors at rest: below
+/// it the joints under it collapse onto one point.
+pub const MIN_JOINT_SCALE: f32 = 1e-3;
+
 /// The mesh lies within this distance of the model's origin, and every joint, at rest and at
 /// every key time of the walk, within this distance of the mesh's bounding box, metres.
 pub const MAX_REACH_M: f32 = 10.0;

@@ -359,6 +359,14 @@ fn implausible_extras_and_broken_skeletons_are_refused() {
     let mut far_bind = Glb::bundled(HUMAN);
     far_bind.set_f32(INVERSE_BIND, 6, 12, 2e9);
     human_refused(dir, "far_inverse_bind.glb", &far_bind, "joint 6 (node 6) with its inverse bind matrix");
+    // A skeleton node scaled to nothing (the root, or one leg joint): its joints collapse.
+    let mut flat = Glb::bundled(HUMAN);
+    flat.json["nodes"][0]["scale"] = json!([0.0, 0.0, 0.0]);
+    human_refused(dir, "zero_scale_root.glb", &flat, "node 0 has the scale");
+    let mut leg = Glb::bundled(HUMAN);
+    let thigh = leg.json["nodes"].as_array().unwrap().iter().position(|n| n["name"] == "upperleg01.L").unwrap();
+    leg.json["nodes"][thigh]["scale"] = json!([1.0, 0.0, 1.0]);
+    human_refused(dir, "zero_scale_leg.glb", &leg, &format!("node {thigh} has the scale"));
     // Node cycle in a human: named.
     let mut cyclic = Glb::bundled(HUMAN);
     cyclic.json["nodes"][3]["children"] = json!([0]);
