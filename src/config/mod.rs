@@ -39,6 +39,9 @@ pub fn data_dir() -> PathBuf {
 /// The prefix of a bundled input's recorded name: `bundled:humans` is [`data_dir`]`/humans`.
 pub const BUNDLED: &str = "bundled:";
 
+/// The largest sequence index (`first_sequence` + `sequences` - 1): a billion sequences.
+pub const MAX_SEQUENCE_INDEX: usize = 999_999_999;
+
 /// How an input path is recorded in outputs: a path inside the bundled data as
 /// `bundled:<path inside data/>`, so the record does not depend on where pedscan lies; any
 /// other path as given.
@@ -552,48 +555,6 @@ impl SensorModelConfig {
     pub fn on() -> SensorModelConfig {
         SensorModelConfig { enabled: true, ..SensorModelConfig::default() }
     }
-
-    fn validate(&self) -> Result<()> {
-        let m = self;
-        non_negative("sensor_model.range_noise_m", m.range_noise_m)?;
-        non_negative("sensor_model.laser_bias_m", m.laser_bias_m)?;
-        for (key, v) in [("sensor_model.range_noise_m", m.range_noise_m), ("sensor_model.laser_bias_m", m.laser_bias_m)] {
-            if v > 1.0 {
-                return Err(Error::input(format!("config key `{key}`"), format!("{v} m must be at most 1 m")));
-            }
-        }
-        range_ok("sensor_model.dropout_rate", [m.dropout_rate, m.dropout_rate], 0.0, 1.0)?;
-        positive("sensor_model.detection_range_m", m.detection_range_m)?;
-        non_negative("sensor_model.detection_softness", m.detection_softness)?;
-        range_ok("sensor_model.grazing_deg", m.grazing_deg, 0.0, 90.0)?;
-        range_ok("sensor_model.grazing_loss", [m.grazing_loss, m.grazing_loss], 0.0, 1.0)?;
-        range_ok("sensor_model.divergence_mrad", [m.divergence_mrad[0].min(m.divergence_mrad[1]), m.divergence_mrad[0].max(m.divergence_mrad[1])], 0.0, 50.0)?;
-        non_negative("sensor_model.mixed_return_m", m.mixed_return_m)?;
-        for (key, r) in [
-            ("sensor_model.skin_reflectance", m.skin_reflectance),
-            ("sensor_model.upper_reflectance", m.upper_reflectance),
-            ("sensor_model.lower_reflectance", m.lower_reflectance),
-            ("sensor_model.shoe_reflectance", m.shoe_reflectance),
-        ] {
-            range_ok(key, r, 0.0, 1.0)?;
-        }
-        if let Some(s) = m.intensity_scale {
-            positive("sensor_model.intensity_scale", s)?;
-        }
-        if m.platform.len() > MAX_PLATFORM_BOXES {
-            return Err(Error::input("config key `sensor_model.platform`", format!("{} boxes: at most {MAX_PLATFORM_BOXES}", m.platform.len())));
-        }
-        for (k, b) in m.platform.iter().enumerate() {
-            let key = format!("config key `sensor_model.platform[{k}]`");
-            if !(0..3).all(|i| b.min_m[i].is_finite() && b.max_m[i].is_finite() && b.min_m[i] < b.max_m[i]) {
-                return Err(Error::input(key, format!("min_m {:?} and max_m {:?} must be finite with min < max on every axis", b.min_m, b.max_m)));
-            }
-            if (0..3).all(|i| b.min_m[i] <= 0.0 && b.max_m[i] >= 0.0) {
-                return Err(Error::input(key, "the box holds the sensor (the origin): every beam would be hidden"));
-            }
-        }
-        Ok(())
-    }
 }
 
 /// `[debug]`: switches that change how a run computes, never what it writes.
@@ -911,6 +872,13 @@ impl Config {
         let bad = |key: &str, msg: String| Err(Error::input(format!("config key `{key}`"), msg));
         if self.sequences == 0 {
             return bad("sequences", "must be at least 1".into());
+        }
+        // Sequence indices name files and seed draws: bounded, and their range cannot wrap.
+        if self.first_sequence.checked_add(self.sequences).is_none_or(|end| end > MAX_SEQUENCE_INDEX + 1) {
+            return bad(
+                "first_sequence",
+                format!("{} sequences from index {} reach past the last supported index, {MAX_SEQUENCE_INDEX}", self.sequences, self.first_sequence),
+            );
         }
         if self.output.formats.is_empty() {
             return bad("output.formats", "needs at least one format (h5, semantickitti, mcap)".into());

@@ -132,6 +132,17 @@ fn unknown_keys_and_impossible_values_are_rejected() {
     let mut c = Config::default();
     c.frames = 0;
     assert!(c.validate().unwrap_err().to_string().contains("frames"));
+    // Sequence indices that would wrap round (u64::MAX + 2 was 1: nothing written), or reach
+    // past a billion; the last index itself is taken.
+    for (first, n) in [(usize::MAX, 2), (usize::MAX - 1, 3), (MAX_SEQUENCE_INDEX, 2)] {
+        let mut c = Config::default();
+        (c.first_sequence, c.sequences) = (first, n);
+        let e = c.validate().unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("first_sequence"), "{first} + {n}: {e}");
+    }
+    let mut c = Config::default();
+    (c.first_sequence, c.sequences) = (MAX_SEQUENCE_INDEX, 1);
+    c.validate().unwrap();
     let mut c = Config::default();
     c.scene.sensor_speed_mps = [-1.0, 1.0];
     assert!(c.validate().unwrap_err().to_string().contains("sensor_speed_mps"));
@@ -156,11 +167,13 @@ fn unknown_keys_and_impossible_values_are_rejected() {
 range_noise = 0.1
 ").unwrap_err();
     assert!(e.to_string().contains("range_noise"), "{e}");
-    let bad: [(&str, fn(&mut SensorModelConfig)); 6] = [
+    let bad: [(&str, fn(&mut SensorModelConfig)); 8] = [
         ("range_noise_m", |m| m.range_noise_m = f64::NAN),
         ("laser_bias_m", |m| m.laser_bias_m = 2.0),
         ("dropout_rate", |m| m.dropout_rate = 1.5),
         ("divergence_mrad", |m| m.divergence_mrad = [-1.0, 1.0]),
+        ("divergence_mrad", |m| m.divergence_mrad = [f64::NAN, 1.5]),
+        ("divergence_mrad", |m| m.divergence_mrad = [1.5, f64::NAN]),
         ("skin_reflectance", |m| m.skin_reflectance = [0.2, 1.2]),
         ("intensity_scale", |m| m.intensity_scale = Some(0.0)),
     ];

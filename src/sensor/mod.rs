@@ -206,8 +206,14 @@ impl Sensor {
         if self.columns < 8 || self.columns > 65536 {
             return bad(format!("columns = {} must be in 8..=65536", self.columns));
         }
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
-            return bad(format!("rate_hz = {} must be in (0, 1000]", self.rate_hz));
+        // The name is written into every output (HDF5 strings, XML, bags).
+        if self.name.is_empty() || self.name.len() > 256 || self.name.chars().any(char::is_control) {
+            return bad(format!("name {:?} must be 1-256 bytes without control characters", self.name.chars().take(64).collect::<String>()));
+        }
+        // At least a sweep every 10 s: a frame's interval bounds the people's planning (at
+        // 1e-12 Hz one frame's walk never ended).
+        if !(self.rate_hz.is_finite() && (0.1..=1000.0).contains(&self.rate_hz)) {
+            return bad(format!("rate_hz = {} must be in [0.1, 1000]", self.rate_hz));
         }
         if !(self.min_range_m.is_finite() && self.min_range_m >= 0.0) {
             return bad(format!("min_range_m = {} must be >= 0", self.min_range_m));
@@ -526,6 +532,17 @@ mod tests {
         assert!(Sensor::from_file(bad_cols, "x".into(), "c.toml").is_err());
     }
 
+    /// A name the outputs cannot hold (a NUL byte broke the HDF5 string after the frames were
+    /// made) and a huge one are refused as the sensor file's error.
+    #[test]
+    fn names_the_outputs_cannot_hold_are_refused() {
+        for name in ["a\0b", "line\nbreak", &"x".repeat(300)] {
+            let f = SensorFile { name: Some(name.into()), elevation_deg: vec![2.0, -2.0, -6.0, -10.0], columns: 1024, rate_hz: None, min_range_m: None, max_range_m: None };
+            let e = Sensor::from_file(f, name.into(), "named.toml").unwrap_err();
+            assert!(e.is_input() && e.to_string().contains("named.toml") && e.to_string().contains("name"), "{name:?}: {e}");
+        }
+    }
+
     /// A NaN among unsorted elevations used to reach the sort (which panicked: "does not
     /// correctly implement a total order"); every number is now checked first.
     #[test]
@@ -544,6 +561,8 @@ mod tests {
         }
         for (f, field) in [
             (file(3.5, f64::NAN, 0.5, 100.0), "rate_hz"),
+            (file(3.5, 1e-12, 0.5, 100.0), "rate_hz"),
+            (file(3.5, 0.05, 0.5, 100.0), "rate_hz"),
             (file(3.5, 10.0, f64::NAN, 100.0), "min_range_m"),
             (file(3.5, 10.0, 0.5, f64::INFINITY), "max_range_m"),
         ] {
