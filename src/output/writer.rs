@@ -343,6 +343,10 @@ impl SequenceWriter {
         }
         let sk_final = self.semantickitti.as_ref().map(|sk| sk.final_dir().to_path_buf());
         let bag_final = self.bag.as_ref().map(|b| b.final_dir().to_path_buf());
+        // Their temporaries: a writer taken out below and failing in its own finish (a full
+        // disk) is gone before `Drop` could remove them.
+        let tmps: Vec<PathBuf> =
+            self.semantickitti.as_ref().map(|sk| sk.tmp_dir().to_path_buf()).into_iter().chain(self.bag.as_ref().map(|b| b.tmp_dir().to_path_buf())).collect();
         for fin in self.png_dir.iter().map(|(_, f)| f).chain(sk_final.iter()).chain(bag_final.iter()) {
             if std::fs::symlink_metadata(fin).is_ok_and(|m| !m.is_dir()) {
                 return Err(Error::input(fin.display(), "exists and is not a folder; cannot replace it with the sequence's files"));
@@ -384,7 +388,7 @@ impl SequenceWriter {
             Ok(())
         })();
         if let Err(e) = renamed {
-            for p in &undo {
+            for p in undo.iter().chain(&tmps) {
                 let _ = if p.is_dir() { std::fs::remove_dir_all(p) } else { std::fs::remove_file(p) };
             }
             return Err(e);

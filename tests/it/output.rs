@@ -326,6 +326,38 @@ fn dropped_writer_leaves_nothing() {
     assert!(dir_names(dir.path()).is_empty(), "{:?}", dir_names(dir.path()));
 }
 
+/// A bag whose own finish fails (its metadata cannot be written, as on a full disk) leaves
+/// no temporary behind, nor the exports finished before it.
+#[test]
+fn a_failing_bag_finish_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = meta(3, 2, 2, OutputSet::default());
+    let opts = WriterOptions { semantickitti: true, mcap: true, ..Default::default() };
+    let mut w = SequenceWriter::create(dir.path(), &m, &opts).unwrap();
+    w.write_frame(&frame(&m, 0)).unwrap();
+    w.write_frame(&frame(&m, 1)).unwrap();
+    std::fs::create_dir_all(dir.path().join("seq_000003_bag.tmp/metadata.yaml")).unwrap();
+    let e = w.finish().unwrap_err();
+    assert!(e.to_string().contains("metadata.yaml"), "{e}");
+    // The SemanticKITTI tree's empty folders may stay (other sequences share them).
+    let left: Vec<_> = walkdir(dir.path()).into_iter().filter(|p| !p.is_dir()).collect();
+    assert!(left.is_empty(), "{left:?}");
+    assert!(!dir.path().join("seq_000003_bag.tmp").exists() && !dir.path().join("seq_000003_bag").exists());
+}
+
+/// Every path under `dir`.
+fn walkdir(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walkdir(&p));
+        }
+        out.push(p);
+    }
+    out
+}
+
 #[test]
 fn bad_frames_are_internal_errors_and_early_finish_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
