@@ -51,3 +51,28 @@ impl Error {
 
 /// Shorthand for results of the library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The most of one error line printed (`clipped`): a message echoing a hostile input (a
+/// 100 MB string in a config, TOML nested thousands deep) stays readable.
+pub const MAX_MESSAGE_BYTES: usize = 4096;
+
+/// `text` cut to [`MAX_MESSAGE_BYTES`] at a character boundary, saying how much was left out.
+pub fn clipped(text: &str) -> std::borrow::Cow<'_, str> {
+    if text.len() <= MAX_MESSAGE_BYTES {
+        return text.into();
+    }
+    let cut = (0..=MAX_MESSAGE_BYTES).rev().find(|&i| text.is_char_boundary(i)).unwrap_or(0);
+    format!("{} ... ({} bytes more)", &text[..cut], text.len() - cut).into()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn long_messages_are_clipped_at_a_character_boundary() {
+        assert_eq!(super::clipped("short"), "short");
+        let long = "é".repeat(5000);
+        let c = super::clipped(&long);
+        assert!(c.len() < super::MAX_MESSAGE_BYTES + 40 && c.ends_with("(5904 bytes more)"), "{}", &c[c.len() - 40..]);
+        assert!(long.starts_with(c.split(" ...").next().unwrap()));
+    }
+}

@@ -174,9 +174,9 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", pedscan::error::clipped(&e.to_string()));
             for cause in e.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+                eprintln!("  caused by: {}", pedscan::error::clipped(&cause.to_string()));
             }
             match e.downcast_ref::<pedscan::Error>() {
                 Some(pedscan::Error::Interrupted { signal }) => ExitCode::from((128 + signal) as u8),

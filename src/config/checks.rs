@@ -4,9 +4,10 @@ use super::MAX_PLATFORM_BOXES;
 use crate::error::{Error, Result};
 
 /// A sensor height over the floor that a scene can be built with (`scene.sensor_height_m`,
-/// `--sensor-height`): finite and within a kilometre.
+/// `--sensor-height`): above the floor (a sensor under it sees nothing of the world) and
+/// within a kilometre.
 pub(crate) fn usable_sensor_height(h: f64) -> bool {
-    h.is_finite() && h.abs() < 1000.0
+    h.is_finite() && h > 0.0 && h < 1000.0
 }
 
 pub(super) fn range_ok(key: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<()> {

@@ -807,7 +807,7 @@ impl Config {
             // A built-in world: no file; the version of pedscan that built it is recorded.
         } else if bg.is_dir() {
             let mut inside: Vec<PathBuf> = std::fs::read_dir(bg)
-                .map_err(|e| Error::io(bg, e))?
+                .map_err(|e| Error::input(bg.display(), format!("cannot read the folder: {e}")))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|p| p.is_file())
                 .collect();
@@ -828,7 +828,7 @@ impl Config {
         let labels = &self.scene.ignore_labels;
         if labels.is_dir() {
             let mut inside: Vec<PathBuf> =
-                std::fs::read_dir(labels).map_err(|e| Error::io(labels, e))?.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
+                std::fs::read_dir(labels).map_err(|e| Error::input(labels.display(), format!("cannot read the folder: {e}")))?.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
             inside.sort();
             files.extend(inside);
         }
@@ -845,7 +845,8 @@ impl Config {
         let mut out = files
             .par_iter()
             .map(|f| {
-                let (digest, _) = crate::output::manifest::sha256_file(f).map_err(|e| Error::io(f, e))?;
+                // An input that cannot be read is the user's to fix (exit 2), as where it is read.
+                let (digest, _) = crate::output::manifest::sha256_file(f).map_err(|e| Error::input(f.display(), format!("cannot read: {e}")))?;
                 Ok((recorded_path(f).display().to_string(), digest))
             })
             .collect::<Result<Vec<_>>>()?;
@@ -913,7 +914,7 @@ impl Config {
         non_negative("humans.clearance_m", self.humans.clearance_m)?;
         non_negative("scene.sensor_clearance_m", self.scene.sensor_clearance_m)?;
         if !usable_sensor_height(self.scene.sensor_height_m) {
-            return bad("scene.sensor_height_m", format!("{} is not a usable height", self.scene.sensor_height_m));
+            return bad("scene.sensor_height_m", format!("{} is not a usable height (metres over the floor, above 0)", self.scene.sensor_height_m));
         }
         if !(self.render.oversample.is_finite() && self.render.oversample >= 0.25 && self.render.oversample <= 16.0) {
             return bad("render.oversample", format!("{} must be in [0.25, 16]", self.render.oversample));

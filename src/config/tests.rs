@@ -87,7 +87,7 @@ fn the_sensor_height_flag_replaces_the_key_and_refuses_what_is_no_height() {
     let at = |h: f64| Flags { sensor_height: Some(h), ..Default::default() }.config();
     assert_eq!(Config::default().scene.sensor_height_m, 0.8);
     assert_eq!(at(2.33).unwrap().scene.sensor_height_m, 2.33);
-    for h in [f64::NAN, f64::INFINITY, 1e4] {
+    for h in [f64::NAN, f64::INFINITY, 1e4, -1.0, 0.0] {
         let e = at(h).unwrap_err().to_string();
         assert!(e.contains("--sensor-height"), "{e}");
     }

@@ -33,7 +33,13 @@ impl SequenceLock {
                 .create(true)
                 .truncate(false)
                 .open(&path)
-                .map_err(|e| Error::io(&path, e))?;
+                .map_err(|e| match e.kind() {
+                    // The first file a run writes: a folder it may not write in is the user's to fix.
+                    std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => {
+                        Error::input(out_dir.display(), format!("cannot write in the output folder: {e}"))
+                    }
+                    _ => Error::io(&path, e),
+                })?;
             match file.try_lock() {
                 Ok(()) => {}
                 Err(std::fs::TryLockError::WouldBlock) => {

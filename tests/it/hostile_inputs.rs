@@ -214,3 +214,17 @@ fn byte_order_marks_are_skipped() {
         dir,
     ));
 }
+
+/// A config echoing a huge value (a 1 MB output path) is refused with a message of a few
+/// kilobytes that still names the key, exit 2, and nothing written.
+#[test]
+fn a_huge_value_is_named_in_a_clipped_message() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("huge.toml"), format!("frames = \"{}\"\n", "a".repeat(1 << 20))).unwrap();
+    let o = pedscan(&["generate", "--config", "huge.toml", "--out", "o"], dir);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{}", &err[..err.len().min(300)]);
+    assert!(err.len() < 3 * pedscan::error::MAX_MESSAGE_BYTES && err.contains("huge.toml") && err.contains("bytes more"), "{} bytes", err.len());
+    assert!(!dir.join("o").exists());
+}
