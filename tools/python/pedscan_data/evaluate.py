@@ -172,7 +172,11 @@ class H5Predictions:
                     f"{p}: /velocity has shape {f['velocity'].shape}, {seq.path.name} is {list(grid + (3,))}"
                 )
             elif "label" in f and f["label"].shape == grid:
-                self._usable.add(p)
+                made_from = f.attrs.get("source_range_sha256")
+                if made_from is not None and str(made_from) != seq.range_digest():
+                    problems.append(f"{p}: predictions made from other data than {seq.path} (its ranges differ)")
+                else:
+                    self._usable.add(p)
         return problems
 
     def available(self, seq: Sequence, t: int) -> bool:

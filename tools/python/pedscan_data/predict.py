@@ -316,7 +316,8 @@ def predict(
                 out / seq.path.name, labels, velocity,
                 {"frames_seen": net.cfg.frames, "full_window_from": net.cfg.frames - 1,
                  "human_threshold": float(obj.get("human_threshold", 0.5)), "model": Path(model).name,
-                 "mirrored": int(mirror), **({"grow": json.dumps(grow)} if grow else {})},
+                 "mirrored": int(mirror), "source_range_sha256": seq.range_digest(),
+                 **({"grow": json.dumps(grow)} if grow else {})},
             )
         else:
             write_kitti(out, seq, labels, velocity)

@@ -166,6 +166,16 @@ class Sequence:
             raise IndexError(f"{self.path}: frame {frames} of {self.frames}")
         return self.dataset(key)[frames]
 
+    def range_digest(self) -> str:
+        """SHA-256 of the sequence's ranges (little-endian float32, frame by frame): what a
+        prediction file records of the data it was made from, for ``evaluate`` to check."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for t in range(self.frames):
+            h.update(np.ascontiguousarray(self.read("range", t), dtype="<f4").tobytes())
+        return h.hexdigest()
+
     def frame(self, t: int, fields: tuple[str, ...] | None = None) -> Frame:
         """Frame ``t`` with ``fields`` read (default: range, label, instance)."""
         fields = DEFAULT_FIELDS if fields is None else fields

@@ -198,6 +198,31 @@ def test_mismatched_hdf5_predictions_exit_2_naming_them(sample: Path, tmp_path: 
     assert code == 0
 
 
+def test_predictions_made_from_other_data_exit_2_naming_them(sample: Path, tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """A prediction file records the digest of the ranges it was made from (``predict``);
+    one made from another sequence of the same shape is refused, not scored."""
+    from pedscan_data.reader import Sequence
+
+    gt = ground_truth(sample)
+    digests = {}
+    for name in gt:
+        with Sequence(sample / name) as s:
+            digests[name] = s.range_digest()
+    assert len(set(digests.values())) == 2
+    for swap in (False, True):
+        preds = tmp_path / f"preds{int(swap)}"
+        for name, other in zip(sorted(gt), sorted(gt)[::-1] if swap else sorted(gt)):
+            write_h5(preds, name, gt[name]["label"])
+            with h5py.File(preds / name, "a") as f:
+                f.attrs["source_range_sha256"] = digests[other]
+        code, out, err = run(capsys, sample, preds)
+        if swap:
+            assert code == 2 and "seq_000000.h5: predictions made from other data than" in err, err
+        else:
+            assert code == 0, err
+
+
 def test_label_only_hdf5_predictions_are_scored_without_velocity(
     sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

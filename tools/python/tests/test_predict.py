@@ -81,7 +81,7 @@ def test_predictions_are_written_as_documented_and_may_be_written_again(sample: 
         margin, velocity, _ = pr.predict_sequence(net, seq, "cpu")
         with h5py.File(out / src.name, "r") as f:
             assert dict(f.attrs) == {"frames_seen": 2, "full_window_from": 1, "human_threshold": 0.7, "model": "net.pt",
-                                     "mirrored": 0}
+                                     "mirrored": 0, "source_range_sha256": seq.range_digest()}
             t, h, w = seq.frames, seq.rows, seq.columns
             for name, shape, dtype in (("label", (t, h, w), np.uint8), ("velocity", (t, h, w, 3), np.float32)):
                 d = f[name]
