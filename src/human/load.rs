@@ -128,9 +128,10 @@ impl HumanModel {
             None => (Vec::new(), Vec::new()),
         };
         // A skeleton's node scaled to nothing collapses every joint under it onto one point
-        // (legs of no length, which no walk can be solved for).
+        // (legs of no length, which no walk can be solved for). A joint's own scale only
+        // shrinks what it alone carries (an accessory hidden so), and is left to it.
         for &j in &joint_nodes {
-            let mut n = Some(j);
+            let mut n = nodes[j].parent;
             while let Some(k) = n {
                 if nodes[k].scale.abs().min_element() < MIN_JOINT_SCALE {
                     return Err(gltf_err(path, format!("node {k} has the scale {}, which collapses joint node {j} under it", nodes[k].scale)));

@@ -12,6 +12,11 @@ pub const HIP_OVER_SEAT: f32 = 0.11;
 /// short of the knee: the shanks lean back a little, as people sit).
 const FEET_FORWARD: f32 = 0.9;
 
+/// The ankles are drawn back no nearer the hips than this share of the thigh (the shins about
+/// 45 degrees back): a room shorter than that leaves the toes past it rather than fold the
+/// thighs down through the seat's front.
+const FEET_BACK_MOST: f32 = 0.4;
+
 /// The upper arms' turn forward from the standing pose, and the forearms' beyond it (rad): the
 /// hands come to rest on the thighs.
 const UPPER_ARM_RAD: f32 = 0.2;
@@ -30,7 +35,7 @@ impl HumanModel {
     /// the seat, each leg re-solved (two-bone IK, the knee forward) with its ankle
     /// [`FEET_FORWARD`] of the thigh ahead of the hip and hanging a shank's length below the
     /// level thigh's knee, or on the floor where that is lower; the feet flat as they stand;
-    /// the ankles drawn back, though not behind the hips, where the toes would reach more than
+    /// the ankles drawn back, though no nearer the hips than [`FEET_BACK_MOST`], where the toes would reach more than
     /// `feet_room_m` ahead of the origin; the arms (where the skeleton names them like the
     /// bundled people's) turned forward so the hands rest on the thighs. `cache` holds the
     /// globals of `local` before and after.
@@ -46,7 +51,7 @@ impl HumanModel {
             let (l1, l2) = ((knee0 - hip0).length(), (ankle0 - knee0).length());
             let hip = pos(global_of(nodes, local, cache, leg.thigh));
             let knee = hip + Vec3::Z * l1;
-            let ahead = (hip.z + FEET_FORWARD * l1).min(feet_room_m - leg.toes_m).max(hip.z);
+            let ahead = (hip.z + FEET_FORWARD * l1).min(feet_room_m - leg.toes_m).max(hip.z + FEET_BACK_MOST * l1);
             let target = Vec3::new(ankle0.x, (knee.y - l2).max(ankle0.y), ahead);
             self.solve_leg(local, cache, leg, target, knee + Vec3::Y * l1, foot_rot);
         }

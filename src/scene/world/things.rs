@@ -446,10 +446,10 @@ pub fn display_case(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: 
     0.5 * w.max(d)
 }
 
-/// A table (0.72-0.76 m, or a standing table 1.05-1.15 m) with 0-4 chairs.
 /// The radius of a café table's foot plate (3 cm high), m.
 const TABLE_FOOT_M: f64 = 0.25;
 
+/// A table (0.72-0.76 m, or a standing table 1.05-1.15 m) with 0-4 chairs.
 pub fn table(b: &mut Builder, rng: &mut impl Rng, p: DVec2, g: f64, yaw: f64) -> f64 {
     let m = material(rng, class::OTHER_OBJECT);
     let standing = chance(rng, 0.3);

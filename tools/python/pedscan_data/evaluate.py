@@ -173,6 +173,8 @@ class H5Predictions:
                 )
             elif "label" in f and f["label"].shape == grid:
                 made_from = f.attrs.get("source_range_sha256")
+                if isinstance(made_from, bytes):
+                    made_from = made_from.decode("ascii", "replace")
                 if made_from is not None and str(made_from) != seq.range_digest():
                     problems.append(f"{p}: predictions made from other data than {seq.path} (its ranges differ)")
                 else:

@@ -841,8 +841,8 @@ def parser() -> argparse.ArgumentParser:
                    help="mirror each window left for right with probability P (columns reversed, velocities' y "
                    "negated): streets seen with traffic on the other side (not in the paper; default 0)")
     p.add_argument("--precision", choices=PRECISIONS, default="fp32",
-                   help="the training step's forward pass: fp32 (default), or bf16 under autocast (about twice "
-                   "as fast on a CPU with AVX-512 BF16 or AMX, or a GPU; validation stays fp32)")
+                   help="the training step's forward pass: fp32 (default), or bf16 under autocast (0.5-0.75 of "
+                   "fp32's step time on a CPU with AVX-512 BF16; --bench-step measures it; validation stays fp32)")
     p.add_argument("--average-from", type=int, default=None, metavar="K",
                    help="the run's weights (model.pt, validation, calibration) are the mean of those after each step "
                    "past step K (not in the paper; default: the last step's)")
@@ -869,7 +869,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def bench_step(args: argparse.Namespace) -> int:
-    """Seconds per training step (forward, loss, backward, Adam) of the network on the first
+    """Seconds per training step (forward, loss, backward, Adam) of the run's network on the CPU, on the first
     training sequence's grid (``--crop-columns`` wide where given) in each ``--precision``,
     the precisions interleaved, 5 rounds of ``args.bench_step`` steps: the medians and their
     ratio to fp32's. Random inputs and labels: the step's cost does not depend on them."""
@@ -879,6 +879,8 @@ def bench_step(args: argparse.Namespace) -> int:
 
     from .model import NetConfig, SequenceNet
 
+    if args.bench_step < 1:
+        raise PedscanError(f"--bench-step {args.bench_step}: at least one step a round")
     seqs = check_sequences(training_paths(args.data), args.frames, ", ".join(map(str, args.data)), args.intensity)
     rows, cols = seqs[0].rows, args.crop_columns or seqs[0].columns
     torch.manual_seed(args.seed)
@@ -887,7 +889,8 @@ def bench_step(args: argparse.Namespace) -> int:
     velocity, valid = torch.zeros(args.batch, 3, rows, cols), torch.ones(args.batch, rows, cols, dtype=torch.bool)
     steps = {}
     for precision in PRECISIONS:
-        net = SequenceNet(NetConfig(frames=args.frames, intensity=args.intensity, width=args.width))
+        net = SequenceNet(NetConfig(frames=args.frames, intensity=args.intensity, width=args.width, range_change=args.range_change,
+                                    elevation_deg=tuple(float(e) for e in seqs[0].elevation_deg) if args.height else ()))
         opt = torch.optim.Adam(net.parameters(), lr=args.lr)
 
         def step(net=net, opt=opt, bf16=precision == "bf16") -> None:
@@ -917,7 +920,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.bench_loader:
             return bench_loader(args)
-        if args.bench_step:
+        if args.bench_step is not None:
             return bench_step(args)
         if args.out is None:
             parser().error("--out RUN is needed")
