@@ -56,23 +56,30 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// 100 MB string in a config, TOML nested thousands deep) stays readable.
 pub const MAX_MESSAGE_BYTES: usize = 4096;
 
-/// `text` cut to [`MAX_MESSAGE_BYTES`] at a character boundary, saying how much was left out.
+/// `text` within [`MAX_MESSAGE_BYTES`]: its first and last halves of that, cut at character
+/// boundaries, saying how much was left out between them (a parser's reason comes last, after
+/// the echoed input).
 pub fn clipped(text: &str) -> std::borrow::Cow<'_, str> {
     if text.len() <= MAX_MESSAGE_BYTES {
         return text.into();
     }
-    let cut = (0..=MAX_MESSAGE_BYTES).rev().find(|&i| text.is_char_boundary(i)).unwrap_or(0);
-    format!("{} ... ({} bytes more)", &text[..cut], text.len() - cut).into()
+    let half = MAX_MESSAGE_BYTES / 2;
+    let head = (0..=half).rev().find(|&i| text.is_char_boundary(i)).unwrap_or(0);
+    let tail = (text.len() - half..text.len()).find(|&i| text.is_char_boundary(i)).unwrap_or(text.len());
+    format!("{} ... ({} bytes left out) ... {}", &text[..head], tail - head, &text[tail..]).into()
 }
 
 #[cfg(test)]
 mod tests {
     #[test]
-    fn long_messages_are_clipped_at_a_character_boundary() {
+    fn long_messages_keep_their_head_and_tail_cut_at_character_boundaries() {
         assert_eq!(super::clipped("short"), "short");
-        let long = "é".repeat(5000);
+        let long = format!("start {} reason", "é".repeat(5000));
         let c = super::clipped(&long);
-        assert!(c.len() < super::MAX_MESSAGE_BYTES + 40 && c.ends_with("(5904 bytes more)"), "{}", &c[c.len() - 40..]);
-        assert!(long.starts_with(c.split(" ...").next().unwrap()));
+        assert!(c.len() < super::MAX_MESSAGE_BYTES + 60, "{}", c.len());
+        let (head, rest) = c.split_once(" ... (").unwrap();
+        let (gap, tail) = rest.split_once(" bytes left out) ... ").unwrap();
+        assert!(long.starts_with(head) && long.ends_with(tail) && tail.ends_with(" reason") && head.starts_with("start "));
+        assert_eq!(head.len() + gap.parse::<usize>().unwrap() + tail.len(), long.len());
     }
 }

@@ -34,9 +34,10 @@ impl SequenceLock {
                 .truncate(false)
                 .open(&path)
                 .map_err(|e| match e.kind() {
-                    // The first file a run writes: a folder it may not write in is the user's to fix.
+                    // The first file a run writes: a folder it may not write in (or a lock file
+                    // another user left) is the user's to fix.
                     std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => {
-                        Error::input(out_dir.display(), format!("cannot write in the output folder: {e}"))
+                        Error::input(path.display(), format!("cannot open the run's lock file in the output folder: {e}"))
                     }
                     _ => Error::io(&path, e),
                 })?;

@@ -215,8 +215,9 @@ fn byte_order_marks_are_skipped() {
     ));
 }
 
-/// A config echoing a huge value (a 1 MB output path) is refused with a message of a few
-/// kilobytes that still names the key, exit 2, and nothing written.
+/// A config echoing a huge value (a 1 MB string where `frames` takes a number) is refused with
+/// a message of a few kilobytes that still names the file, the key and the reason, exit 2,
+/// and nothing written.
 #[test]
 fn a_huge_value_is_named_in_a_clipped_message() {
     let tmp = tempfile::tempdir().unwrap();
@@ -225,6 +226,7 @@ fn a_huge_value_is_named_in_a_clipped_message() {
     let o = pedscan(&["generate", "--config", "huge.toml", "--out", "o"], dir);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{}", &err[..err.len().min(300)]);
-    assert!(err.len() < 3 * pedscan::error::MAX_MESSAGE_BYTES && err.contains("huge.toml") && err.contains("bytes more"), "{} bytes", err.len());
+    assert!(err.len() < 3 * pedscan::error::MAX_MESSAGE_BYTES && err.contains("bytes left out"), "{} bytes", err.len());
+    assert!(err.contains("huge.toml") && err.contains("frames") && err.contains("expected"), "{}", &err[err.len().saturating_sub(600)..]);
     assert!(!dir.join("o").exists());
 }
