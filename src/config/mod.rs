@@ -798,6 +798,13 @@ impl Config {
     /// files of `scene.ignore_labels`, the poses, the tracks and a sensor file (TOML or Ouster
     /// JSON).
     pub fn input_digests(&self) -> Result<Vec<(String, String)>> {
+        // A folder's files, sorted; a folder that cannot be read is the user's to fix.
+        let files_in = |dir: &Path| -> Result<Vec<PathBuf>> {
+            let read = std::fs::read_dir(dir).map_err(|e| Error::input(dir.display(), format!("cannot read the folder: {e}")))?;
+            let mut inside: Vec<PathBuf> = read.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
+            inside.sort();
+            Ok(inside)
+        };
         let mut files: Vec<PathBuf> = Vec::new();
         if self.humans.count[1] > 0 {
             files.extend(crate::human::model_files(&self.humans.models)?);
@@ -806,13 +813,7 @@ impl Config {
         if WorldKind::of_background(bg).is_some() {
             // A built-in world: no file; the version of pedscan that built it is recorded.
         } else if bg.is_dir() {
-            let mut inside: Vec<PathBuf> = std::fs::read_dir(bg)
-                .map_err(|e| Error::input(bg.display(), format!("cannot read the folder: {e}")))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.is_file())
-                .collect();
-            inside.sort();
-            files.extend(inside);
+            files.extend(files_in(bg)?);
             files.extend(bg.parent().map(|p| p.join("times.txt")).filter(|t| t.is_file()));
         } else if !bg.as_os_str().is_empty() {
             files.push(bg.clone());
@@ -827,10 +828,7 @@ impl Config {
         }
         let labels = &self.scene.ignore_labels;
         if labels.is_dir() {
-            let mut inside: Vec<PathBuf> =
-                std::fs::read_dir(labels).map_err(|e| Error::input(labels.display(), format!("cannot read the folder: {e}")))?.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
-            inside.sort();
-            files.extend(inside);
+            files.extend(files_in(labels)?);
         }
         for p in [&self.scene.poses, &self.humans.tracks] {
             if !p.as_os_str().is_empty() {

@@ -32,8 +32,7 @@ pub struct GaitStyle {
     /// Seated: how far ahead of the origin (the floor point under the hip joints) the feet may
     /// reach, toes included, m; the ankles are drawn back under the knees to keep them within
     /// it (a café table's foot ahead of its chair), though no nearer the hips than 0.4 of a
-    /// thigh. Infinite:
-    /// where the pose puts them.
+    /// thigh. Infinite: where the pose puts them.
     pub feet_room_m: f32,
 }
 

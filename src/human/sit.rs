@@ -35,10 +35,10 @@ impl HumanModel {
     /// the seat, each leg re-solved (two-bone IK, the knee forward) with its ankle
     /// [`FEET_FORWARD`] of the thigh ahead of the hip and hanging a shank's length below the
     /// level thigh's knee, or on the floor where that is lower; the feet flat as they stand;
-    /// the ankles drawn back, though no nearer the hips than [`FEET_BACK_MOST`], where the toes would reach more than
-    /// `feet_room_m` ahead of the origin; the arms (where the skeleton names them like the
-    /// bundled people's) turned forward so the hands rest on the thighs. `cache` holds the
-    /// globals of `local` before and after.
+    /// the ankles drawn back, though no nearer the hips than [`FEET_BACK_MOST`] of the thigh,
+    /// where the toes would reach more than `feet_room_m` ahead of the origin; the arms (where
+    /// the skeleton names them like the bundled people's) turned forward so the hands rest on
+    /// the thighs. `cache` holds the globals of `local` before and after.
     pub(super) fn seat(&self, local: &mut [(Vec3, Quat, Vec3)], cache: &mut [Option<Mat4>], seat_m: f32, feet_room_m: f32) {
         let Some((legs, root)) = self.legs else { return };
         let nodes = &self.nodes;

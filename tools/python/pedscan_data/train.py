@@ -269,6 +269,19 @@ def paper_loss(
     return loss, {"ce": seg.mean().item(), "mse_bg": bg.mean().item(), "mse_human": hu.mean().item()}
 
 
+def window_loss(
+    net: Any, x: Any, label: Any, velocity: Any, valid: Any, precision: str,
+    weights: tuple[float, float, float], class_weight_power: float,
+) -> tuple[Any, dict[str, float]]:
+    """The training step's forward pass over windows ``x`` in ``precision`` (``bf16``: under
+    autocast to bfloat16) and :func:`paper_loss` on its outputs in float32."""
+    import torch
+
+    with torch.autocast(x.device.type, dtype=torch.bfloat16, enabled=precision == "bf16"):
+        logits, vel = net(x)
+    return paper_loss(logits.float(), vel.float(), label, velocity, valid, weights, class_weight_power)
+
+
 def validate(
     net: Any, sequences: list[Sequence], device: Any, score_from: int, cuts: tuple[float, ...] = (0.0,)
 ) -> list[dict[str, Any]]:
@@ -698,11 +711,9 @@ def train(args: argparse.Namespace) -> int:
                     raise Stop from None
                 raise
             t_wait += time.perf_counter() - t0
-            with torch.autocast(device.type, dtype=torch.bfloat16, enabled=cfg.precision == "bf16"):
-                logits, vel = net(batch["x"].to(device))
-            loss, parts = paper_loss(
-                logits.float(), vel.float(), batch["label"].to(device), batch["velocity"].to(device), batch["valid"].to(device),
-                cfg.loss_weights, cfg.class_weight_power,
+            loss, parts = window_loss(
+                net, batch["x"].to(device), batch["label"].to(device), batch["velocity"].to(device), batch["valid"].to(device),
+                cfg.precision, cfg.loss_weights, cfg.class_weight_power,
             )
             if not torch.isfinite(loss):
                 raise PedscanError(f"step {step}: the loss is {float(loss)} (window {batch['sequence'].tolist()}, "
@@ -893,10 +904,8 @@ def bench_step(args: argparse.Namespace) -> int:
                                     elevation_deg=tuple(float(e) for e in seqs[0].elevation_deg) if args.height else ()))
         opt = torch.optim.Adam(net.parameters(), lr=args.lr)
 
-        def step(net=net, opt=opt, bf16=precision == "bf16") -> None:
-            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-                logits, vel = net(x)
-            loss = paper_loss(logits.float(), vel.float(), label, velocity, valid, PAPER_LOSS_WEIGHTS, 1.0)[0]
+        def step(net=net, opt=opt, precision=precision) -> None:
+            loss = window_loss(net, x, label, velocity, valid, precision, PAPER_LOSS_WEIGHTS, 1.0)[0]
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
