@@ -378,6 +378,10 @@ pub struct SceneConfig {
     /// gardens (stalls, table sets, parasols); the others are buildings, alleys, plazas and
     /// green slopes in fixed proportions.
     pub markets: f64,
+    /// The street world: share of the lots behind the sidewalks that are side streets (a road
+    /// going off the street between two sidewalks, lined with buildings); with `markets` at
+    /// most 1.
+    pub side_streets: f64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -659,12 +663,16 @@ impl Default for SceneConfig {
             sensor_yaw_rate_rps: [-0.15, 0.15],
             sensor_clearance_m: 0.8,
             markets: DEFAULT_MARKETS,
+            side_streets: DEFAULT_SIDE_STREETS,
         }
     }
 }
 
 /// The default of `scene.markets`: one lot in ten.
 pub const DEFAULT_MARKETS: f64 = 0.1;
+
+/// The default of `scene.side_streets`.
+pub const DEFAULT_SIDE_STREETS: f64 = 0.0;
 
 /// The default of `render.host_cast_beams` (the raster backend's `HOST_BEAMS`, where the
 /// measurements that chose it are).
@@ -896,10 +904,13 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("humans.sitting", self.humans.sitting), ("scene.markets", self.scene.markets)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("humans.sitting", self.humans.sitting), ("scene.markets", self.scene.markets), ("scene.side_streets", self.scene.side_streets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }
+        }
+        if self.scene.markets + self.scene.side_streets > 1.0 {
+            return bad("scene.side_streets", format!("{} with scene.markets = {}: the two shares of the lots add up to more than 1", self.scene.side_streets, self.scene.markets));
         }
         range_ok("humans.yaw_rate_rps", self.humans.yaw_rate_rps, -10.0, 10.0)?;
         range_ok("humans.arm_swing", self.humans.arm_swing, 0.0, 2.0)?;

@@ -146,6 +146,15 @@ fn unknown_keys_and_impossible_values_are_rejected() {
     let mut c = Config::default();
     c.scene.sensor_speed_mps = [-1.0, 1.0];
     assert!(c.validate().unwrap_err().to_string().contains("sensor_speed_mps"));
+    // The street's shares of lots: each in 0..1, markets and side streets together too.
+    for (markets, side_streets, ok) in [(0.1, -0.1, false), (0.1, f64::NAN, false), (0.0, 1.5, false), (0.6, 0.5, false), (0.5, 0.5, true), (0.0, 1.0, true)] {
+        let mut c = Config::default();
+        (c.scene.markets, c.scene.side_streets) = (markets, side_streets);
+        match c.validate() {
+            Ok(()) => assert!(ok, "{markets} + {side_streets} taken"),
+            Err(e) => assert!(!ok && e.is_input() && e.to_string().contains("scene.side_streets"), "{markets} + {side_streets}: {e}"),
+        }
+    }
     let mut c = Config::default();
     c.humans.speed_mps = [f64::NAN, 1.0];
     assert!(c.validate().is_err());

@@ -21,7 +21,7 @@ impl Generator {
     }
 
     /// What a built-in world is built for: the sequence's length, the sensor's height and
-    /// speed, the people's clearance, the street's share of markets.
+    /// speed, the people's clearance, the street's shares of markets and side streets.
     pub(super) fn world_params(&self) -> WorldParams {
         let sc = &self.cfg.scene;
         WorldParams {
@@ -30,6 +30,7 @@ impl Generator {
             sensor_speed_mps: sc.sensor_speed_mps,
             clearance_m: self.cfg.humans.clearance_m,
             markets: sc.markets,
+            side_streets: sc.side_streets,
         }
     }
 

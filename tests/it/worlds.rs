@@ -134,3 +134,18 @@ fn indoor_runs_and_bad_behaviour_shares_are_named() {
     expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "humans.standing");
     assert!(!dir.join("x").exists(), "nothing written");
 }
+
+/// `scene.side_streets` reaches the street's builder: every lot a side street (the markets none)
+/// shows in the recorded layout; shares that add up to more than the lots are refused.
+#[test]
+fn side_streets_are_built_when_asked_and_impossible_shares_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("c.toml"), "[scene]\nbackground = \"street\"\nmarkets = 0.0\nside_streets = 1.0\n").unwrap();
+    ok(&pedscan(&["generate", "--config", "c.toml", "--sensor", "vlp16", "--backend", "raycast", "--sequences", "1", "--frames", "1", "--humans", "2", "--outputs", "range,label", "--out", "o"], dir));
+    let world = world_of(&dir.join("o/seq_000000.xml"));
+    assert!(world.contains("side street ") && !world.contains("plaza") && !world.contains("market"), "{world}");
+    std::fs::write(dir.join("bad.toml"), "[scene]\nbackground = \"street\"\nmarkets = 0.5\nside_streets = 0.6\n").unwrap();
+    expect_input_error(&["generate", "--config", "bad.toml", "--out", "x"], dir, "scene.side_streets");
+    assert!(!dir.join("x").exists(), "nothing written");
+}

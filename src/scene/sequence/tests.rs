@@ -910,7 +910,7 @@ fn people_asked_to_stand_behind_things_have_one_before_them() {
 fn people_asked_to_stand_at_places_stand_on_them() {
     use crate::scene::world::{World, WorldKind, WorldParams};
     let model = crate::human::tests_support::tiny_model();
-    let params = WorldParams { duration_s: 0.3, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 2.0], clearance_m: 0.35, markets: 1.0 };
+    let params = WorldParams { duration_s: 0.3, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 2.0], clearance_m: 0.35, markets: 1.0, side_streets: 0.0 };
     let w = World::build(WorldKind::Street, 2, 0, &params).unwrap();
     assert!(w.places.len() > 20, "{} places: {}", w.places.len(), w.summary());
     let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places, doors: &w.doors, seats: &w.seats };

@@ -41,6 +41,8 @@ pub struct WorldParams {
     pub clearance_m: f64,
     /// The street's share of lots that are markets (`scene.markets`).
     pub markets: f64,
+    /// The street's share of lots that are side streets (`scene.side_streets`).
+    pub side_streets: f64,
 }
 
 /// One sequence's world.

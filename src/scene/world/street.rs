@@ -6,7 +6,8 @@
 //! facades (A-frame signs, planters, bicycles, bins, crates, café tables). Behind the
 //! sidewalks, lot by lot: buildings (ground-floor walls with door recesses, piers, cornices,
 //! set back or not), alleys, plazas furnished like the sidewalks, markets and beer gardens
-//! (stalls, table sets, parasols), and green slopes behind fences.
+//! (stalls, table sets, parasols), green slopes behind fences, and side streets
+//! (`scene.side_streets`, none by default).
 //! The sensor drives in a lane, in either direction, along the whole street; cars and cyclists
 //! come the other way, and cars drive ahead of and behind it in its lane ([`super::movers`]).
 
@@ -97,11 +98,11 @@ pub fn build(rng: &mut impl Rng, p: &WorldParams, counts: &mut BTreeMap<&'static
 
     ground(&mut b, rng, &l);
     for side in 0..2 {
-        lots(&mut b, rng, &l, side, p.markets, counts);
-        curb_strip(&mut b, rng, &l, side, counts);
-        frontage(&mut b, rng, &l, side, counts);
+        let mouths = lots(&mut b, rng, &l, side, p.markets, p.side_streets, counts);
+        curb_strip(&mut b, rng, &l, side, &mouths, counts);
+        frontage(&mut b, rng, &l, side, &mouths, counts);
         if l.parking[side] {
-            parked_cars(&mut b, rng, &l, side, counts);
+            parked_cars(&mut b, rng, &l, side, &mouths, counts);
         }
     }
 
@@ -211,10 +212,13 @@ fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
 }
 
 /// The lots behind one sidewalk, one after another: buildings, alleys, plazas and green slopes
-/// in proportions 0.6 : 0.11 : 0.16 : 0.13, and markets, a share `markets` of them.
-fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f64, counts: &mut BTreeMap<&'static str, usize>) {
-    let rest = 1.0 - markets;
-    let weights = [0.6 * rest, 0.11 * rest, 0.16 * rest, 0.13 * rest, markets];
+/// in proportions 0.6 : 0.11 : 0.16 : 0.13, markets, a share `markets` of them, and side
+/// streets, a share `side_streets`; the side streets' mouths (x from, to) where they meet the
+/// sidewalk, kept clear of the curb's furniture, the frontage's things and parked cars.
+fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f64, side_streets: f64, counts: &mut BTreeMap<&'static str, usize>) -> Vec<(f64, f64)> {
+    let rest = 1.0 - markets - side_streets;
+    let weights = [0.6 * rest, 0.11 * rest, 0.16 * rest, 0.13 * rest, markets, side_streets];
+    let mut mouths = Vec::new();
     let s = sign(side);
     let y0 = l.back_y(side);
     let mut x = l.x0;
@@ -250,13 +254,133 @@ fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f
                 green(b, rng, x, x + w, y0, s, counts);
                 x += w;
             }
-            _ => {
+            4 => {
                 let w = uni(rng, 12.0, 30.0);
                 market(b, rng, x, x + w, y0, s, counts);
                 x += w;
             }
+            _ => {
+                let (w, mouth) = side_street(b, rng, x, y0, s, counts);
+                mouths.push(mouth);
+                x += w;
+            }
         }
     }
+    mouths
+}
+
+/// Whether `x` is within `pad` of one of `mouths`.
+fn in_mouth(mouths: &[(f64, f64)], x: f64, pad: f64) -> bool {
+    mouths.iter().any(|&(a, c)| x > a - pad && x < c + pad)
+}
+
+/// A side street from `xa` off the sidewalk whose back is `y0`, going away from the road
+/// (`s`) 20-45 m: a road 5.5-8 m wide between sidewalks 2-3.5 m wide, reached over the
+/// sidewalk (a continuous footway: people walk across its mouth, a ramp takes the road down
+/// to its own level behind it), lined on both sides with the walls of buildings (4-20 m tall,
+/// with gaps, some with a cornice), with lamp posts, trees, sign posts, bollards, bins and
+/// bicycles along its curbs, bicycles, bins, planters, crates, signs and bushes by the walls
+/// of its wider sidewalks, cars parked along it, and a building across its end. Its width and
+/// its road's mouth (x from, to).
+fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) -> (f64, (f64, f64)) {
+    let road_w = uni(rng, 5.5, 8.0);
+    let walk = [uni(rng, 2.0, 3.5), uni(rng, 2.0, 3.5)];
+    let depth = uni(rng, 20.0, 45.0);
+    let xb = xa + walk[0] + road_w + walk[1];
+    let (ra, rb) = (xa + walk[0], xb - walk[1]);
+    let (near, far) = (y0 + s * RAMP_M, y0 + s * depth);
+    count(counts, "side street");
+    let pave = material(rng, class::SIDEWALK);
+    for (a, c) in [(xa, ra), (rb, xb)] {
+        b.quad(pave, [DVec3::new(a, y0, 0.0), DVec3::new(c, y0, 0.0), DVec3::new(c, far, 0.0), DVec3::new(a, far, 0.0)]);
+    }
+    let road = material(rng, class::ROAD);
+    b.quad(road, [DVec3::new(ra, y0, 0.0), DVec3::new(rb, y0, 0.0), DVec3::new(rb, near, ROAD_Z), DVec3::new(ra, near, ROAD_Z)]);
+    b.quad(road, [DVec3::new(ra, near, ROAD_Z), DVec3::new(rb, near, ROAD_Z), DVec3::new(rb, far, ROAD_Z), DVec3::new(ra, far, ROAD_Z)]);
+    // The curbs, and beside the ramp the curb's face down to it.
+    for x in [ra, rb] {
+        b.quad(pave, [DVec3::new(x, near, ROAD_Z), DVec3::new(x, far, ROAD_Z), DVec3::new(x, far, 0.0), DVec3::new(x, near, 0.0)]);
+        b.triangles(pave, &[DVec3::new(x, y0, 0.0), DVec3::new(x, near, 0.0), DVec3::new(x, near, ROAD_Z)], &[[0, 1, 2]]);
+    }
+    // The walls along it: each a stretch of 6-20 m, 0.4 m thick behind the sidewalk's edge.
+    for (x, out) in [(xa, -1.0), (xb, 1.0)] {
+        let wall = material(rng, class::BUILDING);
+        let mut d = uni(rng, 0.0, 3.0);
+        while d < depth - 1.0 {
+            let len = uni(rng, 6.0, 20.0).min(depth - d);
+            let h = uni(rng, 4.0, 20.0);
+            slab(b, wall, x, x + out * 0.4, y0 + s * d, y0 + s * (d + len), 0.0, h);
+            if h > 5.0 && chance(rng, 0.5) {
+                let z = uni(rng, 3.0, 4.5).min(h - 0.5);
+                slab(b, wall, x, x - out * uni(rng, 0.15, 0.35), y0 + s * d, y0 + s * (d + len), z, z + uni(rng, 0.2, 0.5));
+            }
+            d += len + if chance(rng, 0.3) { uni(rng, 2.0, 6.0) } else { 0.0 };
+        }
+    }
+    // Things along the curbs, from 2 m in.
+    for (x, inward) in [(ra - 0.5, -1.0), (rb + 0.5, 1.0)] {
+        let mut d = uni(rng, 2.0, 6.0);
+        while d < depth - 1.5 {
+            let q = DVec2::new(x, y0 + s * d);
+            let (along, toward_road) = (s * FRAC_PI_2, if inward < 0.0 { 0.0 } else { PI });
+            let (what, r) = match pick(rng, &[0.25, 0.2, 0.15, 0.1, 0.15, 0.15]) {
+                0 => ("tree", things::tree(b, rng, q, 0.0)),
+                1 => ("lamp post", things::lamp_post(b, rng, q, 0.0, toward_road)),
+                2 => ("sign post", things::sign_post(b, rng, q, 0.0, toward_road + FRAC_PI_2)),
+                3 => ("bollard", things::bollard(b, rng, q, 0.0)),
+                4 => ("bin", things::bin(b, rng, q + DVec2::new(inward * 0.1, 0.0), 0.0, along)),
+                _ => ("bicycle", things::bicycle(b, rng, q + DVec2::new(inward * 0.15, 0.0), 0.0, along)),
+            };
+            count(counts, what);
+            d += r + uni(rng, 3.0, 10.0);
+        }
+    }
+    // Things by the walls where the sidewalk is wide enough to pass them and the curb's.
+    for (k, x, inward) in [(0, xa + 0.45, 1.0), (1, xb - 0.45, -1.0)] {
+        if walk[k] < 2.6 {
+            continue;
+        }
+        let mut d = uni(rng, 1.0, 4.0);
+        while d < depth - 1.5 {
+            if chance(rng, 0.6) {
+                let q = DVec2::new(x, y0 + s * d);
+                let facing = if inward > 0.0 { 0.0 } else { PI };
+                let (what, r) = match pick(rng, &[0.2, 0.2, 0.2, 0.15, 0.15, 0.1]) {
+                    0 => ("bicycle", things::bicycle(b, rng, q, 0.0, s * FRAC_PI_2)),
+                    1 => ("bin", things::bin(b, rng, q, 0.0, s * FRAC_PI_2)),
+                    2 => ("planter", things::planter(b, rng, q + DVec2::new(inward * 0.1, 0.0), 0.0, 0.0)),
+                    3 => ("crates", things::crates(b, rng, q, 0.0, 0.0)),
+                    4 => ("a-frame sign", things::a_frame(b, rng, q, 0.0, facing)),
+                    _ => ("bush", things::bush(b, rng, q + DVec2::new(inward * 0.1, 0.0), 0.0)),
+                };
+                count(counts, what);
+                d += r;
+            }
+            d += uni(rng, 1.5, 5.0);
+        }
+    }
+    // Cars parked along one side or both, their length along the side street.
+    if road_w >= 6.5 {
+        for x in [ra + 1.1, rb - 1.1] {
+            if !chance(rng, 0.6) {
+                continue;
+            }
+            let mut d = RAMP_M + uni(rng, 4.0, 8.0);
+            while d + 5.5 < depth {
+                if chance(rng, 0.3) {
+                    d += uni(rng, 3.0, 10.0);
+                    continue;
+                }
+                let yaw = if chance(rng, 0.5) { FRAC_PI_2 } else { -FRAC_PI_2 };
+                let (len, _) = things::car(b, rng, DVec2::new(x, y0 + s * (d + 2.6)), ROAD_Z, yaw);
+                count(counts, "parked car");
+                d += len.max(5.2) + uni(rng, 0.6, 3.0);
+            }
+        }
+    }
+    building(b, rng, xa, xb, far, s);
+    count(counts, "building");
+    (xb - xa, (ra, rb))
 }
 
 /// An axis-aligned box given by x and y ranges in either order.
@@ -499,12 +623,16 @@ fn green(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64,
 }
 
 /// The furniture strip by the curb.
-fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[(f64, f64)], counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let toward_road = -s * FRAC_PI_2;
     let along = 0.0;
     let mut x = l.x0 + uni(rng, 0.0, 3.0);
     while x < l.x1 {
+        if in_mouth(mouths, x, 1.0) {
+            x += 1.0;
+            continue;
+        }
         let y = l.curb_y(side) + s * uni(rng, 0.35, 0.75);
         let q = DVec2::new(x, y);
         let at_crossing = l.near_crossing(x, 1.0);
@@ -558,10 +686,14 @@ fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, coun
 }
 
 /// The frontage strip by the facades.
-fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[(f64, f64)], counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let mut x = l.x0 + uni(rng, 0.0, 5.0);
     while x < l.x1 {
+        if in_mouth(mouths, x, 1.0) {
+            x += 1.0;
+            continue;
+        }
         if chance(rng, 0.7) {
             let y = l.back_y(side) - s * uni(rng, 0.35, 0.6);
             let q = DVec2::new(x, y);
@@ -586,7 +718,7 @@ fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts
 }
 
 /// Cars parked along one curb, with gaps, clear of the crossings; one in eight a box truck.
-fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, counts: &mut BTreeMap<&'static str, usize>) {
+fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[(f64, f64)], counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let y = l.curb_y(side) - s * PARKING_M * 0.48;
     let mut x = l.x0 + uni(rng, 0.0, 6.0);
@@ -597,7 +729,7 @@ fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, cou
         }
         let truck = chance(rng, 0.125);
         let len_guess = if truck { 8.5 } else { 5.2 };
-        if l.near_crossing(x + len_guess * 0.5, len_guess * 0.5 + 1.5) {
+        if l.near_crossing(x + len_guess * 0.5, len_guess * 0.5 + 1.5) || in_mouth(mouths, x + len_guess * 0.5, len_guess * 0.5 + 1.0) {
             x += 2.0;
             continue;
         }

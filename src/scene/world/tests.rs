@@ -4,7 +4,7 @@ use std::sync::Arc;
 use super::*;
 
 fn params() -> WorldParams {
-    WorldParams { duration_s: 3.0, sensor_height_m: 1.73, sensor_speed_mps: [2.0, 8.0], clearance_m: 0.35, markets: crate::config::DEFAULT_MARKETS }
+    WorldParams { duration_s: 3.0, sensor_height_m: 1.73, sensor_speed_mps: [2.0, 8.0], clearance_m: 0.35, markets: crate::config::DEFAULT_MARKETS, side_streets: crate::config::DEFAULT_SIDE_STREETS }
 }
 
 /// Obstacle triangles (between 5 cm and 2 m, as the walkable area counts them) as xy triangles.
@@ -149,8 +149,9 @@ fn markets_have_stalls_and_room_to_stand_among_them_under_their_roofs() {
 
 #[test]
 fn people_have_room_and_the_walkable_area_is_clear_of_every_obstacle() {
-    for kind in [WorldKind::Street, WorldKind::Indoor] {
-        let w = World::build(kind, 11, 2, &params()).unwrap();
+    let side_streets = WorldParams { side_streets: 0.4, ..params() };
+    for (kind, p) in [(WorldKind::Street, params()), (WorldKind::Indoor, params()), (WorldKind::Street, side_streets)] {
+        let w = World::build(kind, 11, 2, &p).unwrap();
         let obs = obstacles(&w.env);
         assert!(w.grid.free_fraction(0.35) > 0.02, "{kind:?}: {}", w.grid.free_fraction(0.35));
         // Every cell with clearance c is at least c - one cell from every obstacle triangle.
@@ -212,6 +213,47 @@ fn both_sidewalks_are_one_walkable_area() {
             }
         }
         assert!(left > 1000 && right > 1000, "sequence {index}: {left} free cells left, {right} right");
+    }
+}
+
+/// `scene.side_streets` opens side streets off the street: sidewalks reaching farther from the
+/// road than any other lot's floor (none past 38 m from the street's middle without them),
+/// part of the one walkable area (it keeps its largest connected region only), floored at the
+/// sidewalks' level; a share of 1 makes every lot a side street.
+#[test]
+fn side_streets_lead_off_the_street_with_sidewalks_to_walk() {
+    let far = |w: &World| {
+        let g = &w.grid;
+        let mut cells = Vec::new();
+        for j in (0..g.ny).step_by(3) {
+            for i in (0..g.nx).step_by(3) {
+                let p = g.origin + DVec2::new((i as f64 + 0.5) * g.cell_m, (j as f64 + 0.5) * g.cell_m);
+                if p.y.abs() > 38.0 && g.clearance_m[j * g.nx + i] >= 0.35 {
+                    cells.push(p);
+                }
+            }
+        }
+        cells
+    };
+    let (mut streets, mut deep) = (0, 0);
+    for index in 0..4 {
+        let plain = World::build(WorldKind::Street, 13, index, &params()).unwrap();
+        assert!(!plain.counts.contains_key("side street"), "{}", plain.summary());
+        assert!(far(&plain).is_empty(), "sequence {index}: floor {:?} far from the road", far(&plain).first());
+        let w = World::build(WorldKind::Street, 13, index, &WorldParams { side_streets: 0.4, ..params() }).unwrap();
+        streets += w.counts.get("side street").copied().unwrap_or(0);
+        let cells = far(&w);
+        for p in cells.iter().step_by(97) {
+            let chest = p.extend(1.3);
+            assert_eq!(first_hit(&w.env, chest, DVec3::NEG_Z, 2.0).map(|h| (h * 1e6).round() / 1e6), Some(1.3), "sequence {index}: {p}: not on the sidewalk's level");
+        }
+        deep += cells.len();
+    }
+    assert!(streets >= 4 && deep > 1000, "{streets} side streets, {deep} walkable cells past 38 m");
+    let w = World::build(WorldKind::Street, 13, 0, &WorldParams { markets: 0.0, side_streets: 1.0, ..params() }).unwrap();
+    assert!(w.counts["side street"] >= 10, "{}", w.summary());
+    for other in ["alley", "plaza", "green slope", "market"] {
+        assert!(!w.counts.contains_key(other), "{other}: {}", w.summary());
     }
 }
 
@@ -438,11 +480,12 @@ fn doorways_are_floored_and_people_come_out_of_them_facing_the_street() {
 /// chairs' room ends short of their table's foot and still leaves 0.4 m.
 #[test]
 fn seats_leave_the_floor_free_for_the_feet() {
-    let p = WorldParams { markets: 1.0, ..params() };
+    let markets = WorldParams { markets: 1.0, ..params() };
+    let side_streets = WorldParams { markets: 0.6, side_streets: 0.4, ..params() };
     let (mut seats, mut cafe) = (0, 0);
-    for kind in [WorldKind::Street, WorldKind::Indoor] {
+    for (kind, p) in [(WorldKind::Street, &markets), (WorldKind::Indoor, &markets), (WorldKind::Street, &side_streets)] {
         for index in 0..3 {
-            let w = World::build(kind, 5, index, &p).unwrap();
+            let w = World::build(kind, 5, index, p).unwrap();
             // Those within 80 m of the middle: the sensor drives the middle and people sit
             // within a spawn radius of it (the lots' last furniture can overhang the street's ends).
             for s in w.seats.iter().filter(|s| s.at.x.abs() < 80.0) {

@@ -16,7 +16,7 @@ fn bundled(name: &str) -> HumanModel {
 #[test]
 fn people_drawn_to_sit_sit_on_the_worlds_seats() {
     let models = [bundled("h1700_w60.glb"), bundled("h1200_w20.glb")];
-    let params = WorldParams { duration_s: 0.3, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 2.0], clearance_m: 0.35, markets: 1.0 };
+    let params = WorldParams { duration_s: 0.3, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 2.0], clearance_m: 0.35, markets: 1.0, side_streets: 0.0 };
     for kind in [WorldKind::Street, WorldKind::Indoor] {
         let mut cfg = Config::default();
         cfg.frames = 4;
