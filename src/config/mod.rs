@@ -380,7 +380,9 @@ pub struct SceneConfig {
     pub markets: f64,
     /// The street world: share of the lots behind the sidewalks that are side streets (a road
     /// going off the street between two sidewalks, lined with buildings); with `markets` at
-    /// most 1.
+    /// most 1. Recorded only when not the default, so the configuration hash of every run
+    /// without side streets (and of every run written before the key existed) stays the same.
+    #[serde(skip_serializing_if = "SceneConfig::side_streets_is_default")]
     pub side_streets: f64,
 }
 
@@ -681,6 +683,10 @@ pub const DEFAULT_HOST_CAST_BEAMS: u64 = 8192;
 impl SceneConfig {
     fn ignore_classes_is_default(c: &[u32]) -> bool {
         c == crate::input::labels::PEOPLE_CLASSES
+    }
+
+    fn side_streets_is_default(share: &f64) -> bool {
+        *share == DEFAULT_SIDE_STREETS
     }
 
     /// What the recorded background is read with besides its path: the poses file, an Ouster

@@ -146,7 +146,13 @@ fn unknown_keys_and_impossible_values_are_rejected() {
     let mut c = Config::default();
     c.scene.sensor_speed_mps = [-1.0, 1.0];
     assert!(c.validate().unwrap_err().to_string().contains("sensor_speed_mps"));
-    // The street's shares of lots: each in 0..1, markets and side streets together too.
+    // The street's shares of lots: each in 0..1, markets and side streets together too; side
+    // streets recorded only when asked for (every earlier run's hash stays the same).
+    assert!(!Config::default().to_recorded_toml().contains("side_streets"));
+    let c: Config = toml::from_str("[scene]\nside_streets = 0.2\n").unwrap();
+    let recorded = c.to_recorded_toml();
+    assert!(recorded.contains("side_streets = 0.2"), "{recorded}");
+    assert_eq!(toml::from_str::<Config>(&recorded).unwrap().scene.side_streets, 0.2);
     for (markets, side_streets, ok) in [(0.1, -0.1, false), (0.1, f64::NAN, false), (0.0, 1.5, false), (0.6, 0.5, false), (0.5, 0.5, true), (0.0, 1.0, true)] {
         let mut c = Config::default();
         (c.scene.markets, c.scene.side_streets) = (markets, side_streets);

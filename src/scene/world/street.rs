@@ -213,10 +213,11 @@ fn ground(b: &mut Builder, rng: &mut impl Rng, l: &Layout) {
 
 /// The lots behind one sidewalk, one after another: buildings, alleys, plazas and green slopes
 /// in proportions 0.6 : 0.11 : 0.16 : 0.13, markets, a share `markets` of them, and side
-/// streets, a share `side_streets`; the side streets' mouths (x from, to) where they meet the
-/// sidewalk, kept clear of the curb's furniture, the frontage's things and parked cars.
-fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f64, side_streets: f64, counts: &mut BTreeMap<&'static str, usize>) -> Vec<(f64, f64)> {
-    let rest = 1.0 - markets - side_streets;
+/// streets, a share `side_streets`; the side streets' mouths where they meet the sidewalk,
+/// kept clear of the curb's furniture and parked cars (their roads) and of the frontage's
+/// things (their lots).
+fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f64, side_streets: f64, counts: &mut BTreeMap<&'static str, usize>) -> Vec<Mouth> {
+    let rest = (1.0 - markets - side_streets).max(0.0);
     let weights = [0.6 * rest, 0.11 * rest, 0.16 * rest, 0.13 * rest, markets, side_streets];
     let mut mouths = Vec::new();
     let s = sign(side);
@@ -260,34 +261,48 @@ fn lots(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, markets: f
                 x += w;
             }
             _ => {
-                let (w, mouth) = side_street(b, rng, x, y0, s, counts);
+                let mouth = side_street(b, rng, x, y0, s, counts);
+                x = mouth.lot.1;
                 mouths.push(mouth);
-                x += w;
             }
         }
     }
     mouths
 }
 
-/// Whether `x` is within `pad` of one of `mouths`.
-fn in_mouth(mouths: &[(f64, f64)], x: f64, pad: f64) -> bool {
-    mouths.iter().any(|&(a, c)| x > a - pad && x < c + pad)
+/// Where a side street meets the street's sidewalk: its lot's span along x, and its road's.
+struct Mouth {
+    lot: (f64, f64),
+    road: (f64, f64),
 }
+
+/// Whether `[a, c]` comes within `pad` of one of `mouths`' roads (`lot`: their whole lots).
+fn in_mouth(mouths: &[Mouth], a: f64, c: f64, pad: f64, lot: bool) -> bool {
+    mouths.iter().any(|m| {
+        let (lo, hi) = if lot { m.lot } else { m.road };
+        c > lo - pad && a < hi + pad
+    })
+}
+
+/// Thickness of a side street's walls, m: they stand on its own lot.
+const SIDE_WALL_M: f64 = 0.4;
 
 /// A side street from `xa` off the sidewalk whose back is `y0`, going away from the road
 /// (`s`) 20-45 m: a road 5.5-8 m wide between sidewalks 2-3.5 m wide, reached over the
 /// sidewalk (a continuous footway: people walk across its mouth, a ramp takes the road down
-/// to its own level behind it), lined on both sides with the walls of buildings (4-20 m tall,
-/// with gaps, some with a cornice), with lamp posts, trees, sign posts, bollards, bins and
-/// bicycles along its curbs, bicycles, bins, planters, crates, signs and bushes by the walls
-/// of its wider sidewalks, cars parked along it, and a building across its end. Its width and
-/// its road's mouth (x from, to).
-fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) -> (f64, (f64, f64)) {
+/// to its own level behind it), between the walls of buildings 4-20 m tall on its own lot
+/// (with gaps, some with a cornice). Along its curbs lamp posts, sign posts, bollards, bins
+/// and bicycles; a sidewalk of 3.1 m or more also has trees by its curb or, one in two,
+/// bicycles, bins, planters, crates and signs by its wall (not both, so people pass between);
+/// cars parked along one side or both where the road is 6.5 m wide or more; a building with
+/// doorways across its end.
+fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, counts: &mut BTreeMap<&'static str, usize>) -> Mouth {
     let road_w = uni(rng, 5.5, 8.0);
     let walk = [uni(rng, 2.0, 3.5), uni(rng, 2.0, 3.5)];
     let depth = uni(rng, 20.0, 45.0);
-    let xb = xa + walk[0] + road_w + walk[1];
-    let (ra, rb) = (xa + walk[0], xb - walk[1]);
+    let xb = xa + SIDE_WALL_M + walk[0] + road_w + walk[1] + SIDE_WALL_M;
+    let (wa, wb) = (xa + SIDE_WALL_M, xb - SIDE_WALL_M);
+    let (ra, rb) = (wa + walk[0], wb - walk[1]);
     let (near, far) = (y0 + s * RAMP_M, y0 + s * depth);
     count(counts, "side street");
     let pave = material(rng, class::SIDEWALK);
@@ -297,19 +312,20 @@ fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, co
     let road = material(rng, class::ROAD);
     b.quad(road, [DVec3::new(ra, y0, 0.0), DVec3::new(rb, y0, 0.0), DVec3::new(rb, near, ROAD_Z), DVec3::new(ra, near, ROAD_Z)]);
     b.quad(road, [DVec3::new(ra, near, ROAD_Z), DVec3::new(rb, near, ROAD_Z), DVec3::new(rb, far, ROAD_Z), DVec3::new(ra, far, ROAD_Z)]);
-    // The curbs, and beside the ramp the curb's face down to it.
+    // The curbs, beside the ramp the curb's face down to it, and the road's end.
     for x in [ra, rb] {
         b.quad(pave, [DVec3::new(x, near, ROAD_Z), DVec3::new(x, far, ROAD_Z), DVec3::new(x, far, 0.0), DVec3::new(x, near, 0.0)]);
         b.triangles(pave, &[DVec3::new(x, y0, 0.0), DVec3::new(x, near, 0.0), DVec3::new(x, near, ROAD_Z)], &[[0, 1, 2]]);
     }
-    // The walls along it: each a stretch of 6-20 m, 0.4 m thick behind the sidewalk's edge.
-    for (x, out) in [(xa, -1.0), (xb, 1.0)] {
+    b.quad(pave, [DVec3::new(ra, far, ROAD_Z), DVec3::new(rb, far, ROAD_Z), DVec3::new(rb, far, 0.0), DVec3::new(ra, far, 0.0)]);
+    // The walls: stretches of 6-20 m from the lot's edges to the sidewalks'.
+    for (x, out) in [(wa, -1.0), (wb, 1.0)] {
         let wall = material(rng, class::BUILDING);
         let mut d = uni(rng, 0.0, 3.0);
         while d < depth - 1.0 {
             let len = uni(rng, 6.0, 20.0).min(depth - d);
             let h = uni(rng, 4.0, 20.0);
-            slab(b, wall, x, x + out * 0.4, y0 + s * d, y0 + s * (d + len), 0.0, h);
+            slab(b, wall, x, x + out * SIDE_WALL_M, y0 + s * d, y0 + s * (d + len), 0.0, h);
             if h > 5.0 && chance(rng, 0.5) {
                 let z = uni(rng, 3.0, 4.5).min(h - 0.5);
                 slab(b, wall, x, x - out * uni(rng, 0.15, 0.35), y0 + s * d, y0 + s * (d + len), z, z + uni(rng, 0.2, 0.5));
@@ -317,13 +333,17 @@ fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, co
             d += len + if chance(rng, 0.3) { uni(rng, 2.0, 6.0) } else { 0.0 };
         }
     }
-    // Things along the curbs, from 2 m in.
-    for (x, inward) in [(ra - 0.5, -1.0), (rb + 0.5, 1.0)] {
+    let along = s * FRAC_PI_2;
+    for (k, curb_x, wall_x, inward) in [(0, ra - 0.5, wa + 0.45, -1.0), (1, rb + 0.5, wb - 0.45, 1.0)] {
+        let wide = walk[k] >= 3.1;
+        let by_wall = wide && chance(rng, 0.5);
+        // Things along the curb, from 2 m in; trees only where nothing stands by the wall.
+        let trees = if wide && !by_wall { 0.25 } else { 0.0 };
+        let toward_road = if inward < 0.0 { 0.0 } else { PI };
         let mut d = uni(rng, 2.0, 6.0);
         while d < depth - 1.5 {
-            let q = DVec2::new(x, y0 + s * d);
-            let (along, toward_road) = (s * FRAC_PI_2, if inward < 0.0 { 0.0 } else { PI });
-            let (what, r) = match pick(rng, &[0.25, 0.2, 0.15, 0.1, 0.15, 0.15]) {
+            let q = DVec2::new(curb_x, y0 + s * d);
+            let (what, r) = match pick(rng, &[trees, 0.2, 0.15, 0.1, 0.15, 0.15]) {
                 0 => ("tree", things::tree(b, rng, q, 0.0)),
                 1 => ("lamp post", things::lamp_post(b, rng, q, 0.0, toward_road)),
                 2 => ("sign post", things::sign_post(b, rng, q, 0.0, toward_road + FRAC_PI_2)),
@@ -334,24 +354,19 @@ fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, co
             count(counts, what);
             d += r + uni(rng, 3.0, 10.0);
         }
-    }
-    // Things by the walls where the sidewalk is wide enough to pass them and the curb's.
-    for (k, x, inward) in [(0, xa + 0.45, 1.0), (1, xb - 0.45, -1.0)] {
-        if walk[k] < 2.6 {
+        if !by_wall {
             continue;
         }
         let mut d = uni(rng, 1.0, 4.0);
         while d < depth - 1.5 {
             if chance(rng, 0.6) {
-                let q = DVec2::new(x, y0 + s * d);
-                let facing = if inward > 0.0 { 0.0 } else { PI };
-                let (what, r) = match pick(rng, &[0.2, 0.2, 0.2, 0.15, 0.15, 0.1]) {
-                    0 => ("bicycle", things::bicycle(b, rng, q, 0.0, s * FRAC_PI_2)),
-                    1 => ("bin", things::bin(b, rng, q, 0.0, s * FRAC_PI_2)),
-                    2 => ("planter", things::planter(b, rng, q + DVec2::new(inward * 0.1, 0.0), 0.0, 0.0)),
+                let q = DVec2::new(wall_x, y0 + s * d);
+                let (what, r) = match pick(rng, &[0.25, 0.25, 0.2, 0.15, 0.15]) {
+                    0 => ("bicycle", things::bicycle(b, rng, q, 0.0, along)),
+                    1 => ("bin", things::bin(b, rng, q, 0.0, along)),
+                    2 => ("planter", things::planter(b, rng, q - DVec2::new(inward * 0.1, 0.0), 0.0, 0.0)),
                     3 => ("crates", things::crates(b, rng, q, 0.0, 0.0)),
-                    4 => ("a-frame sign", things::a_frame(b, rng, q, 0.0, facing)),
-                    _ => ("bush", things::bush(b, rng, q + DVec2::new(inward * 0.1, 0.0), 0.0)),
+                    _ => ("a-frame sign", things::a_frame(b, rng, q, 0.0, toward_road)),
                 };
                 count(counts, what);
                 d += r;
@@ -359,28 +374,29 @@ fn side_street(b: &mut Builder, rng: &mut impl Rng, xa: f64, y0: f64, s: f64, co
             d += uni(rng, 1.5, 5.0);
         }
     }
-    // Cars parked along one side or both, their length along the side street.
+    // Cars parked along one side or both, their length (up to 6 m) along the side street and
+    // clear of its end.
     if road_w >= 6.5 {
         for x in [ra + 1.1, rb - 1.1] {
             if !chance(rng, 0.6) {
                 continue;
             }
             let mut d = RAMP_M + uni(rng, 4.0, 8.0);
-            while d + 5.5 < depth {
+            while d + 6.3 < depth {
                 if chance(rng, 0.3) {
                     d += uni(rng, 3.0, 10.0);
                     continue;
                 }
                 let yaw = if chance(rng, 0.5) { FRAC_PI_2 } else { -FRAC_PI_2 };
-                let (len, _) = things::car(b, rng, DVec2::new(x, y0 + s * (d + 2.6)), ROAD_Z, yaw);
+                things::car(b, rng, DVec2::new(x, y0 + s * (d + 3.0)), ROAD_Z, yaw);
                 count(counts, "parked car");
-                d += len.max(5.2) + uni(rng, 0.6, 3.0);
+                d += 6.0 + uni(rng, 0.6, 3.0);
             }
         }
     }
     building(b, rng, xa, xb, far, s);
     count(counts, "building");
-    (xb - xa, (ra, rb))
+    Mouth { lot: (xa, xb), road: (ra, rb) }
 }
 
 /// An axis-aligned box given by x and y ranges in either order.
@@ -623,13 +639,14 @@ fn green(b: &mut Builder, rng: &mut impl Rng, xa: f64, xb: f64, y0: f64, s: f64,
 }
 
 /// The furniture strip by the curb.
-fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[(f64, f64)], counts: &mut BTreeMap<&'static str, usize>) {
+fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[Mouth], counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let toward_road = -s * FRAC_PI_2;
     let along = 0.0;
     let mut x = l.x0 + uni(rng, 0.0, 3.0);
     while x < l.x1 {
-        if in_mouth(mouths, x, 1.0) {
+        // Clear of a side street's road, with the room the widest thing takes along the curb.
+        if in_mouth(mouths, x, x + 3.0, 1.0, false) {
             x += 1.0;
             continue;
         }
@@ -650,7 +667,11 @@ fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mout
                 let n = 2 + (rng.random::<f64>() * 4.0) as usize;
                 let gap = uni(rng, 1.2, 1.8);
                 for i in 0..n {
-                    things::bollard(b, rng, q + DVec2::X * (i as f64 * gap), 0.0);
+                    let at = q + DVec2::X * (i as f64 * gap);
+                    if in_mouth(mouths, at.x, at.x, 1.0, false) {
+                        continue;
+                    }
+                    things::bollard(b, rng, at, 0.0);
                     count(counts, "bollard");
                 }
                 x += (n - 1) as f64 * gap;
@@ -686,11 +707,11 @@ fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mout
 }
 
 /// The frontage strip by the facades.
-fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[(f64, f64)], counts: &mut BTreeMap<&'static str, usize>) {
+fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[Mouth], counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let mut x = l.x0 + uni(rng, 0.0, 5.0);
     while x < l.x1 {
-        if in_mouth(mouths, x, 1.0) {
+        if in_mouth(mouths, x - 1.0, x + 2.0, 0.0, true) {
             x += 1.0;
             continue;
         }
@@ -718,7 +739,7 @@ fn frontage(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths
 }
 
 /// Cars parked along one curb, with gaps, clear of the crossings; one in eight a box truck.
-fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[(f64, f64)], counts: &mut BTreeMap<&'static str, usize>) {
+fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mouths: &[Mouth], counts: &mut BTreeMap<&'static str, usize>) {
     let s = sign(side);
     let y = l.curb_y(side) - s * PARKING_M * 0.48;
     let mut x = l.x0 + uni(rng, 0.0, 6.0);
@@ -729,7 +750,7 @@ fn parked_cars(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mou
         }
         let truck = chance(rng, 0.125);
         let len_guess = if truck { 8.5 } else { 5.2 };
-        if l.near_crossing(x + len_guess * 0.5, len_guess * 0.5 + 1.5) || in_mouth(mouths, x + len_guess * 0.5, len_guess * 0.5 + 1.0) {
+        if l.near_crossing(x + len_guess * 0.5, len_guess * 0.5 + 1.5) || in_mouth(mouths, x, x + len_guess, 1.0, false) {
             x += 2.0;
             continue;
         }

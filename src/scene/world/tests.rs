@@ -457,8 +457,8 @@ fn market_places_have_room_for_a_person() {
 /// ahead at chest height.
 #[test]
 fn doorways_are_floored_and_people_come_out_of_them_facing_the_street() {
-    let p = params();
-    for index in 0..3 {
+    let side_streets = WorldParams { side_streets: 0.5, ..params() };
+    for (index, p) in [(0, params()), (1, params()), (2, params()), (0, side_streets)] {
         let w = World::build(WorldKind::Street, 11, index, &p).unwrap();
         assert!(w.doors.len() >= 5, "sequence {index}: {} doorways", w.doors.len());
         for d in &w.doors {
@@ -481,7 +481,7 @@ fn doorways_are_floored_and_people_come_out_of_them_facing_the_street() {
 #[test]
 fn seats_leave_the_floor_free_for_the_feet() {
     let markets = WorldParams { markets: 1.0, ..params() };
-    let side_streets = WorldParams { markets: 0.6, side_streets: 0.4, ..params() };
+    let side_streets = WorldParams { markets: 0.1, side_streets: 0.5, ..params() };
     let (mut seats, mut cafe) = (0, 0);
     for (kind, p) in [(WorldKind::Street, &markets), (WorldKind::Indoor, &markets), (WorldKind::Street, &side_streets)] {
         for index in 0..3 {
