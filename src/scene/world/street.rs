@@ -645,8 +645,9 @@ fn curb_strip(b: &mut Builder, rng: &mut impl Rng, l: &Layout, side: usize, mout
     let along = 0.0;
     let mut x = l.x0 + uni(rng, 0.0, 3.0);
     while x < l.x1 {
-        // Clear of a side street's road, with the room the widest thing takes along the curb.
-        if in_mouth(mouths, x, x + 3.0, 1.0, false) {
+        // Clear of a side street's road by 1 m, with the room the longest thing (a bus shelter,
+        // up to 5 m, centred where it is drawn) takes along the curb.
+        if in_mouth(mouths, x - 2.5, x + 2.5, 1.0, false) {
             x += 1.0;
             continue;
         }
