@@ -29,6 +29,9 @@
 //!    radius under [`MIN_FILLET_RADIUS_M`].
 //!
 //! [`Planner::plan_to`] runs steps 2 to 4 between a given start and goal, without randomness.
+//! [`Planner::plan_leg`] (a long sequence's next walk) draws its goal within a given distance
+//! of a given start and gives its searches up past [`LEG_DETOUR`] times that distance, so its
+//! cost is the neighbourhood's, not the grid's.
 //! A [`Planner`] keeps the search buffers between calls; [`plan_walk`] is the one-off form.
 //!
 //! # Guarantees
@@ -76,6 +79,11 @@ const START_TRIES: usize = 8;
 const SEARCHES_PER_START: usize = 8;
 /// Goal draws per start (rejection of points too close to the start).
 const GOAL_DRAWS_PER_START: usize = 256;
+/// Goal draws of a leg ([`Planner::plan_leg`]): points of the square around the start,
+/// rejected outside the ring or off the walkable area.
+const LEG_GOAL_DRAWS: usize = 1024;
+/// A leg's search gives up past a path this many times as long as the farthest goal.
+pub const LEG_DETOUR: f64 = 3.0;
 
 /// One piece of a [`WalkPath`]: a straight line (curvature 0) or a circular arc, walked from
 /// `start_m` with heading `heading0_rad` for `length_m` metres of arc length.
@@ -304,10 +312,7 @@ impl Planner {
         start: Option<DVec2>,
     ) -> Option<WalkPath> {
         let c = clearance_m;
-        if !(valid_inputs(grid, c, speed_mps) && duration_s.is_finite() && duration_s >= 0.0) {
-            return None;
-        }
-        let need = (speed_mps * duration_s).max(grid.cell_m);
+        let need = least_walk_m(grid, c, speed_mps, duration_s)?;
         self.prepare(grid, c);
         if self.free.is_empty() {
             return None;
@@ -348,6 +353,79 @@ impl Planner {
                     if path.length_m() >= speed_mps * duration_s {
                         return Some(path);
                     }
+                }
+            }
+        }
+        None
+    }
+
+    /// A walk from `start` for a long sequence's next leg: as [`Planner::plan_walk`] with a
+    /// given start, its goal drawn uniformly over the walkable points at straight-line
+    /// distance `speed * duration` (one cell at least) to `within_m` from the start, and its
+    /// search given up past a path costing [`LEG_DETOUR`] times `within_m`. The walk's cost
+    /// so stays bounded by the neighbourhood it walks in, not the whole grid's size (a long
+    /// street of tens of millions of cells); the draw keeps to the start's connected region
+    /// once a search has found a goal outside it. None as for [`Planner::plan_walk`], and when
+    /// `within_m` is not finite or is shorter than that distance.
+    #[allow(clippy::too_many_arguments)]
+    pub fn plan_leg(
+        &mut self,
+        rng: &mut impl rand::Rng,
+        grid: &WalkableGrid,
+        clearance_m: f64,
+        speed_mps: f64,
+        duration_s: f64,
+        start: DVec2,
+        within_m: f64,
+    ) -> Option<WalkPath> {
+        let c = clearance_m;
+        let need = least_walk_m(grid, c, speed_mps, duration_s)?;
+        if !(within_m.is_finite() && within_m >= need) {
+            return None;
+        }
+        let start_cell = cell_of(grid, start).filter(|&k| walkable(grid.clearance_m[k], c))?;
+        self.prepare(grid, c);
+        if self.generation > u32::MAX - SEARCHES_PER_START as u32 {
+            // The generations wrap within this leg's searches: start them again now, so the
+            // region's generation below stays valid.
+            self.seen.fill(0);
+            self.closed.fill(0);
+            self.generation = 0;
+        }
+        let w = grid.nx + 2;
+        // Step costs are at least 1000 a cell: a path within this cost is within
+        // LEG_DETOUR * within_m of length.
+        let limit = (LEG_DETOUR * within_m / grid.cell_m * 1000.0) as u64;
+        // Set once a search has exhausted the start's region: the generation it ran as (every
+        // later search from this start closes only cells of the same region).
+        let mut region = None;
+        let mut searches = 0;
+        for _ in 0..LEG_GOAL_DRAWS {
+            if searches >= SEARCHES_PER_START {
+                break;
+            }
+            let u = DVec2::new(rng.random::<f64>(), rng.random::<f64>()) * 2.0 - DVec2::ONE;
+            let goal = start + u * within_m;
+            let d = goal.distance(start);
+            if !(need..=within_m).contains(&d) {
+                continue;
+            }
+            let Some(k) = cell_of(grid, goal).filter(|&k| walkable(grid.clearance_m[k], c)) else { continue };
+            if region.is_some_and(|g| self.closed[search_index(w, grid.nx, k)] < g) {
+                continue;
+            }
+            searches += 1;
+            match self.astar_within(grid, start_cell, k, limit) {
+                Search::Found => {}
+                Search::Unreachable => {
+                    region.get_or_insert(self.generation);
+                    continue;
+                }
+                Search::TooLong => continue,
+            }
+            if let Some(path) = self.path_from_cells(grid, c, speed_mps, start, goal) {
+                if path.length_m() >= speed_mps * duration_s {
+                    return Some(path);
                 }
             }
         }
@@ -428,6 +506,12 @@ impl Planner {
     /// cell path (grid indices) is in `self.cells`. On failure, the closed set is the start's
     /// whole connected region.
     fn astar(&mut self, grid: &WalkableGrid, s: usize, goal: usize) -> bool {
+        self.astar_within(grid, s, goal, u64::MAX) == Search::Found
+    }
+
+    /// [`Planner::astar`], given up (`TooLong`) once the cheapest open cell's f exceeds
+    /// `limit`; `Unreachable` only when the start's whole region was searched.
+    fn astar_within(&mut self, grid: &WalkableGrid, s: usize, goal: usize, limit: u64) -> Search {
         if self.generation == u32::MAX {
             self.seen.fill(0);
             self.closed.fill(0);
@@ -467,6 +551,9 @@ impl Planner {
             if self.closed[k] == gen {
                 continue;
             }
+            if (key >> 64) as u64 > limit {
+                return Search::TooLong;
+            }
             self.closed[k] = gen;
             if k == goal {
                 self.cells.clear();
@@ -479,7 +566,7 @@ impl Planner {
                     at = self.parent[at] as usize;
                 }
                 self.cells.reverse();
-                return true;
+                return Search::Found;
             }
             let (i, j) = ((k % w) as i64, (k / w) as i64);
             let (gk, ck) = (self.g[k], cost[k] as u64);
@@ -508,7 +595,7 @@ impl Planner {
                 }
             }
         }
-        false
+        Search::Unreachable
     }
 
     /// Shortcut and fillets of the cell path in `self.cells`, from the exact `start` to the
@@ -569,6 +656,16 @@ impl Planner {
     }
 }
 
+/// How an A* search ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Search {
+    Found,
+    /// The start's whole connected region was searched (it is the closed set).
+    Unreachable,
+    /// Given up at the cost limit.
+    TooLong,
+}
+
 /// One heap key for an open cell, ordered as `(f, h, cell)`: f in the top 64 bits, then h
 /// (saturated at 2^32 - 1, past 4 million cells of distance: only the tie-break weakens), then
 /// the cell index.
@@ -579,6 +676,12 @@ fn open_key(f: u64, h: u64, cell: usize) -> u128 {
 /// The search-grid index (with its ring of blocked cells, row length `w`) of grid cell `k`.
 fn search_index(w: usize, nx: usize, k: usize) -> usize {
     (k / nx + 1) * w + k % nx + 1
+}
+
+/// The least straight-line distance of a walk's goal from its start: `speed * duration`, one
+/// cell at least; None for invalid inputs.
+fn least_walk_m(grid: &WalkableGrid, c: f64, speed: f64, duration_s: f64) -> Option<f64> {
+    (valid_inputs(grid, c, speed) && duration_s.is_finite() && duration_s >= 0.0).then(|| (speed * duration_s).max(grid.cell_m))
 }
 
 fn valid_inputs(grid: &WalkableGrid, c: f64, speed: f64) -> bool {

@@ -380,3 +380,68 @@ fn hidden_is_behind_something_tall_and_wide() {
     let bare = WalkableGrid { top_cm: Vec::new(), ..g.clone() };
     assert!(!bare.hidden_from(eye, DVec2::new(12.0, 22.0)), "a grid of clearances alone");
 }
+
+#[test]
+fn a_leg_walks_to_a_goal_within_its_reach() {
+    let g = hall();
+    let start = DVec2::new(2.0, 2.0);
+    let mut planner = Planner::new();
+    for seed in 0..20 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let path = planner.plan_leg(&mut rng, &g, 0.3, 1.2, 5.0, start, 12.0).expect("a goal 6-12 m away");
+        let d = path.goal_m().distance(start);
+        assert!((6.0..=12.0).contains(&d), "seed {seed}: goal {d} m away");
+        assert!(path.length_m() >= 6.0 && path.start_m() == start);
+        assert_clear(&g, &path, 0.3);
+        assert_kinematics(&path);
+        let again = Planner::new().plan_leg(&mut ChaCha8Rng::seed_from_u64(seed), &g, 0.3, 1.2, 5.0, start, 12.0);
+        assert_eq!(again.as_ref(), Some(&path), "seed {seed}: a fresh planner plans the same");
+    }
+    // A reach shorter than the walk, or not finite, and a start in an obstacle give none.
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    assert!(planner.plan_leg(&mut rng, &g, 0.3, 1.2, 5.0, start, 5.9).is_none());
+    assert!(planner.plan_leg(&mut rng, &g, 0.3, 1.2, 5.0, start, f64::INFINITY).is_none());
+    assert!(planner.plan_leg(&mut rng, &g, 0.3, 1.2, 5.0, DVec2::new(4.0, 4.0), 12.0).is_none(), "start in a pillar");
+}
+
+#[test]
+fn a_leg_keeps_to_the_start_s_region() {
+    // The door is closed to a person needing 0.4 m: from (8, 5) most of the ring of 4-12 m is
+    // in the other room. A search for a goal there searches the start's room whole (its cost
+    // limit, 36 m of path, is past any cell of the room); after it the goals are drawn in the
+    // start's room only, so the next search finds its goal.
+    let g = two_rooms(0.6);
+    let start = DVec2::new(8.0, 5.0);
+    let mut planner = Planner::new();
+    let mut failed_first = 0;
+    for seed in 0..20 {
+        let before = planner.generation;
+        let path = planner.plan_leg(&mut ChaCha8Rng::seed_from_u64(seed), &g, 0.4, 1.0, 4.0, start, 12.0).expect("goals in the start's room");
+        let searches = planner.generation - before;
+        assert!(path.goal_m().x < 10.0, "seed {seed}: goal {} in the other room", path.goal_m());
+        assert!(searches <= 2, "seed {seed}: {searches} searches");
+        failed_first += usize::from(searches == 2);
+        assert_clear(&g, &path, 0.4);
+    }
+    assert!(failed_first >= 5, "{failed_first} of 20 legs drew a goal in the other room first");
+}
+
+#[test]
+fn a_search_gives_up_at_its_cost_limit() {
+    let open = two_rooms(1.0);
+    let cell = |g: &WalkableGrid, p: DVec2| cell_of(g, p).unwrap();
+    let (s, goal) = (cell(&open, DVec2::new(3.0, 5.0)), cell(&open, DVec2::new(16.0, 5.0)));
+    let mut planner = Planner::new();
+    planner.prepare(&open, 0.1);
+    // 13 m through the door is 130 cells: at least 130,000 of cost.
+    assert_eq!(planner.astar_within(&open, s, goal, 100_000), Search::TooLong);
+    assert_eq!(planner.astar_within(&open, s, goal, 200_000), Search::Found);
+    let cells = planner.cells.len();
+    assert!((130..=150).contains(&cells), "{cells} cells");
+    // A closed door: the start's room searched whole, whatever the limit.
+    let closed = two_rooms(0.6);
+    planner.prepare(&closed, 0.4);
+    assert_eq!(planner.astar_within(&closed, s, goal, u64::MAX), Search::Unreachable);
+    let searched = planner.closed.iter().filter(|&&c| c == planner.generation).count();
+    assert!(searched > 4000 && searched < 10_000, "{searched} cells searched in a 10 x 10 m room");
+}

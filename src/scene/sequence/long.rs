@@ -36,6 +36,9 @@ pub const LONG_SEQUENCE_S: f64 = 30.0;
 /// A long sequence's walk to its next goal takes at least this long, s (drawn), and the wait
 /// at the goal before the next this long.
 const LEG_S: [f64; 2] = [8.0, 25.0];
+/// A leg's goal lies at most this many times as far from its start as that least walk (the
+/// next goal is somewhere near, and planning it costs the neighbourhood, not the whole world).
+const LEG_REACH: f64 = 2.0;
 const WAIT_S: [f64; 2] = [0.5, 5.0];
 /// A person who waits at the start (`humans.standing`) of a long sequence waits this long
 /// before walking on, s.
@@ -93,7 +96,8 @@ impl Crowd<'_> {
 }
 
 /// A long sequence's walk: from `start`, goal after goal through the walkable area (each leg
-/// planned like a short sequence's walk, 8-25 s long at least), waiting 0.5-5 s at each goal,
+/// planned like a short sequence's walk, 8-25 s long at least, its goal at most [`LEG_REACH`]
+/// times that walk away: [`crate::scene::planner::Planner::plan_leg`]), waiting 0.5-5 s at each goal,
 /// and after 10-60 s of waiting first for one who stands. Each walk slows to a stop at its
 /// goal, and one that begins after a wait gets going, over [`Pauses::RAMP_S`] (the speed never
 /// steps). Somebody left more than [`LEAVE_M`] from the sensor (a vehicle drives on), or gone
@@ -130,19 +134,25 @@ pub(super) fn long_walk(
         let rate = if w > 0.0 { turn / w } else { 0.0 };
         HumanPath::Arc(Trajectory { start_m: p, z_m: floor_z, heading0_rad: a, speed_mps: 0.0, yaw_rate_rps: rate })
     };
+    // Somebody a vehicle leaves far behind (none for the sensor's own walk).
+    let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
+    // Standing at `p` from `a` to `b`: until the first frame the sensor has left one far
+    // behind by, or `b`.
+    let until_left = |p: DVec2, a: f64, b: f64| {
+        let k = crowd.times_s.partition_point(|&x| x < a);
+        crowd.times_s[k..].iter().take_while(|&&x| x < b).find(|&&x| far(p, x)).copied().unwrap_or(b)
+    };
     if stands_first {
         let w = u(rng, LONG_STAND_S);
         if !crowd.clear(&stand(pos, heading), 0.0, w) {
             return None;
         }
         legs.push(Leg { t0_s: 0.0, d0_m: 0.0, path: stand(pos, heading) });
-        t = w;
+        t = until_left(pos, 0.0, w);
     }
     // Standing (after a walk, a wait or at the start): the next walk begins with a wait that
     // turns toward it, and gets going from rest.
     let mut at_rest = stands_first;
-    // Somebody a vehicle leaves far behind (none for the sensor's own walk).
-    let far = |p: DVec2, t: f64| crowd.sensor.is_some_and(|s| p.distance(s.position(t).truncate()) > LEAVE_M);
     // Gone in through a doorway (at `pos`) at the end of the last walk.
     let mut gone_in = false;
     while t <= duration {
@@ -196,7 +206,10 @@ pub(super) fn long_walk(
         for k in 0..LEG_TRIES {
             let w = match (toward.or(door_goal)).filter(|_| k == 0) {
                 Some(goal) => planner.plan_to(crowd.grid, crowd.clearance_m, speed, pos, goal),
-                None => planner.plan_walk(rng, crowd.grid, crowd.clearance_m, speed, leg_s, Some(pos)),
+                None => {
+                    let reach = LEG_REACH * (speed * leg_s).max(crowd.grid.cell_m);
+                    planner.plan_leg(rng, crowd.grid, crowd.clearance_m, speed, leg_s, pos, reach)
+                }
             };
             let Some(w) = w else { continue };
             let walk_s = w.duration_s();
@@ -213,12 +226,18 @@ pub(super) fn long_walk(
                 return None;
             }
             legs.push(Leg { t0_s: t, d0_m: d, path: stand(pos, heading) });
-            t += 2.0;
+            t = until_left(pos, t, t + 2.0);
             at_rest = true;
             continue;
         };
         if wait > 0.0 {
             legs.push(Leg { t0_s: t, d0_m: d, path: turn });
+            let left = until_left(pos, t, t + wait);
+            if left < t + wait {
+                // Left behind while waiting: comes back in (above) instead of walking on.
+                t = left;
+                continue;
+            }
             t += wait;
         }
         // The walk ends at its goal, or where it has left the sensor far behind.
