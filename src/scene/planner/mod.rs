@@ -30,8 +30,10 @@
 //!
 //! [`Planner::plan_to`] runs steps 2 to 4 between a given start and goal, without randomness.
 //! [`Planner::plan_leg`] (a long sequence's next walk) draws its goal within a given distance
-//! of a given start and gives its searches up past [`LEG_DETOUR`] times that distance, so its
-//! cost is the neighbourhood's, not the grid's.
+//! of a given start and gives its searches up past a path costing [`LEG_DETOUR`] times that
+//! distance (a cell's step costs 1 to 1.5 cells of length, so a path along walls is given up
+//! at about twice it), so its cost is the neighbourhood's, not the grid's;
+//! [`Planner::plan_to_within`] bounds [`Planner::plan_to`]'s search the same way.
 //! A [`Planner`] keeps the search buffers between calls; [`plan_walk`] is the one-off form.
 //!
 //! # Guarantees
@@ -82,7 +84,8 @@ const GOAL_DRAWS_PER_START: usize = 256;
 /// Goal draws of a leg ([`Planner::plan_leg`]): points of the square around the start,
 /// rejected outside the ring or off the walkable area.
 const LEG_GOAL_DRAWS: usize = 1024;
-/// A leg's search gives up past a path this many times as long as the farthest goal.
+/// A leg's search gives up past a path costing this many times the distance to its farthest
+/// goal (a step's cost is its length, up to 1.5 times it near walls).
 pub const LEG_DETOUR: f64 = 3.0;
 
 /// One piece of a [`WalkPath`]: a straight line (curvature 0) or a circular arc, walked from
@@ -393,9 +396,7 @@ impl Planner {
             self.generation = 0;
         }
         let w = grid.nx + 2;
-        // Step costs are at least 1000 a cell: a path within this cost is within
-        // LEG_DETOUR * within_m of length.
-        let limit = (LEG_DETOUR * within_m / grid.cell_m * 1000.0) as u64;
+        let limit = search_limit(grid, within_m);
         // Set once a search has exhausted the start's region: the generation it ran as (every
         // later search from this start closes only cells of the same region).
         let mut region = None;
@@ -443,14 +444,28 @@ impl Planner {
         start: DVec2,
         goal: DVec2,
     ) -> Option<WalkPath> {
+        self.plan_to_within(grid, clearance_m, speed_mps, start, goal, f64::INFINITY)
+    }
+
+    /// [`Planner::plan_to`], its search given up (None) past a path costing [`LEG_DETOUR`]
+    /// times `reach_m` (infinite: never).
+    pub fn plan_to_within(
+        &mut self,
+        grid: &WalkableGrid,
+        clearance_m: f64,
+        speed_mps: f64,
+        start: DVec2,
+        goal: DVec2,
+        reach_m: f64,
+    ) -> Option<WalkPath> {
         let c = clearance_m;
-        if !valid_inputs(grid, c, speed_mps) || start.distance(goal) <= 0.0 {
+        if !valid_inputs(grid, c, speed_mps) || start.distance(goal) <= 0.0 || reach_m.is_nan() {
             return None;
         }
         let free = |p: DVec2| cell_of(grid, p).filter(|&k| walkable(grid.clearance_m[k], c));
         let (s, g) = (free(start)?, free(goal)?);
         self.prepare(grid, c);
-        if !self.astar(grid, s, g) {
+        if self.astar_within(grid, s, g, search_limit(grid, reach_m)) != Search::Found {
             return None;
         }
         self.path_from_cells(grid, c, speed_mps, start, goal)
@@ -676,6 +691,12 @@ fn open_key(f: u64, h: u64, cell: usize) -> u128 {
 /// The search-grid index (with its ring of blocked cells, row length `w`) of grid cell `k`.
 fn search_index(w: usize, nx: usize, k: usize) -> usize {
     (k / nx + 1) * w + k % nx + 1
+}
+
+/// The cost past which a search for a goal within `reach_m` gives up, in thousandths of a
+/// cell ([`LEG_DETOUR`]; saturating, so an infinite reach never gives up).
+fn search_limit(grid: &WalkableGrid, reach_m: f64) -> u64 {
+    (LEG_DETOUR * reach_m / grid.cell_m * 1000.0) as u64
 }
 
 /// The least straight-line distance of a walk's goal from its start: `speed * duration`, one

@@ -445,3 +445,40 @@ fn a_search_gives_up_at_its_cost_limit() {
     let searched = planner.closed.iter().filter(|&&c| c == planner.generation).count();
     assert!(searched > 4000 && searched < 10_000, "{searched} cells searched in a 10 x 10 m room");
 }
+
+/// A square spiral of 0.1 m walls 0.6 m apart round (5, 5), out to 2.1 m from it, open at
+/// its outer end: from its middle every point 3 m away or more is outside it, 29 m of
+/// corridor away.
+fn spiral() -> WalkableGrid {
+    let (mut p, mut boxes) = (DVec2::new(0.3, -0.3), Vec::new());
+    let dirs = [DVec2::Y, DVec2::NEG_X, DVec2::NEG_Y, DVec2::X];
+    for k in 0..13 {
+        let q = p + dirs[k % 4] * 0.6 * (k / 2 + 1) as f64;
+        let (lo, hi) = (p.min(q) + DVec2::splat(5.0 - 0.05), p.max(q) + DVec2::splat(5.0 + 0.05));
+        boxes.push([lo.x, lo.y, hi.x, hi.y]);
+        p = q;
+    }
+    grid(10.0, 10.0, &boxes, 0.1)
+}
+
+#[test]
+fn a_leg_gives_up_a_goal_only_a_long_detour_reaches() {
+    let g = spiral();
+    let middle = DVec2::new(5.0, 5.0);
+    let outside = DVec2::new(8.5, 5.0);
+    let mut planner = Planner::new();
+    // Unbounded, the way out is found: far longer than the straight line.
+    let out = planner.plan_to(&g, 0.1, 1.0, middle, outside).expect("the spiral's corridor leads out");
+    assert!(out.length_m() > 20.0, "{} m", out.length_m());
+    assert_clear(&g, &out, 0.1);
+    // Bounded by 3.5 m (a search up to a path costing 10.5 m), it is given up.
+    assert!(planner.plan_to_within(&g, 0.1, 1.0, middle, outside, 3.5).is_none());
+    assert!(planner.plan_to_within(&g, 0.1, 1.0, middle, outside, 12.0).is_some(), "36 m of search reaches it");
+    // Every goal of a leg of 3-3.5 m lies outside: no leg, where a walk without bound has one.
+    for seed in 0..5 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        assert!(planner.plan_leg(&mut rng, &g, 0.1, 1.0, 3.0, middle, 3.5).is_none(), "seed {seed}");
+        let walk = planner.plan_walk(&mut ChaCha8Rng::seed_from_u64(seed), &g, 0.1, 1.0, 3.0, Some(middle)).expect("a walk out");
+        assert!(walk.length_m() > 20.0);
+    }
+}

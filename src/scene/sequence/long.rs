@@ -203,13 +203,13 @@ pub(super) fn long_walk(
             door_goal = drawn(rng, &near);
         }
         let mut walked = None;
+        // Every search is bounded by the neighbourhood it walks in (a goal that only a long
+        // detour reaches is given up).
+        let reach = LEG_REACH * (speed * leg_s).max(crowd.grid.cell_m);
         for k in 0..LEG_TRIES {
             let w = match (toward.or(door_goal)).filter(|_| k == 0) {
-                Some(goal) => planner.plan_to(crowd.grid, crowd.clearance_m, speed, pos, goal),
-                None => {
-                    let reach = LEG_REACH * (speed * leg_s).max(crowd.grid.cell_m);
-                    planner.plan_leg(rng, crowd.grid, crowd.clearance_m, speed, leg_s, pos, reach)
-                }
+                Some(goal) => planner.plan_to_within(crowd.grid, crowd.clearance_m, speed, pos, goal, pos.distance(goal).max(reach)),
+                None => planner.plan_leg(rng, crowd.grid, crowd.clearance_m, speed, leg_s, pos, reach),
             };
             let Some(w) = w else { continue };
             let walk_s = w.duration_s();

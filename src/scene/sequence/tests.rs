@@ -497,6 +497,14 @@ fn a_long_sequences_sensor_walks_and_a_driving_one_keeps_its_people() {
         came_back += legs.windows(2).filter(|w| w[0].path.position(w[1].t0_s - w[0].t0_s).truncate().distance(w[1].path.position(0.0).truncate()) > 1.0).count();
     }
     assert!(came_back >= 4, "{came_back} returns");
+    // Those who stand first (10-60 s) and who wait at a goal are taken out too once the
+    // vehicle has left them behind.
+    cfg.humans.standing = 1.0;
+    let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &inp).unwrap();
+    for p in &plan.humans {
+        let far = plan.times_s.iter().map(|&t| p.position_m(t).truncate().distance(plan.sensor.position(t).truncate())).fold(0.0, f64::max);
+        assert!(far <= LEAVE_M + 1.0, "one who stood first {far:.1} m from the sensor");
+    }
 }
 
 /// People a driving sensor leaves behind come back in out of its sight where the street has
