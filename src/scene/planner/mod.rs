@@ -352,10 +352,8 @@ impl Planner {
                     self.candidates.retain(|&k| closed[search_index(w, grid.nx, k as usize)] == generation);
                     continue;
                 }
-                if let Some(path) = self.path_from_cells(grid, c, speed_mps, s, goal) {
-                    if path.length_m() >= speed_mps * duration_s {
-                        return Some(path);
-                    }
+                if let Some(path) = self.walk_long_enough(grid, c, speed_mps, duration_s, s, goal) {
+                    return Some(path);
                 }
             }
         }
@@ -424,13 +422,26 @@ impl Planner {
                 }
                 Search::TooLong => continue,
             }
-            if let Some(path) = self.path_from_cells(grid, c, speed_mps, start, goal) {
-                if path.length_m() >= speed_mps * duration_s {
-                    return Some(path);
-                }
+            if let Some(path) = self.walk_long_enough(grid, c, speed_mps, duration_s, start, goal) {
+                return Some(path);
             }
         }
         None
+    }
+
+    /// The path a successful search just found from `start` to `goal`, shortcut and filleted,
+    /// when it is long enough to walk for `duration_s` at `speed_mps`; the tail of
+    /// [`Planner::plan_walk`]'s and [`Planner::plan_leg`]'s goal draws.
+    fn walk_long_enough(
+        &mut self,
+        grid: &WalkableGrid,
+        c: f64,
+        speed_mps: f64,
+        duration_s: f64,
+        start: DVec2,
+        goal: DVec2,
+    ) -> Option<WalkPath> {
+        self.path_from_cells(grid, c, speed_mps, start, goal).filter(|path| path.length_m() >= speed_mps * duration_s)
     }
 
     /// A path from `start` to `goal` (both with clearance >= `clearance_m`), by the same
