@@ -39,6 +39,8 @@ smoke      2         1            1      3 (1)                      17
 =========  ========  ===========  =====  =========================  ======
 
 ``smoke`` checks the pipeline in a minute (the tests run it); its numbers mean nothing.
+``--steps N`` trains every network N steps on the scale's data (longer training where the
+machine allows); a work folder keeps the steps it was made with.
 
 ``--jobs J`` runs J ``pedscan generate --shard I/J`` processes per data set (the same bytes as
 one process: a sequence depends only on the seed and its index); one process keeps about two
@@ -91,7 +93,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -238,6 +240,8 @@ class Experiment:
         self.work: Path = self.root if world == "hall" else self.root / "worlds" / world
         self.scale_name: str = args.scale
         self.scale = SCALES[args.scale]
+        if args.steps is not None:
+            self.scale = replace(self.scale, steps=args.steps)
         self.pedscan = find_pedscan(args.pedscan)
         # A recording is the hall's experiment (its networks tested on it, N = 16 and 1 trained on it).
         self.recorded: Path | None = args.recorded if world == "hall" else None
@@ -277,7 +281,7 @@ class Experiment:
     def state(self) -> dict[str, Any]:
         if self.state_path.is_file():
             return json.loads(self.state_path.read_text())
-        return {"scale": self.scale_name, "seconds": {}}
+        return {"scale": self.scale_name, "steps": self.scale.steps, "seconds": {}}
 
     def add_time(self, key: str, seconds: float) -> None:
         if self.world != "hall":
@@ -291,6 +295,10 @@ class Experiment:
         s = self.state()
         if s.get("scale") != self.scale_name:
             raise PedscanError(f"{self.root}: holds the {s.get('scale')} scale; give --scale {s.get('scale')} or another --work")
+        # A folder made before --steps holds its scale's steps.
+        held = s.get("steps", SCALES[self.scale_name].steps)
+        if held != self.scale.steps:
+            raise PedscanError(f"{self.root}: holds networks of {held:,} steps; give --steps {held} or another --work")
         if not self.state_path.is_file():
             self.add_time("data", 0.0)
 
@@ -819,6 +827,17 @@ def world_list(text: str) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+def step_count(text: str) -> int:
+    """``--steps``: a positive number of training steps."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: a number of training steps") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: at least one training step")
+    return n
+
+
 def seed_list(text: str) -> list[int]:
     """``--seeds``: training seeds, comma separated, each once, in the order given."""
     try:
@@ -885,6 +904,9 @@ def parser() -> argparse.ArgumentParser:
                    help="train the 1- and 16-frame networks once per training seed (train --seed S; 0 is "
                    "frames1/frames16, S the runs frames1-seedS/frames16-seedS) and report the 16-frame lead "
                    "per distance bin over the seeds; only these runs (of them, --runs picks frames1 or frames16)")
+    p.add_argument("--steps", type=step_count, metavar="N",
+                   help="train every network N steps instead of the scale's (the same data; a work folder keeps "
+                   "the steps it was made with)")
     p.add_argument("--precision", choices=PRECISIONS, default="fp32",
                    help="every run's training step in fp32 (default, the paper's) or bf16 (train --precision)")
     p.add_argument("--average-tail", type=float, metavar="F",

@@ -231,6 +231,35 @@ def test_experiments_pass_a_training_option_to_every_run_and_say_so(
     assert says not in (work / "results.md").read_text()
 
 
+def test_experiments_train_the_steps_asked_and_a_work_folder_keeps_them(tmp_path: Path, capsys) -> None:
+    """``--steps N``: every run of every world trains N steps (its weights averaged over the
+    last share of those N), the results say N; the work folder then refuses other steps, and
+    a folder made before ``--steps`` existed holds its scale's."""
+    every = experiments(tmp_path, "--steps", "8", "--average-tail", "0.5")
+    for world, run in (("hall", "frames16"), ("street", "frames1")):
+        cmd = every[world].train_command(run)
+        assert cmd[cmd.index("--steps") + 1] == "8" and cmd[cmd.index("--average-from") + 1] == "4", cmd
+    every["hall"].check_scale()
+    assert json.loads((tmp_path / "work" / "state.json").read_text())["steps"] == 8
+    assert every["hall"].results([])["steps"] == 8
+    with pytest.raises(PedscanError, match="holds networks of 8 steps; give --steps 8 or another --work"):
+        experiments(tmp_path)["hall"].check_scale()
+    with pytest.raises(PedscanError, match="holds networks of 8 steps"):
+        experiments(tmp_path, "--steps", "9")["street"].check_scale()
+    experiments(tmp_path, "--steps", "8")["street"].check_scale()
+    # A folder of before: its scale's steps (smoke: 3).
+    state = tmp_path / "work" / "state.json"
+    state.write_text(json.dumps({"scale": "smoke", "seconds": {}}))
+    experiments(tmp_path)["hall"].check_scale()
+    experiments(tmp_path, "--steps", "3")["hall"].check_scale()
+    with pytest.raises(PedscanError, match="holds networks of 3 steps"):
+        experiments(tmp_path, "--steps", "8")["hall"].check_scale()
+    for bad in ("0", "-2", "x"):
+        with pytest.raises(SystemExit):
+            experiments(tmp_path, "--steps", bad)
+        assert f"--steps: '{bad}'" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("bad", ["0", "1.5", "nan"])
 def test_experiments_refuse_an_average_tail_outside_0_1(tmp_path: Path, bad: str) -> None:
     with pytest.raises(PedscanError, match=f"--average-tail {bad}: a share of the steps"):
