@@ -133,12 +133,7 @@ pub fn scan_files(scans: &Path) -> Result<Vec<PathBuf>> {
         let what = if dir.exists() { "is not a folder (want one holding velodyne/*.bin)" } else { "does not exist" };
         return Err(Error::input(scans.display(), what));
     }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .map_err(|e| Error::input(dir.display(), format!("cannot list the folder: {e}")))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|f| f.extension().is_some_and(|e| e.eq_ignore_ascii_case("bin")))
-        .collect();
-    files.sort();
+    let files = crate::input::folder_files(&dir, |f| f.extension().is_some_and(|e| e.eq_ignore_ascii_case("bin")))?;
     if files.is_empty() {
         return Err(Error::input(dir.display(), "holds no .bin scan (KITTI velodyne/NNNNNN.bin)"));
     }

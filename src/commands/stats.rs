@@ -51,12 +51,9 @@ pub fn sequence_files(path: &Path) -> Result<Vec<PathBuf>> {
     if !path.is_dir() {
         return Err(Error::input(path.display(), "no such file or folder"));
     }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-        .map_err(|e| Error::input(path.display(), format!("cannot list: {e}")))?
-        .filter_map(|d| d.ok().map(|d| d.path()))
-        .filter(|p| p.is_file() && p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("seq_")) && p.extension().is_some_and(|e| e == "h5"))
-        .collect();
-    files.sort();
+    let files = crate::input::folder_files(path, |p| {
+        p.is_file() && p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("seq_")) && p.extension().is_some_and(|e| e == "h5")
+    })?;
     if files.is_empty() {
         return Err(Error::input(path.display(), "no seq_*.h5 files: not a folder written by `pedscan generate`"));
     }

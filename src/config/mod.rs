@@ -813,12 +813,7 @@ impl Config {
     /// JSON).
     pub fn input_digests(&self) -> Result<Vec<(String, String)>> {
         // A folder's files, sorted; a folder that cannot be read is the user's to fix.
-        let files_in = |dir: &Path| -> Result<Vec<PathBuf>> {
-            let read = std::fs::read_dir(dir).map_err(|e| Error::input(dir.display(), format!("cannot read the folder: {e}")))?;
-            let mut inside: Vec<PathBuf> = read.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_file()).collect();
-            inside.sort();
-            Ok(inside)
-        };
+        let files_in = |dir: &Path| crate::input::folder_files(dir, Path::is_file);
         let mut files: Vec<PathBuf> = Vec::new();
         if self.humans.count[1] > 0 {
             files.extend(crate::human::model_files(&self.humans.models)?);

@@ -42,12 +42,7 @@ pub fn model_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for p in paths {
         if p.is_dir() {
-            let mut found: Vec<PathBuf> = std::fs::read_dir(p)
-                .map_err(|e| Error::io(p, e))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| matches!(f.extension().and_then(|e| e.to_str()), Some("glb") | Some("gltf")))
-                .collect();
-            found.sort();
+            let found = crate::input::folder_files(p, |f| matches!(f.extension().and_then(|e| e.to_str()), Some("glb") | Some("gltf")))?;
             if found.is_empty() {
                 return Err(Error::input(p.display(), "folder holds no .glb or .gltf human"));
             }

@@ -34,7 +34,7 @@ pub mod tracks;
 pub use recording::Recording;
 
 use crate::error::{Error, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The largest absolute value of a world coordinate read from a file (pose translations,
 /// transformed track positions), m: 100 km, far beyond any single recording. Capping it keeps
@@ -49,6 +49,22 @@ pub const MAX_TIME_S: f64 = 1e10;
 
 /// The UTF-8 byte-order mark some editors write at the start of a text file.
 const BOM: &str = "\u{feff}";
+
+/// The entries of folder `dir` that `keep` takes, sorted by path: how pedscan lists a folder
+/// of inputs the user names (models, recordings, bags, scans, sequences to summarize). A folder that cannot be listed, or an entry of it that cannot be
+/// read, is an [`Error::input`] naming the folder (never a listing with files missing).
+pub fn folder_files(dir: &Path, keep: impl Fn(&Path) -> bool) -> Result<Vec<PathBuf>> {
+    let cannot = |e: std::io::Error| Error::input(dir.display(), format!("cannot list the folder: {e}"));
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(cannot)? {
+        let path = entry.map_err(cannot)?.path();
+        if keep(&path) {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
 
 /// The size of a file the user named. A path that does not exist, a dangling or looping
 /// symbolic link, a folder or another non-file is an [`Error::input`] naming `path`.
@@ -151,6 +167,23 @@ mod tests {
         }
         let e = read_bytes(Path::new("/dev/null")).unwrap_err();
         assert!(e.is_input() && e.to_string().contains("not a regular file"), "{e}");
+    }
+
+    #[test]
+    fn a_folder_lists_the_files_kept_in_path_order_or_names_itself() {
+        let d = tempfile::tempdir().unwrap();
+        for name in ["b.bin", "a.bin", "c.txt", "10.bin"] {
+            std::fs::write(d.path().join(name), b"").unwrap();
+        }
+        std::fs::create_dir(d.path().join("d.bin")).unwrap();
+        let names = |files: Vec<PathBuf>| files.iter().map(|f| f.file_name().unwrap().to_string_lossy().into_owned()).collect::<Vec<_>>();
+        let bins = folder_files(d.path(), |f| f.is_file() && f.extension().is_some_and(|e| e == "bin")).unwrap();
+        assert_eq!(names(bins), ["10.bin", "a.bin", "b.bin"]);
+        assert_eq!(names(folder_files(d.path(), |_| true).unwrap()), ["10.bin", "a.bin", "b.bin", "c.txt", "d.bin"]);
+        for bad in [d.path().join("missing"), d.path().join("a.bin")] {
+            let e = folder_files(&bad, |_| true).unwrap_err();
+            assert!(e.is_input() && e.to_string().starts_with(&format!("{}: cannot list the folder: ", bad.display())), "{e}");
+        }
     }
 
     #[test]

@@ -215,12 +215,7 @@ impl Recording {
             bag_poses = bag.poses;
             (Frames::Images(images), Some(bag.times_s), bag.description)
         } else if path.is_dir() {
-            let mut files: Vec<PathBuf> = std::fs::read_dir(path)
-                .map_err(|e| Error::input(path.display(), format!("cannot list the folder: {e}")))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| kind_of(f).is_some())
-                .collect();
-            files.sort();
+            let files = super::folder_files(path, |f| kind_of(f).is_some())?;
             let Some(first) = files.first() else {
                 return Err(Error::input(path.display(), "folder holds no .bin or .pcd frame"));
             };

@@ -130,13 +130,7 @@ pub fn mcap_files(path: &Path) -> Result<Vec<PathBuf>> {
         }
     }
     if listed.is_empty() {
-        let mut found: Vec<PathBuf> = std::fs::read_dir(path)
-            .map_err(|e| Error::input(path.display(), format!("cannot list the folder: {e}")))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|f| !f.is_dir() && is_bag(f))
-            .collect();
-        found.sort();
-        listed = found;
+        listed = super::folder_files(path, |f| !f.is_dir() && is_bag(f))?;
     }
     if listed.is_empty() {
         return Err(Error::input(meta.display(), "lists no .mcap file and the folder holds none"));
