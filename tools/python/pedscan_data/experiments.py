@@ -4,6 +4,7 @@ resumable command.
     python -m pedscan_data.experiments paper --work DIR [--scale small|full]
         [--pedscan BIN] [--recorded FILE] [--device auto|cpu|cuda] [--only STAGE,...]
         [--jobs J] [--max-minutes M] [--world hall|street|indoor[,...]] [--seeds S,...]
+        [--steps N] [--average-tail F] [--precision fp32|bf16]
 
 Stages, each skipped when done (so the table survives interruptions and several sittings;
 run the same command again):
@@ -270,6 +271,8 @@ class Experiment:
         #: ``train --average-from`` for every run: the weights averaged over the last share of
         #: the steps (None: the last step's, the paper's).
         self.average_from: int | None = None if tail is None else round(self.scale.steps * (1.0 - tail))
+        if self.average_from is not None and self.average_from >= self.scale.steps:
+            raise PedscanError(f"--average-tail {tail:g}: averages none of the {self.scale.steps:,} steps; give a larger share")
         #: ``train --precision`` for every run.
         self.precision: str = args.precision
         if self.recorded is not None and not self.recorded.exists():
@@ -295,10 +298,13 @@ class Experiment:
         s = self.state()
         if s.get("scale") != self.scale_name:
             raise PedscanError(f"{self.root}: holds the {s.get('scale')} scale; give --scale {s.get('scale')} or another --work")
-        # A folder made before --steps holds its scale's steps.
+        # A folder made before --steps holds its scale's steps (from now on recorded).
         held = s.get("steps", SCALES[self.scale_name].steps)
         if held != self.scale.steps:
             raise PedscanError(f"{self.root}: holds networks of {held:,} steps; give --steps {held} or another --work")
+        if self.state_path.is_file() and "steps" not in s:
+            s["steps"] = held
+            atomic_write_text(self.state_path, json.dumps(s, indent=2) + "\n")
         if not self.state_path.is_file():
             self.add_time("data", 0.0)
 

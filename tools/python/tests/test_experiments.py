@@ -242,6 +242,7 @@ def test_experiments_train_the_steps_asked_and_a_work_folder_keeps_them(tmp_path
     every["hall"].check_scale()
     assert json.loads((tmp_path / "work" / "state.json").read_text())["steps"] == 8
     assert every["hall"].results([])["steps"] == 8
+    assert "Networks trained 8 steps each" in (tmp_path / "work" / "results.md").read_text()
     with pytest.raises(PedscanError, match="holds networks of 8 steps; give --steps 8 or another --work"):
         experiments(tmp_path)["hall"].check_scale()
     with pytest.raises(PedscanError, match="holds networks of 8 steps"):
@@ -249,8 +250,9 @@ def test_experiments_train_the_steps_asked_and_a_work_folder_keeps_them(tmp_path
     experiments(tmp_path, "--steps", "8")["street"].check_scale()
     # A folder of before: its scale's steps (smoke: 3).
     state = tmp_path / "work" / "state.json"
-    state.write_text(json.dumps({"scale": "smoke", "seconds": {}}))
+    state.write_text(json.dumps({"scale": "smoke", "seconds": {"data": 1.0}}))
     experiments(tmp_path)["hall"].check_scale()
+    assert json.loads(state.read_text()) == {"scale": "smoke", "seconds": {"data": 1.0}, "steps": 3}
     experiments(tmp_path, "--steps", "3")["hall"].check_scale()
     with pytest.raises(PedscanError, match="holds networks of 3 steps"):
         experiments(tmp_path, "--steps", "8")["hall"].check_scale()
@@ -258,6 +260,9 @@ def test_experiments_train_the_steps_asked_and_a_work_folder_keeps_them(tmp_path
         with pytest.raises(SystemExit):
             experiments(tmp_path, "--steps", bad)
         assert f"--steps: '{bad}'" in capsys.readouterr().err
+    # A tail too short to hold a step.
+    with pytest.raises(PedscanError, match="--average-tail 0.1: averages none of the 3 steps"):
+        experiments(tmp_path, "--steps", "3", "--average-tail", "0.1")
 
 
 @pytest.mark.parametrize("bad", ["0", "1.5", "nan"])
