@@ -51,8 +51,9 @@ pub const MAX_TIME_S: f64 = 1e10;
 const BOM: &str = "\u{feff}";
 
 /// The entries of folder `dir` that `keep` takes, sorted by path: how pedscan lists a folder
-/// of inputs the user names (models, recordings, bags, scans, sequences to summarize). A folder that cannot be listed, or an entry of it that cannot be
-/// read, is an [`Error::input`] naming the folder (never a listing with files missing).
+/// of inputs the user names (models, recordings, bags, scans, sequences to summarize). A
+/// folder that cannot be listed, or an entry of it that cannot be read, is an
+/// [`Error::input`] naming the folder (never a listing with files missing).
 pub fn folder_files(dir: &Path, keep: impl Fn(&Path) -> bool) -> Result<Vec<PathBuf>> {
     let cannot = |e: std::io::Error| Error::input(dir.display(), format!("cannot list the folder: {e}"));
     let mut files = Vec::new();
