@@ -25,10 +25,11 @@ const SENSOR_HEIGHT_M: f64 = 0.95;
 /// Columns of the virtual sensor around azimuth 0 kept per cell.
 const CELL_COLS: usize = 150;
 
-/// Renders the sheet: one column per model, one row per phase, and with `seat_m` a last row
-/// of each model seated on a seat that high ([`crate::human::GaitStyle::seat_m`]; the seat
-/// itself not drawn); returns the image.
-pub fn contact_sheet(models: &[HumanModel], phases: &[f32], seat_m: Option<f32>, validation: bool) -> Result<RgbImage> {
+/// Renders the sheet: one column per model, one row per phase, with `pushing` a row of each
+/// model walking at the first phase pushing ([`crate::human::GaitStyle::pushing`]; the thing
+/// pushed not drawn), and with `seat_m` a last row of each model seated on a seat that high
+/// ([`crate::human::GaitStyle::seat_m`]; the seat itself not drawn); returns the image.
+pub fn contact_sheet(models: &[HumanModel], phases: &[f32], pushing: bool, seat_m: Option<f32>, validation: bool) -> Result<RgbImage> {
     if models.is_empty() || phases.is_empty() {
         return Err(Error::input("sheet", "no models or no phases"));
     }
@@ -50,8 +51,9 @@ pub fn contact_sheet(models: &[HumanModel], phases: &[f32], seat_m: Option<f32>,
     let label_h = 14u32;
     let (cw, ch) = (CELL_COLS as u32, rows as u32);
     let walk = crate::human::GaitStyle::WALK;
+    let push = pushing.then(|| (phases[0], crate::human::GaitStyle { pushing: true, ..walk }));
     let rows_drawn: Vec<(f32, crate::human::GaitStyle)> =
-        phases.iter().map(|&p| (p, walk)).chain(seat_m.map(|s| (0.0, crate::human::GaitStyle { seat_m: s, ..walk }))).collect();
+        phases.iter().map(|&p| (p, walk)).chain(push).chain(seat_m.map(|s| (0.0, crate::human::GaitStyle { seat_m: s, ..walk }))).collect();
     let mut img = RgbImage::from_pixel(cw * models.len() as u32, label_h + ch * rows_drawn.len() as u32, image::Rgb([255, 255, 255]));
     let mut geom = FrameGeometry::default();
     let mut hits = BeamHits::default();
@@ -110,6 +112,10 @@ pub struct SheetRequest {
     /// bags), a column each after the model's own.
     #[arg(long)]
     pub carrying: bool,
+    /// A row of each model walking at the first phase pushing (`humans.pushing`: the arms
+    /// held to the handle; the thing pushed not drawn; a model that cannot push walks).
+    #[arg(long)]
+    pub pushing: bool,
     /// A last row of each model seated on a seat this high, m (`humans.sitting`; the seat
     /// not drawn).
     #[arg(long, value_name = "M")]
@@ -131,6 +137,6 @@ pub fn write_contact_sheet(req: &SheetRequest) -> Result<()> {
     if let Some(s) = req.seated.filter(|s| !(s.is_finite() && *s > 0.0 && *s < 2.0)) {
         return Err(Error::input("--seated", format!("{s} m is not a seat's height (0 to 2 m)")));
     }
-    let img = contact_sheet(&models, &req.phases, req.seated, req.validation)?;
+    let img = contact_sheet(&models, &req.phases, req.pushing, req.seated, req.validation)?;
     crate::output::png::save_png(&img, &req.out)
 }

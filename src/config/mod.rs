@@ -264,6 +264,13 @@ pub struct HumansConfig {
     /// cannot sit ([`crate::human::HumanModel::can_sit`]), the person is placed as one not
     /// drawn to sit. 0..1.
     pub sitting: f64,
+    /// Share of the people who push a stroller (the street) or a trolley (indoors) the whole
+    /// sequence, its handle at their hands, their arms held to it
+    /// ([`crate::scene::world::pushed`]): a mover of its own (SemanticKITTI's other-object,
+    /// 99), not a person. Kept only where it stays clear of everything all through; an adult
+    /// model with nothing in its hands ([`crate::human::HumanModel::can_push`]); nobody pushes
+    /// where the background is not a built-in world. 0..1.
+    pub pushing: f64,
     /// Share of the standing people who stand at a place a built-in world makes for it:
     /// behind a market stall's counter or in front of it, beside a beer-garden table, under a
     /// pavilion (the street's markets, `scene.markets`) or a bus shelter, where one within
@@ -632,6 +639,7 @@ impl Default for HumansConfig {
             clothes_m: [0.0, 0.0],
             carrying: 0.0,
             sitting: 0.0,
+            pushing: 0.0,
             at_places: 0.0,
             groups: 0.0,
             stop_and_go: 0.0,
@@ -905,7 +913,7 @@ impl Config {
             return bad("humans.count", format!("max {hi} is more than the supported 1000"));
         }
         range_ok("humans.speed_mps", self.humans.speed_mps, 0.0, 10.0)?;
-        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("humans.sitting", self.humans.sitting), ("scene.markets", self.scene.markets), ("scene.side_streets", self.scene.side_streets)] {
+        for (key, v) in [("humans.standing", self.humans.standing), ("humans.by_things", self.humans.by_things), ("humans.before_things", self.humans.before_things), ("humans.behind_things", self.humans.behind_things), ("humans.at_places", self.humans.at_places), ("humans.groups", self.humans.groups), ("humans.stop_and_go", self.humans.stop_and_go), ("humans.carrying", self.humans.carrying), ("humans.sitting", self.humans.sitting), ("humans.pushing", self.humans.pushing), ("scene.markets", self.scene.markets), ("scene.side_streets", self.scene.side_streets)] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(key, format!("{v} is not a share in 0..1"));
             }

@@ -197,15 +197,7 @@ impl Generator {
         plan.recording_start = if self.inputs.recording.is_some() { start } else { None };
         plan.floor_z_m = floor_z_m;
         if let Some(w) = &mut world {
-            let humans = &plan.humans;
-            let duration = plan.times_s.last().copied().unwrap_or(0.0);
-            // Indoors the sensor's carrier walks where people do: the movers keep clear of it too.
-            let carrier = w.sensor.is_none().then_some(&plan.sensor);
-            w.add_movers(duration, |t, out| {
-                out.clear();
-                out.extend(humans.iter().map(|h| h.position_m(t).truncate()));
-                out.extend(carrier.map(|s| s.position(t).truncate()));
-            });
+            self.add_world_movers(&mut plan, w);
         }
         plan.world = world.map(Arc::new);
         Ok(plan)
@@ -329,8 +321,9 @@ impl Generator {
         if let Some(w) = &self.world {
             out.movers.extend(w.movers.iter().map(|m| crate::output::MoverState {
                 position_m: m.position(state.t_s).to_array(),
-                heading_rad: m.heading_rad() as f32,
+                heading_rad: m.heading_rad(state.t_s) as f32,
                 velocity_mps: m.velocity(state.t_s).as_vec3().to_array(),
+                yaw_rate_rps: m.yaw_rate_rps(state.t_s) as f32,
             }));
         }
         self.movers(state.humans.len(), out);

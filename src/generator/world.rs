@@ -6,7 +6,9 @@ use crate::output::semantickitti::{BACKGROUND, MOVING_PERSON, MOVING_SPEED_MPS, 
 use crate::output::{FrameOutput, NOT_SCORED};
 use crate::scene::sequence::SequencePlan;
 use crate::scene::world::things::class::{BICYCLIST, CAR, OTHER_VEHICLE};
-use crate::scene::world::{WorldParams, NO_MOVER};
+use crate::scene::world::movers::PERSON_RADIUS_M;
+use crate::scene::world::{World, WorldParams, NO_MOVER};
+use glam::DVec2;
 use std::sync::Arc;
 
 /// SemanticKITTI's moving car, moving bicyclist and moving other-vehicle.
@@ -31,6 +33,42 @@ impl Generator {
             clearance_m: self.cfg.humans.clearance_m,
             markets: sc.markets,
             side_streets: sc.side_streets,
+        }
+    }
+
+    /// Adds a planned sequence's movers to its world: the things its people push
+    /// (`humans.pushing`, the pushers' plans marked), then the traffic, which keeps clear of
+    /// the people and of the pushed things (each counted as three people along its length).
+    pub(super) fn add_world_movers(&self, plan: &mut SequencePlan, w: &mut World) {
+        let duration = plan.times_s.last().copied().unwrap_or(0.0);
+        // Indoors the sensor's carrier walks where people do: the movers keep clear of it too.
+        let carrier = w.sensor.is_none().then_some(&plan.sensor);
+        let models = &self.inputs.models;
+        let share = self.cfg.humans.pushing;
+        let handles: Vec<_> = if share > 0.0 {
+            plan.humans.iter().map(|h| if h.seat_m > 0.0 { None } else { models.get(h.model).and_then(|m| m.push_handle()) }).collect()
+        } else {
+            Vec::new()
+        };
+        let humans = &plan.humans;
+        let at = |i: usize, t: f64| {
+            let a = humans[i].at(t);
+            (a.position_m, a.heading_rad, a.velocity_mps.truncate().length())
+        };
+        let pushers = w.add_pushed(share, &handles, at, duration, |t| carrier.map(|s| s.position(t).truncate()));
+        let pushed = w.movers.clone();
+        w.add_movers(duration, |t, out| {
+            out.clear();
+            out.extend(humans.iter().map(|h| h.position_m(t).truncate()));
+            out.extend(carrier.map(|s| s.position(t).truncate()));
+            for m in &pushed {
+                let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
+                let axis = DVec2::new(h.cos(), h.sin()) * (m.half.x - PERSON_RADIUS_M).max(0.0);
+                out.extend([c - axis, c, c + axis]);
+            }
+        });
+        for i in pushers {
+            plan.humans[i].pushing = true;
         }
     }
 
@@ -101,6 +139,7 @@ impl Generator {
         let (bg, tri, meshes) = (&self.posed.background, &self.scratch.bg_hits.triangle, &self.inputs.env_meshes);
         let p = &self.posed;
         let columns = self.inputs.sensor.columns;
+        let w_pos = |k: usize| w.movers[k].position(p.mover_time.get(k).copied().unwrap_or(0.0));
         let mover_of = |b: usize| -> Option<(usize, u16)> {
             let t = *tri.get(b)?;
             if t == crate::backend::NO_TRIANGLE || t >= bg.triangle_count() {
@@ -111,6 +150,10 @@ impl Generator {
             (k != NO_MOVER).then(|| (k as usize, meshes.get(d).map_or(0, |m| m.class)))
         };
         let velocity = out.velocity.len() == out.range.len();
+        // A turning mover's beams add its turn about its centre: w z x (hit - centre), the
+        // hit placed in the world from the pose of its column.
+        let frame_pose = glam::DMat4::from_cols_array_2d(&out.world_from_sensor).transpose();
+        let dirs = &self.inputs.dirs;
         for b in 0..out.range.len() {
             if out.range[b] <= 0.0 || out.instance[b] != 0 || out.label[b] != 0 {
                 continue;
@@ -119,7 +162,15 @@ impl Generator {
             out.instance[b] = (people + 1 + k) as u16;
             if velocity {
                 let m = &p.column_motion[if p.column_motion.len() == 1 { 0 } else { b % columns }];
-                let v = m.rot.transpose() * p.mover_velocity[k];
+                let mut v = p.mover_velocity[k];
+                let wz = p.mover_yaw_rate.get(k).copied().unwrap_or(0.0);
+                if wz != 0.0 {
+                    let pose = p.column_pose.get(b % columns).unwrap_or(&frame_pose);
+                    let hit = pose.transform_point3(dirs[b] * f64::from(out.range[b]));
+                    let r = hit - w_pos(k);
+                    v += glam::DVec3::new(-wz * r.y, wz * r.x, 0.0);
+                }
+                let v = m.rot.transpose() * v;
                 for (o, dv) in out.velocity[b].iter_mut().zip(v.to_array()) {
                     *o += dv as f32;
                 }

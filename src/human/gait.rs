@@ -34,11 +34,14 @@ pub struct GaitStyle {
     /// it (a café table's foot ahead of its chair), though no nearer the hips than 0.4 of a
     /// thigh. Infinite: where the pose puts them.
     pub feet_room_m: f32,
+    /// Pushing a stroller or a trolley: the arms held forward to its handle, not swinging,
+    /// where the model can push ([`HumanModel::can_push`]); the walk as it is.
+    pub pushing: bool,
 }
 
 impl GaitStyle {
     /// The model's own walk.
-    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2], seat_m: 0.0, feet_room_m: f32::INFINITY };
+    pub const WALK: GaitStyle = GaitStyle { walking: 1.0, arm_swing: 1.0, stride: 1.0, feet: [FootShift::ZERO; 2], seat_m: 0.0, feet_room_m: f32::INFINITY, pushing: false };
 }
 
 /// A planar rigid move of one foot in the body frame (x forward, y left, yaw about z up),
@@ -104,8 +107,10 @@ impl HumanModel {
         }
         let mut local: Vec<(Vec3, Quat, Vec3)> =
             self.nodes.iter().map(|n| (n.translation, n.rotation, n.scale)).collect();
+        let pushing = style.pushing && !seated && self.can_push();
         for ch in &self.channels {
-            let mut v = if walk > 0.0 { sample(ch, t) } else { ch.stand };
+            // A person pushing holds the arms still (then turns them to the handle, below).
+            let mut v = if walk > 0.0 && !(pushing && ch.arm) { sample(ch, t) } else { ch.stand };
             if ch.arm && walk > 0.0 && style.arm_swing != 1.0 {
                 // stand * (stand^-1 v)^a: the swing's angle scaled, its axis kept.
                 let stand = Quat::from_vec4(ch.stand).normalize();
@@ -133,6 +138,9 @@ impl HumanModel {
         }
         if seated {
             self.seat(&mut local, &mut global, style.seat_m, style.feet_room_m);
+        }
+        if pushing {
+            self.push_arms(&mut local, &mut global);
         }
         out.extend(self.joint_nodes.iter().map(|&node| global_of(&self.nodes, &local, &mut global, node)));
     }

@@ -21,6 +21,7 @@ pub mod clothes;
 mod gait;
 mod load;
 pub mod proxy;
+pub mod push;
 mod sit;
 mod skin;
 

@@ -13,7 +13,7 @@
 //! /humans/velocity_mps f32[T,N,3]  /humans/gait_phase f32[T,N]
 //! /movers/kind str[M]  /movers/length_m f32[M]  /movers/width_m f32[M]  (M movers, when any:
 //! /movers/position_m f64[T,M,3]  /movers/heading_rad f32[T,M]    instance N + 1 + j is mover j)
-//! /movers/velocity_mps f32[T,M,3]
+//! /movers/velocity_mps f32[T,M,3]  /movers/yaw_rate_rps f32[T,M]  /movers/pushed_by u32[M] (0: nobody)
 //! ```
 //!
 //! Per-beam datasets are chunked one frame per chunk. Each frame's chunks are shuffled and
@@ -102,6 +102,7 @@ pub(crate) struct H5Writer {
     mover_position_m: Vec<f64>,
     mover_heading_rad: Vec<f32>,
     mover_velocity_mps: Vec<f32>,
+    mover_yaw_rate_rps: Vec<f32>,
 }
 
 fn h5err(name: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
@@ -345,6 +346,7 @@ impl H5Writer {
             mover_position_m: Vec::with_capacity(t * meta.movers.len() * 3),
             mover_heading_rad: Vec::with_capacity(t * meta.movers.len()),
             mover_velocity_mps: Vec::with_capacity(t * meta.movers.len() * 3),
+            mover_yaw_rate_rps: Vec::with_capacity(t * meta.movers.len()),
         })
     }
 
@@ -405,6 +407,7 @@ impl H5Writer {
             self.mover_position_m.extend_from_slice(&ms.position_m);
             self.mover_heading_rad.push(ms.heading_rad);
             self.mover_velocity_mps.extend_from_slice(&ms.velocity_mps);
+            self.mover_yaw_rate_rps.push(ms.yaw_rate_rps);
         }
         Ok(())
     }
@@ -497,13 +500,16 @@ impl H5Writer {
                 let kind = meta.movers.iter().map(|v| vlu(&name, &v.kind)).collect::<Result<Vec<_>>>()?;
                 let length: Vec<f32> = meta.movers.iter().map(|v| v.length_m).collect();
                 let width: Vec<f32> = meta.movers.iter().map(|v| v.width_m).collect();
-                let recs: [(&str, &str, Dataset); 6] = [
-                    ("", "What it is (car, cyclist); its instance is the number of people + 1 + its index", small(&mg, "kind", &[m], &kind).map_err(&e)?),
+                let pushed_by: Vec<u32> = meta.movers.iter().map(|v| v.pushed_by).collect();
+                let recs: [(&str, &str, Dataset); 8] = [
+                    ("", "What it is (car, cyclist, robot, cart, stroller, trolley); its instance is the number of people + 1 + its index", small(&mg, "kind", &[m], &kind).map_err(&e)?),
                     ("m", "Length of its footprint", small(&mg, "length_m", &[m], &length).map_err(&e)?),
                     ("m", "Width of its footprint", small(&mg, "width_m", &[m], &width).map_err(&e)?),
                     ("m", "Centre of its footprint on the ground, world frame", small(&mg, "position_m", &[t, m, 3], &self.mover_position_m).map_err(&e)?),
                     ("rad", "Heading in the world frame", small(&mg, "heading_rad", &[t, m], &self.mover_heading_rad).map_err(&e)?),
                     ("m/s", "Velocity in the world frame", small(&mg, "velocity_mps", &[t, m, 3], &self.mover_velocity_mps).map_err(&e)?),
+                    ("rad/s", "Turning rate about the world's vertical: a point r from the centre moves at velocity + w z x r", small(&mg, "yaw_rate_rps", &[t, m], &self.mover_yaw_rate_rps).map_err(&e)?),
+                    ("", "The person pushing it (their instance, 1..N; a stroller, a trolley), 0 where nobody does", small(&mg, "pushed_by", &[m], &pushed_by).map_err(&e)?),
                 ];
                 for (units, desc, ds) in &recs {
                     if !units.is_empty() {

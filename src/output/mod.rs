@@ -64,6 +64,8 @@ pub struct HumanMeta {
     pub model: String,
     /// Seated the whole sequence on a seat this high, m (`humans.sitting`); None: not seated.
     pub seat_m: Option<f32>,
+    /// What the person pushes the whole sequence (`stroller`, `trolley`; `humans.pushing`).
+    pub pushing: Option<String>,
 }
 
 /// One mover of a sequence (a car, a cyclist).
@@ -74,6 +76,8 @@ pub struct MoverMeta {
     /// Its footprint's length and width, m.
     pub length_m: f32,
     pub width_m: f32,
+    /// The person pushing it: their id (instance, 1..N); 0 for a mover nobody pushes.
+    pub pushed_by: u32,
 }
 
 /// State of one mover at one frame (world frame): the centre of its footprint on the ground.
@@ -82,6 +86,8 @@ pub struct MoverState {
     pub position_m: [f64; 3],
     pub heading_rad: f32,
     pub velocity_mps: [f32; 3],
+    /// Its turning rate, rad/s: a point `r` from the centre moves at `velocity + w z x r`.
+    pub yaw_rate_rps: f32,
 }
 
 /// The `/label` of a beam that is not scored: its return is a recorded background's that

@@ -60,6 +60,9 @@ impl XmlWriter {
             if let Some(s) = h.seat_m {
                 e.push_attribute(("seated_m", format!("{s:.3}").as_str()));
             }
+            if let Some(p) = &h.pushing {
+                e.push_attribute(("pushing", p.as_str()));
+            }
             x.w.write_event(Event::Empty(e)).map_err(io)?;
         }
         Ok(x)

@@ -170,6 +170,8 @@ pub struct PoseStage {
     /// Per mover of the world: the time it was placed at, and its world velocity then.
     pub mover_time: Vec<f64>,
     pub mover_velocity: Vec<DVec3>,
+    /// Per mover: its turning rate then, rad/s (a pushed thing's; 0 in a lane).
+    pub mover_yaw_rate: Vec<f64>,
 }
 
 impl PoseStage {
@@ -224,6 +226,7 @@ impl PoseStage {
         s.env_world.clear();
         s.mover_time.clear();
         s.mover_velocity.clear();
+        s.mover_yaw_rate.clear();
         if let Some(env) = inp.environment {
             // Movers: each placed whole at its own time (under a rolling sweep, when the
             // column of its centre is fired), into this frame's copy of the environment.
@@ -245,6 +248,7 @@ impl PoseStage {
                     m.place(t, &mut s.env_world[m.first_vertex..m.first_vertex + m.local.len()]);
                     s.mover_time.push(t);
                     s.mover_velocity.push(m.velocity(t));
+                    s.mover_yaw_rate.push(m.yaw_rate_rps(t));
                 }
             }
             let positions = if s.env_world.is_empty() { &env.positions } else { &s.env_world };

@@ -326,7 +326,10 @@ pub struct HumanPlan {
     /// not seated.
     pub seat_m: f64,
     /// Seated: how far ahead of the position the feet may reach, m; infinite otherwise.
-    pub feet_room_m: f64,
+    pub feet_room_m: f64,    /// Pushing a stroller or a trolley the whole sequence (`humans.pushing`): the arms held
+    /// to its handle ([`GaitStyle::pushing`]); the thing is the world's
+    /// (`crate::scene::world::World::add_pushed`).
+    pub pushing: bool,
 }
 
 /// A person's state at one instant (world frame).
@@ -349,12 +352,14 @@ pub struct HumanAt {
     /// The person's seat and the room for its feet ([`HumanPlan::seat_m`], `feet_room_m`).
     pub seat_m: f64,
     pub feet_room_m: f64,
+    /// Whether the person pushes something ([`HumanPlan::pushing`]).
+    pub pushing: bool,
 }
 
 impl HumanAt {
     /// How the person walks at this instant (for posing its model).
     pub fn style(&self) -> GaitStyle {
-        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet, seat_m: self.seat_m as f32, feet_room_m: self.feet_room_m as f32 }
+        GaitStyle { walking: self.walking as f32, arm_swing: self.arm_swing as f32, stride: self.stride_scale as f32, feet: self.feet, seat_m: self.seat_m as f32, feet_room_m: self.feet_room_m as f32, pushing: self.pushing }
     }
 }
 
@@ -404,6 +409,7 @@ impl HumanPlan {
             feet,
             seat_m: self.seat_m,
             feet_room_m: self.feet_room_m,
+            pushing: self.pushing,
         }
     }
 
@@ -633,6 +639,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
+                pushing: false,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -829,6 +836,7 @@ fn sample_synthetic_people(
                     stride_scale: 1.0,
                     seat_m: 0.0,
                     feet_room_m: f64::INFINITY,
+                    pushing: false,
                 });
                 break;
             }
@@ -880,6 +888,7 @@ fn sample_synthetic_people(
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
+                pushing: false,
             };
             if placeable(&plan) {
                 placed = Some(plan);

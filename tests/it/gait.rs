@@ -130,6 +130,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
+        pushing: false,
     };
     assert_eq!(plan(0.0, MotionMode::Full).at(2.0).walking, 0.0);
     assert_eq!(plan(0.05, MotionMode::Full).at(2.0).walking, 0.5);

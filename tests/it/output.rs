@@ -32,6 +32,7 @@ fn meta(index: usize, frames: usize, humans: usize, outputs: OutputSet) -> Seque
                 weight_kg: 60.0 + 5.0 * k as f32,
                 model: if k == 0 { "h1700_w60".into() } else { format!("odd<&\"'>{k}") },
                 seat_m: (k == 1).then_some(0.45),
+                pushing: None,
             })
             .collect(),
         movers: Vec::new(),

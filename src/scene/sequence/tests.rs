@@ -16,6 +16,7 @@ fn plan(motion: MotionMode) -> HumanPlan {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
+        pushing: false,
     }
 }
 

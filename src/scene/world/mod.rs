@@ -8,11 +8,13 @@
 //! A world is built once per sequence ([`World::build`]): its triangles (an [`Environment`],
 //! rendered like a glTF background), its walkable area (sidewalks, crossings, plazas; halls and
 //! corridors) and, in the street, the sensor's path (a vehicle in its lane). Once the
-//! sequence's people are planned, the street's traffic and the hall's robots and carts drive
-//! around them ([`World::add_movers`]).
+//! sequence's people are planned, the things some of them push are added ([`World::add_pushed`]),
+//! then the street's traffic and the hall's robots and carts drive around them
+//! ([`World::add_movers`]).
 
 pub mod indoor;
 pub mod movers;
+pub mod pushed;
 pub mod shapes;
 pub mod street;
 pub mod things;
@@ -175,36 +177,44 @@ impl World {
         let sensor = self.sensor;
         let sensor_x = |t: f64| sensor.map_or(0.0, |s| s.position(t).x);
         let driven: Vec<_> = traffic.iter().map(|lt| movers::drive(&mut rng, &lt.movers, &lt.lane, duration_s, sensor_x, lt.ego, &people)).collect();
-        let mut added = Environment::default();
         for (lt, kept) in traffic.iter().zip(driven) {
             for (i, u0, table) in kept {
                 let spec = &lt.movers[i];
-                let first = self.env.positions.len();
-                let m = movers::mover(spec, &lt.lane, u0, table, first);
-                let mut placed = vec![DVec3::ZERO; m.local.len()];
-                m.place(0.0, &mut placed);
-                self.env.positions.extend_from_slice(&placed);
-                for mesh in &spec.mesh.meshes {
-                    let mut mesh = mesh.clone();
-                    mesh.indices.iter_mut().for_each(|k| *k += first as u32);
-                    mesh.name = format!("mover {} {} {}", self.movers.len(), m.kind.name(), mesh.name);
-                    added.meshes.push(mesh.clone());
-                    self.env.meshes.push(mesh);
-                }
-                let draws = added.draws();
-                self.mover_of_draw.extend(std::iter::repeat_n(self.movers.len() as u32, draws.len()));
-                self.draws.extend(draws);
-                added.meshes.clear();
+                let m = movers::mover(spec, &lt.lane, u0, table, self.env.positions.len());
                 let what = lt.count_as.unwrap_or(match m.kind {
                     MoverKind::Car => "car driving",
                     MoverKind::Cyclist => "cyclist riding",
                     MoverKind::Robot => "robot driving",
                     MoverKind::Cart => "cart driving",
+                    MoverKind::Stroller => "stroller pushed",
+                    MoverKind::Trolley => "trolley pushed",
                 });
-                *self.counts.entry(what).or_insert(0) += 1;
-                self.movers.push(m);
+                self.add_mover(m, &spec.mesh, what);
             }
         }
+    }
+
+    /// Adds mover `m` (its vertices to come at the end of the environment's) with its mesh,
+    /// placed where it is at time 0, counted as `what`.
+    fn add_mover(&mut self, m: Mover, mesh: &Environment, what: &'static str) {
+        let first = self.env.positions.len();
+        debug_assert_eq!(m.first_vertex, first);
+        let mut placed = vec![DVec3::ZERO; m.local.len()];
+        m.place(0.0, &mut placed);
+        self.env.positions.extend_from_slice(&placed);
+        let mut added = Environment::default();
+        for mesh in &mesh.meshes {
+            let mut mesh = mesh.clone();
+            mesh.indices.iter_mut().for_each(|k| *k += first as u32);
+            mesh.name = format!("mover {} {} {}", self.movers.len(), m.kind.name(), mesh.name);
+            added.meshes.push(mesh.clone());
+            self.env.meshes.push(mesh);
+        }
+        let draws = added.draws();
+        self.mover_of_draw.extend(std::iter::repeat_n(self.movers.len() as u32, draws.len()));
+        self.draws.extend(draws);
+        *self.counts.entry(what).or_insert(0) += 1;
+        self.movers.push(m);
     }
 
     /// One line for the sequence's XML: triangles and the things placed, by kind.

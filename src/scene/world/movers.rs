@@ -1,6 +1,7 @@
 //! Other movers: cars driving and cyclists riding the street's oncoming lane, one after the
 //! other, and cars ahead of and behind the sensor's own vehicle in its lane; delivery robots and
-//! motorised carts along the indoor hall's service aisle. Each is a rigid
+//! motorised carts along the indoor hall's service aisle; and the strollers and trolleys people
+//! push ([`super::pushed`], [`MoverPath::Pushed`]). Each is a rigid
 //! mesh of its own (a cyclist's rider and bicycle together), held level and following the
 //! ground under it (the raised crossings' ramps), with its own instance id and per-beam
 //! velocity in the frames.
@@ -34,6 +35,10 @@ pub enum MoverKind {
     Robot,
     /// A motorised service cart with its load (other-vehicle, 20).
     Cart,
+    /// A stroller a person pushes along the street (other-object, 99).
+    Stroller,
+    /// A trolley a person pushes indoors (other-object, 99).
+    Trolley,
 }
 
 impl MoverKind {
@@ -43,6 +48,8 @@ impl MoverKind {
             MoverKind::Cyclist => "cyclist",
             MoverKind::Robot => "robot",
             MoverKind::Cart => "cart",
+            MoverKind::Stroller => "stroller",
+            MoverKind::Trolley => "trolley",
         }
     }
 }
@@ -97,8 +104,8 @@ pub struct Ego {
 /// The sensor's vehicle's half length and half width, m (a car's, the sensor over its middle).
 pub const EGO_HALF_M: DVec2 = DVec2::new(2.3, 0.95);
 
-/// The drive table's step, s.
-const STEP_S: f64 = 0.05;
+/// The drive table's step, and a pushed thing's pose table's, s.
+pub const STEP_S: f64 = 0.05;
 
 impl Lane {
     pub fn length(&self) -> f64 {
@@ -175,6 +182,20 @@ pub struct Mover {
     pub local: Vec<DVec3>,
     pub first_vertex: usize,
     pub half: DVec2,
+    /// How it moves.
+    pub path: MoverPath,
+}
+
+/// How a mover moves: along a lane, or pushed by a person.
+#[derive(Clone, Debug)]
+pub enum MoverPath {
+    Lane(LanePath),
+    Pushed(PushedPath),
+}
+
+/// A drive along a lane.
+#[derive(Clone, Debug)]
+pub struct LanePath {
     pub lane: Arc<Lane>,
     /// World y of its centre line (cyclists ride by the curb), m.
     pub y: f64,
@@ -185,7 +206,7 @@ pub struct Mover {
     table: Vec<[f64; 3]>,
 }
 
-impl Mover {
+impl LanePath {
     /// Distance driven since time 0 and speed at `t_s` (at the table's end speeds held
     /// before 0 and after its last step).
     pub fn travel(&self, t_s: f64) -> (f64, f64) {
@@ -203,26 +224,62 @@ impl Mover {
         }
         (s + v * tau + 0.5 * a * tau * tau, v + a * tau)
     }
-    /// Centre of its footprint on the ground at `t_s`, world frame.
-    pub fn position(&self, t_s: f64) -> DVec3 {
+    fn position(&self, t_s: f64) -> DVec3 {
         let x = self.lane.x_of(self.u0 + self.travel(t_s).0);
         DVec3::new(x, self.y, self.lane.ground(x).0)
     }
-    /// Velocity at `t_s`, world frame, m/s (up and down the crossings' ramps included).
-    pub fn velocity(&self, t_s: f64) -> DVec3 {
+    fn velocity(&self, t_s: f64) -> DVec3 {
         let (s, v) = self.travel(t_s);
         let x = self.lane.x_of(self.u0 + s);
         let vx = self.lane.dir * v;
         DVec3::new(vx, 0.0, self.lane.ground(x).1 * vx)
     }
-    /// Heading, radians counter-clockwise from +x.
-    pub fn heading_rad(&self) -> f64 {
-        if self.lane.dir > 0.0 { 0.0 } else { std::f64::consts::PI }
+}
+
+impl Mover {
+    /// Its lane, where it drives one.
+    pub fn lane(&self) -> Option<&LanePath> {
+        match &self.path {
+            MoverPath::Lane(l) => Some(l),
+            MoverPath::Pushed(_) => None,
+        }
+    }
+    /// Centre of its footprint on the ground at `t_s`, world frame.
+    pub fn position(&self, t_s: f64) -> DVec3 {
+        match &self.path {
+            MoverPath::Lane(l) => l.position(t_s),
+            MoverPath::Pushed(p) => p.pose(t_s).0,
+        }
+    }
+    /// Velocity of its centre at `t_s`, world frame, m/s (up and down the crossings' ramps
+    /// included); the exact derivative of [`Mover::position`].
+    pub fn velocity(&self, t_s: f64) -> DVec3 {
+        match &self.path {
+            MoverPath::Lane(l) => l.velocity(t_s),
+            MoverPath::Pushed(p) => p.rates(t_s).0,
+        }
+    }
+    /// Heading at `t_s`, radians counter-clockwise from +x.
+    pub fn heading_rad(&self, t_s: f64) -> f64 {
+        match &self.path {
+            MoverPath::Lane(l) => {
+                if l.lane.dir > 0.0 { 0.0 } else { std::f64::consts::PI }
+            }
+            MoverPath::Pushed(p) => p.pose(t_s).1,
+        }
+    }
+    /// Its turning rate about the vertical at `t_s`, rad/s (the derivative of the heading; 0
+    /// in a lane).
+    pub fn yaw_rate_rps(&self, t_s: f64) -> f64 {
+        match &self.path {
+            MoverPath::Lane(_) => 0.0,
+            MoverPath::Pushed(p) => p.rates(t_s).1,
+        }
     }
     /// Its vertices in the world at `t_s`, into `out` (as many as `local`).
     pub fn place(&self, t_s: f64, out: &mut [DVec3]) {
         let p = self.position(t_s);
-        let (s, c) = self.heading_rad().sin_cos();
+        let (s, c) = self.heading_rad(t_s).sin_cos();
         for (o, l) in out.iter_mut().zip(&self.local) {
             *o = p + DVec3::new(c * l.x - s * l.y, s * l.x + c * l.y, l.z);
         }
@@ -231,11 +288,72 @@ impl Mover {
     pub fn touches(&self, t_s: f64, p: DVec2) -> bool {
         self.overlaps(t_s, p, DVec2::splat(PERSON_RADIUS_M))
     }
-    /// Whether its footprint at `t_s` overlaps a box of half size `half` centred at `p` (both
-    /// axis-aligned: a lane runs along x).
+    /// Whether its footprint at `t_s` overlaps a box of half size `half` centred at `p`,
+    /// axis-aligned (a lane runs along x; a pushed thing's footprint is turned to its heading
+    /// and the box taken as the circle around it).
     pub fn overlaps(&self, t_s: f64, p: DVec2, half: DVec2) -> bool {
-        let d = (p - self.position(t_s).truncate()).abs();
-        d.x < self.half.x + half.x && d.y < self.half.y + half.y
+        let d = p - self.position(t_s).truncate();
+        match &self.path {
+            MoverPath::Lane(_) => {
+                let d = d.abs();
+                d.x < self.half.x + half.x && d.y < self.half.y + half.y
+            }
+            MoverPath::Pushed(_) => {
+                let (s, c) = self.heading_rad(t_s).sin_cos();
+                let local = DVec2::new(c * d.x + s * d.y, -s * d.x + c * d.y).abs();
+                let r = half.length();
+                let out = (local - self.half).max(DVec2::ZERO);
+                out.length() < r
+            }
+        }
+    }
+}
+
+/// A pushed thing's path: its footprint's centre on the ground and its heading, per
+/// [`STEP_S`] from `t0_s`, linear in between (so the velocity and turning rate are the exact
+/// derivatives of the pose); held before the table and after it.
+#[derive(Clone, Debug)]
+pub struct PushedPath {
+    /// The person pushing it: their index in the sequence's plan.
+    pub pusher: usize,
+    t0_s: f64,
+    /// Centre x, y, z and heading (unwrapped: no jumps of 2 pi).
+    table: Vec<[f64; 4]>,
+}
+
+impl PushedPath {
+    /// A path from its table (per [`STEP_S`] from `t0_s`: centre x, y, z, unwrapped heading).
+    pub fn new(pusher: usize, t0_s: f64, table: Vec<[f64; 4]>) -> PushedPath {
+        PushedPath { pusher, t0_s, table }
+    }
+    /// The step `t_s` falls in and how far into it, or None outside the table.
+    fn step(&self, t_s: f64) -> Option<(usize, f64)> {
+        let u = (t_s - self.t0_s) / STEP_S;
+        let last = self.table.len().checked_sub(1)?;
+        if !(0.0..=last as f64).contains(&u) || last == 0 {
+            return None;
+        }
+        let k = (u.floor() as usize).min(last - 1);
+        Some((k, u - k as f64))
+    }
+    /// Centre and heading at `t_s`.
+    pub fn pose(&self, t_s: f64) -> (DVec3, f64) {
+        let row = match self.step(t_s) {
+            Some((k, f)) => {
+                let (a, b) = (self.table[k], self.table[k + 1]);
+                [0, 1, 2, 3].map(|i| a[i] + f * (b[i] - a[i]))
+            }
+            None if t_s < self.t0_s => self.table[0],
+            None => *self.table.last().expect("a pushed path has a pose"),
+        };
+        (DVec3::new(row[0], row[1], row[2]), row[3])
+    }
+    /// The centre's velocity and the turning rate at `t_s` (0 outside the table).
+    pub fn rates(&self, t_s: f64) -> (DVec3, f64) {
+        let Some((k, _)) = self.step(t_s) else { return (DVec3::ZERO, 0.0) };
+        let (a, b) = (self.table[k], self.table[k + 1]);
+        let d = [0, 1, 2, 3].map(|i| (b[i] - a[i]) / STEP_S);
+        (DVec3::new(d[0], d[1], d[2]), d[3])
     }
 }
 
@@ -383,7 +501,7 @@ pub fn drive(
         placed.iter().all(|&(j, v)| apart(u, v, half + specs[j].half.x + gap.max(specs[j].driver.min_gap_m) + 2.0))
             && ego.is_none_or(|e| apart(u, ego_u(0.0), half + e.half.x + gap + 2.0))
     };
-    let mut firsts = [false; 4];
+    let mut firsts = [false; 6];
     for (i, sp) in specs.iter().enumerate() {
         let kind = sp.kind as usize;
         for _ in 0..40 {
@@ -519,5 +637,6 @@ fn simulate(
 /// A mover of a sequence from its spec, placement and drive.
 pub fn mover(spec: &MoverSpec, lane: &Arc<Lane>, u0: f64, table: Vec<[f64; 3]>, first_vertex: usize) -> Mover {
     let y = lane.y + if spec.kind == MoverKind::Cyclist { lane.bike_offset_m } else { 0.0 };
-    Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex, half: spec.half, lane: lane.clone(), y, u0, table }
+    let path = MoverPath::Lane(LanePath { lane: lane.clone(), y, u0, table });
+    Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex, half: spec.half, path }
 }

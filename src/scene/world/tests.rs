@@ -3,12 +3,12 @@ use std::path::Path;
 use std::sync::Arc;
 use super::*;
 
-fn params() -> WorldParams {
+pub(super) fn params() -> WorldParams {
     WorldParams { duration_s: 3.0, sensor_height_m: 1.73, sensor_speed_mps: [2.0, 8.0], clearance_m: 0.35, markets: crate::config::DEFAULT_MARKETS, side_streets: crate::config::DEFAULT_SIDE_STREETS }
 }
 
 /// Obstacle triangles (between 5 cm and 2 m, as the walkable area counts them) as xy triangles.
-fn obstacles(env: &Environment) -> Vec<[DVec2; 3]> {
+pub(super) fn obstacles(env: &Environment) -> Vec<[DVec2; 3]> {
     env.triangles()
         .filter(|t| {
             let zmin = t.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
@@ -286,8 +286,8 @@ fn street_with_a_person_on_a_crossing(seed: u64, index: usize, duration: f64) ->
 /// Mover `i` and each later one in its lane have their footprints apart along it at `t_s`.
 fn assert_apart_in_lane(movers: &[Mover], i: usize, t_s: f64, sequence: usize) {
     let m = &movers[i];
-    let lane = &m.lane;
-    for o in movers[i + 1..].iter().filter(|o| Arc::ptr_eq(&o.lane, lane)) {
+    let lane = &m.lane().unwrap().lane;
+    for o in movers[i + 1..].iter().filter(|o| o.lane().is_some_and(|l| Arc::ptr_eq(&l.lane, lane))) {
         let gap = (lane.u_of(o.position(t_s).x) - lane.u_of(m.position(t_s).x)).rem_euclid(lane.length());
         let gap = gap.min(lane.length() - gap);
         assert!(gap > m.half.x + o.half.x, "sequence {sequence}: movers {gap:.2} m apart at {t_s} s");
@@ -325,14 +325,14 @@ fn movers_velocities_are_the_derivatives_of_their_positions() {
             let (a, b) = (m.position(t - h), m.position(t + h));
             // Not across the lane's wrap or a ramp's edge (where the slope, and so the
             // vertical speed, changes).
-            if (b - a).length() > 1.0 || m.lane.ground(a.x).1 != m.lane.ground(b.x).1 {
+            if (b - a).length() > 1.0 || m.lane().unwrap().lane.ground(a.x).1 != m.lane().unwrap().lane.ground(b.x).1 {
                 continue;
             }
             let fd = (b - a) / (2.0 * h);
             let v = m.velocity(t);
             assert!((fd - v).length() < 1e-4 * (1.0 + v.length()), "{:?} at {t}: {fd} vs {v}", m.kind);
             // Level, along the lane, and on the ground under it.
-            assert!(v.y == 0.0 && (m.position(t).z - m.lane.ground(m.position(t).x).0).abs() < 1e-12);
+            assert!(v.y == 0.0 && (m.position(t).z - m.lane().unwrap().lane.ground(m.position(t).x).0).abs() < 1e-12);
             checked += 1;
         }
     }
@@ -378,10 +378,10 @@ fn cars_in_the_sensors_lane_keep_clear_of_its_vehicle() {
         assert_eq!(own.y, sensor.position(0.0).y);
         assert_eq!(own.dir, sensor.velocity(0.0).x.signum());
         w.add_movers(duration, |_, out| out.clear());
-        let mine: Vec<_> = w.movers.iter().filter(|m| Arc::ptr_eq(&m.lane, &own)).collect();
+        let mine: Vec<_> = w.movers.iter().filter(|m| m.lane().is_some_and(|l| Arc::ptr_eq(&l.lane, &own))).collect();
         assert_eq!(mine.len(), w.counts.get("car in the sensor lane").copied().unwrap_or(0), "{}", w.summary());
         for m in &mine {
-            assert_eq!((m.kind, m.y), (MoverKind::Car, own.y));
+            assert_eq!((m.kind, m.lane().unwrap().y), (MoverKind::Car, own.y));
             for k in 0..=400 {
                 let t = 0.05 * k as f64;
                 let s = sensor.position(t).truncate();
@@ -630,7 +630,7 @@ fn robots_and_carts_keep_to_the_aisle_and_stop_for_people() {
     for index in 0..8 {
         let Some((w, hall, person)) = hall_with_a_person_in_the_aisle(5, index, 30.0) else { continue };
         aisles += 1;
-        let lane = w.movers.first().map(|m| m.lane.clone()).expect("a hall with an aisle keeps a mover");
+        let lane = w.movers.first().map(|m| m.lane().unwrap().lane.clone()).expect("a hall with an aisle keeps a mover");
         // The still world (built again, without its movers): nothing in the aisle.
         let bare = World::build(WorldKind::Indoor, 5, index, &WorldParams { duration_s: 30.0, ..params() }).unwrap();
         for t in obstacles(&bare.env) {
@@ -642,7 +642,7 @@ fn robots_and_carts_keep_to_the_aisle_and_stop_for_people() {
         for k in 0..=600 {
             let t = 0.05 * k as f64;
             for (i, m) in w.movers.iter().enumerate() {
-                assert!(Arc::ptr_eq(&m.lane, &lane) && m.y == lane.y);
+                assert!(Arc::ptr_eq(&m.lane().unwrap().lane, &lane) && m.lane().unwrap().y == lane.y);
                 assert!(!m.touches(t, person), "hall {index}: {:?} {i} on the person at {t} s", m.kind);
                 assert_apart_in_lane(&w.movers, i, t, index);
             }

@@ -98,6 +98,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
+                pushing: false,
             };
             for k in (0..=10_000usize).step_by(7).chain([9_999, 10_000]) {
                 let t = k as f64 / 10.0;
@@ -127,6 +128,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
+        pushing: false,
     };
     let s = plan.at(T_LONG);
     assert_eq!(s.velocity_mps, DVec3::ZERO, "zero speed: zero velocity");

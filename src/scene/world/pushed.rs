@@ -1,0 +1,198 @@
+//! Things people push (`humans.pushing`): a stroller along the street, a trolley indoors. Each
+//! is a rigid mesh of its own, its handle at the pusher's hands ([`PushHandle`]), held ahead
+//! of the pusher at the pusher's heading as the pusher walks, stops and turns; like the other
+//! movers it has its own instance id and its beams their own velocity (the centre's and the
+//! turn's: `v + w z x r`), and it is not a person (SemanticKITTI's other-object, 99). A
+//! person pushes only where the thing stays clear of everything all through the sequence: the
+//! walkable area's obstacles, the other people, the sensor's carrier or vehicle, the other
+//! pushed things;
+//! nobody turns one on the spot, and a person who leaves and comes back in (a long sequence)
+//! pushes nothing. The traffic then keeps clear of the things as of the people.
+
+use super::movers::{Mover, MoverKind, MoverPath, PushedPath, EGO_HALF_M, STEP_S};
+use super::shapes::Builder;
+use super::things::{class, material};
+use super::{chance, uni, World, WorldKind};
+use crate::human::push::PushHandle;
+use crate::scene::Environment;
+use glam::{DVec2, DVec3};
+use rand::{Rng, RngExt, SeedableRng};
+
+/// Keys the choice of who pushes apart from the world's other streams.
+const PUSHED_STREAM_KEY: u64 = 0x5055_5348_5f76_3031; // "PUSH_v01"
+
+/// How far before time 0 and past the sequence's end the table reaches, s (a rolling sweep
+/// places a mover at the time its column fires, after the frame's).
+const MARGIN_S: f64 = 1.0;
+/// The fastest a pushed thing goes and turns, m/s and rad/s: a person walking one is slower;
+/// faster is a person taken out of the sequence or put back in.
+const MAX_SPEED_MPS: f64 = 3.0;
+const MAX_TURN_RPS: f64 = 2.0;
+/// Below this speed a pusher is standing: its heading may not change (nobody turns a stroller
+/// on the spot), rad/s.
+const STANDING_MPS: f64 = 0.1;
+const STANDING_TURN_RPS: f64 = 0.05;
+/// Room kept between a thing and the walkable area's obstacles, beside its half width, m.
+const ROOM_M: f64 = 0.05;
+
+/// A thing to push, not yet pushed: its mesh (body frame: x forward, z up from the ground, the
+/// origin its footprint's centre), half its footprint's length and width, and how far behind
+/// the centre its handle is, m.
+pub struct PushedSpec {
+    pub kind: MoverKind,
+    pub mesh: Environment,
+    pub half: DVec2,
+    pub handle_behind_m: f64,
+}
+
+/// A stroller for hands at `h`: four wheels (the rear ones larger), a frame, a seat or
+/// carrycot and its hood, the handle bar across at the hands, 10-20 cm behind the rear wheels.
+pub fn stroller(rng: &mut impl Rng, h: &PushHandle) -> PushedSpec {
+    let (frame, fabric) = (material(rng, class::OTHER_OBJECT), material(rng, class::OTHER_OBJECT));
+    let (len, half_w) = (uni(rng, 0.7, 0.9), uni(rng, 0.26, 0.31));
+    let (r_back, r_front) = (uni(rng, 0.12, 0.16), uni(rng, 0.08, 0.11));
+    let mut b = Builder::default();
+    let side = DVec3::new(0.0, 0.02, 0.0);
+    let wheel_y = half_w - 0.03;
+    for y in [-wheel_y, wheel_y] {
+        let back = DVec3::new(-0.5 * len + r_back, y, r_back);
+        let front = DVec3::new(0.5 * len - r_front, y, r_front);
+        b.rod(frame, back - side, back + side, r_back, 10);
+        b.rod(frame, front - side, front + side, r_front, 8);
+        b.rod(frame, back, front + DVec3::new(0.0, 0.0, 0.1), 0.015, 6);
+    }
+    let seat_z = uni(rng, 0.38, 0.5);
+    let seat_len = uni(rng, 0.5, 0.7).min(len);
+    let seat_x = uni(rng, -0.05, 0.05);
+    let seat_top = seat_z + uni(rng, 0.22, 0.35);
+    b.cuboid(fabric, DVec3::new(seat_x, 0.0, seat_z), DVec3::new(seat_len, 2.0 * half_w - 0.08, seat_top - seat_z), 0.0);
+    b.ellipsoid(fabric, DVec3::new(seat_x - 0.2 * seat_len, 0.0, seat_top), DVec3::new(0.22, half_w - 0.05, uni(rng, 0.12, 0.22)), 4, 0.0, || 0.0);
+    let handle_x = -0.5 * len - uni(rng, 0.1, 0.2);
+    let hz = h.height_m as f64;
+    let bar = (h.half_width_m as f64 + 0.06).min(half_w);
+    b.rod(frame, DVec3::new(handle_x, -bar, hz), DVec3::new(handle_x, bar, hz), 0.015, 6);
+    for y in [-bar, bar] {
+        b.rod(frame, DVec3::new(handle_x, y, hz), DVec3::new(-0.5 * len + r_back, y.signum() * wheel_y, r_back), 0.015, 6);
+    }
+    PushedSpec { kind: MoverKind::Stroller, mesh: b.finish(), half: DVec2::new(0.5 * len, half_w), handle_behind_m: -handle_x }
+}
+
+/// A trolley for hands at `h`: a basket up to a little below the hands, a tray under it, four
+/// castors and the uprights to them, the handle bar across the basket's back at the hands.
+pub fn trolley(rng: &mut impl Rng, h: &PushHandle) -> PushedSpec {
+    let (frame, basket) = (material(rng, class::OTHER_OBJECT), material(rng, class::OTHER_OBJECT));
+    let (len, half_w) = (uni(rng, 0.75, 0.95), uni(rng, 0.25, 0.3));
+    let hz = h.height_m as f64;
+    let top = (hz - uni(rng, 0.03, 0.12)).max(0.7);
+    let bottom = top - uni(rng, 0.3, 0.45);
+    let mut b = Builder::default();
+    b.aabb(basket, DVec3::new(-0.5 * len, -half_w, bottom), DVec3::new(0.5 * len, half_w, top));
+    b.aabb(frame, DVec3::new(-0.5 * len + 0.05, -half_w + 0.04, 0.14), DVec3::new(0.5 * len - 0.05, half_w - 0.04, 0.17));
+    let r = uni(rng, 0.05, 0.07);
+    for x in [-0.5 * len + 0.06, 0.5 * len - 0.06] {
+        for y in [-half_w + 0.04, half_w - 0.04] {
+            b.rod(frame, DVec3::new(x, y - 0.015, r), DVec3::new(x, y + 0.015, r), r, 8);
+            b.rod(frame, DVec3::new(x, y, 2.0 * r), DVec3::new(x, y, bottom), 0.012, 6);
+        }
+    }
+    let handle_x = -0.5 * len - uni(rng, 0.04, 0.1);
+    let bar = half_w - 0.02;
+    b.rod(frame, DVec3::new(handle_x, -bar, hz), DVec3::new(handle_x, bar, hz), 0.015, 6);
+    for y in [-bar, bar] {
+        b.rod(frame, DVec3::new(handle_x, y, hz), DVec3::new(-0.5 * len, y, top), 0.012, 6);
+    }
+    PushedSpec { kind: MoverKind::Trolley, mesh: b.finish(), half: DVec2::new(0.5 * len, half_w), handle_behind_m: -handle_x }
+}
+
+/// The path of a thing with `spec`'s handle at the hands of person `pusher` (`handle` ahead of
+/// them; `at`: the person's floor position, heading and speed at a time) from `t0_s` to `t1_s`.
+fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> (DVec3, f64, f64), handle: &PushHandle, spec: &PushedSpec, t0_s: f64, t1_s: f64) -> PushedPath {
+    let ahead = handle.forward_m as f64 + spec.handle_behind_m;
+    let steps = ((t1_s - t0_s) / STEP_S).ceil().max(1.0) as usize;
+    let mut table: Vec<[f64; 4]> = Vec::with_capacity(steps + 1);
+    for k in 0..=steps {
+        let (p, mut h, _) = at(pusher, t0_s + k as f64 * STEP_S);
+        if let Some(prev) = table.last() {
+            // Unwrapped: the nearest turn of the heading to the last one.
+            h = prev[3] + (h - prev[3] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        }
+        table.push([p.x + ahead * h.cos(), p.y + ahead * h.sin(), p.z, h]);
+    }
+    PushedPath::new(pusher, t0_s, table)
+}
+
+impl World {
+    /// Draws who pushes something over a sequence of `duration_s` (each person with
+    /// probability `share`, on a random stream of its own), builds a stroller (street) or a
+    /// trolley (indoors) to the pusher's hands and keeps it where it stays clear of everything
+    /// (the module's rules) all through; the things are added to the world as movers (before
+    /// its traffic), their meshes to the environment. Per person: `handles`, where their hands
+    /// hold a handle (None: they cannot push: a child, a bag in a hand, seated); `at`, their
+    /// floor position, heading and speed at a time. `carrier`: the sensor's carrier's floor
+    /// position at a time, where it walks among the people (the world's own sensor vehicle,
+    /// the street's, is kept clear of too). Returns who pushes, in order.
+    pub fn add_pushed(
+        &mut self,
+        share: f64,
+        handles: &[Option<PushHandle>],
+        at: impl Fn(usize, f64) -> (DVec3, f64, f64),
+        duration_s: f64,
+        carrier: impl Fn(f64) -> Option<DVec2>,
+    ) -> Vec<usize> {
+        let mut pushers = Vec::new();
+        if share <= 0.0 || handles.is_empty() {
+            return pushers;
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed ^ PUSHED_STREAM_KEY);
+        rng.set_stream(self.index as u64);
+        let (t0, t1) = (-MARGIN_S, duration_s.max(0.0) + MARGIN_S);
+        let steps = ((t1 - t0) / STEP_S).ceil().max(1.0) as usize;
+        let time = |k: usize| t0 + k as f64 * STEP_S;
+        // Everybody's floor position and speed at every step, and the carrier's position.
+        let people: Vec<Vec<(DVec2, f64)>> = (0..handles.len()).map(|i| (0..=steps).map(|k| {
+            let (p, _, v) = at(i, time(k));
+            (p.truncate(), v)
+        }).collect()).collect();
+        let carried: Vec<Option<DVec2>> = (0..=steps).map(|k| carrier(time(k))).collect();
+        // The sensor's vehicle, where the world drives it (the street).
+        let vehicle: Vec<Option<DVec2>> = (0..=steps).map(|k| self.sensor.map(|s| s.position(time(k)).truncate())).collect();
+        let mut kept: Vec<Mover> = Vec::new();
+        for (i, handle) in handles.iter().enumerate() {
+            let (draw, spec_seed) = (chance(&mut rng, share), rng.random::<u64>());
+            let (true, Some(handle)) = (draw, handle) else { continue };
+            let mut spec_rng = rand_chacha::ChaCha8Rng::seed_from_u64(spec_seed);
+            let spec = match self.kind {
+                WorldKind::Street => stroller(&mut spec_rng, handle),
+                WorldKind::Indoor => trolley(&mut spec_rng, handle),
+            };
+            let path = push_path(i, &at, handle, &spec, t0, time(steps));
+            let m = Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex: self.env.positions.len(), half: spec.half, path: MoverPath::Pushed(path) };
+            let clear = (0..=steps).all(|k| {
+                let t = time(k);
+                let MoverPath::Pushed(p) = &m.path else { return false };
+                let (c, h) = p.pose(t);
+                let (v, w) = p.rates(t);
+                let axis = DVec2::new(h.cos(), h.sin()) * (spec.half.x - spec.half.y).max(0.0);
+                v.truncate().length() <= MAX_SPEED_MPS
+                    && w.abs() <= MAX_TURN_RPS
+                    && (people[i][k].1 >= STANDING_MPS || w.abs() <= STANDING_TURN_RPS)
+                    && [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c.truncate() + s * axis) >= spec.half.y + ROOM_M)
+                    && people.iter().enumerate().all(|(j, q)| j == i || !m.touches(t, q[k].0))
+                    && carried[k].is_none_or(|q| !m.touches(t, q))
+                    && vehicle[k].is_none_or(|q| !m.overlaps(t, q, EGO_HALF_M))
+                    && kept.iter().all(|o| o.position(t).truncate().distance(c.truncate()) > o.half.length() + m.half.length())
+            });
+            if !clear {
+                continue;
+            }
+            pushers.push(i);
+            let what = if spec.kind == MoverKind::Stroller { "stroller pushed" } else { "trolley pushed" };
+            self.add_mover(m.clone(), &spec.mesh, what);
+            kept.push(m);
+        }
+        pushers
+    }
+}
+
+#[cfg(test)]
+mod tests;
