@@ -7,6 +7,7 @@ use crate::output::{FrameOutput, NOT_SCORED};
 use crate::scene::sequence::SequencePlan;
 use crate::scene::world::things::class::{BICYCLIST, CAR, OTHER_VEHICLE};
 use crate::scene::world::movers::PERSON_RADIUS_M;
+use crate::scene::world::pushed::Walker;
 use crate::scene::world::{World, WorldParams, NO_MOVER};
 use glam::DVec2;
 use std::sync::Arc;
@@ -38,7 +39,8 @@ impl Generator {
 
     /// Adds a planned sequence's movers to its world: the things its people push
     /// (`humans.pushing`, the pushers' plans marked), then the traffic, which keeps clear of
-    /// the people and of the pushed things (each counted as three people along its length).
+    /// the people and of the pushed things (each counted as people at its middle, its ends and
+    /// its corners).
     pub(super) fn add_world_movers(&self, plan: &mut SequencePlan, w: &mut World) {
         let duration = plan.times_s.last().copied().unwrap_or(0.0);
         // Indoors the sensor's carrier walks where people do: the movers keep clear of it too.
@@ -52,8 +54,9 @@ impl Generator {
         };
         let humans = &plan.humans;
         let at = |i: usize, t: f64| {
-            let a = humans[i].at(t);
-            (a.position_m, a.heading_rad, a.velocity_mps.truncate().length())
+            let h = &humans[i];
+            let (position_m, heading_rad, speed_mps) = h.floor_pose(t);
+            Walker { position_m, heading_rad, speed_mps, footprint_m: h.footprint_m(t) }
         };
         let pushers = w.add_pushed(share, &handles, at, duration, |t| carrier.map(|s| s.position(t).truncate()));
         let pushed = w.movers.clone();
@@ -63,8 +66,10 @@ impl Generator {
             out.extend(carrier.map(|s| s.position(t).truncate()));
             for m in &pushed {
                 let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
-                let axis = DVec2::new(h.cos(), h.sin()) * (m.half.x - PERSON_RADIUS_M).max(0.0);
-                out.extend([c - axis, c, c + axis]);
+                let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
+                let along = ax * (m.half.x - PERSON_RADIUS_M).max(0.0);
+                out.extend([c - along, c, c + along]);
+                out.extend([(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * m.half.x) + ay * (b * m.half.y)));
             }
         });
         for i in pushers {
@@ -130,7 +135,8 @@ impl Generator {
 
     /// The beams whose return is a mover's (the background's return, on a mover's mesh): the
     /// mover's instance, after the people's (people + 1 + its index); its world velocity added
-    /// to the background's velocity (`R^T V`, in the sensor frame of the beam's column); and a
+    /// to the background's velocity (`R^T V`, in the sensor frame of the beam's column; with
+    /// the rigid and limb models a turning mover's `V` at the hit, its turn included); and a
     /// rider's beams not scored (`/label` 255), as SemanticKITTI's riders are neither a hit
     /// nor a false alarm for a pedestrian network. `/clean/instance` and `/clean/label` the
     /// same on the clean returns.
@@ -150,8 +156,10 @@ impl Generator {
             (k != NO_MOVER).then(|| (k as usize, meshes.get(d).map_or(0, |m| m.class)))
         };
         let velocity = out.velocity.len() == out.range.len();
-        // A turning mover's beams add its turn about its centre: w z x (hit - centre), the
-        // hit placed in the world from the pose of its column.
+        // A turning mover's beams add its turn about its centre, w z x (hit - centre), the hit
+        // placed in the world from the pose of its column (the rigid and limb models: the
+        // paper's gives one velocity per object).
+        let turns = self.cfg.output.velocity != crate::config::VelocityModel::Paper;
         let frame_pose = glam::DMat4::from_cols_array_2d(&out.world_from_sensor).transpose();
         let dirs = &self.inputs.dirs;
         for b in 0..out.range.len() {
@@ -164,7 +172,7 @@ impl Generator {
                 let m = &p.column_motion[if p.column_motion.len() == 1 { 0 } else { b % columns }];
                 let mut v = p.mover_velocity[k];
                 let wz = p.mover_yaw_rate.get(k).copied().unwrap_or(0.0);
-                if wz != 0.0 {
+                if wz != 0.0 && turns {
                     let pose = p.column_pose.get(b % columns).unwrap_or(&frame_pose);
                     let hit = pose.transform_point3(dirs[b] * f64::from(out.range[b]));
                     let r = hit - w_pos(k);

@@ -326,7 +326,8 @@ pub struct HumanPlan {
     /// not seated.
     pub seat_m: f64,
     /// Seated: how far ahead of the position the feet may reach, m; infinite otherwise.
-    pub feet_room_m: f64,    /// Pushing a stroller or a trolley the whole sequence (`humans.pushing`): the arms held
+    pub feet_room_m: f64,
+    /// Pushing a stroller or a trolley the whole sequence (`humans.pushing`): the arms held
     /// to its handle ([`GaitStyle::pushing`]); the thing is the world's
     /// (`crate::scene::world::World::add_pushed`).
     pub pushing: bool,
@@ -379,6 +380,14 @@ impl HumanPlan {
     /// checks it at every frame against every other person).
     pub fn position_m(&self, t_s: f64) -> DVec3 {
         self.trajectory.position(if self.motion.moves() { t_s } else { 0.0 })
+    }
+
+    /// Floor position, heading and speed at `t_s`, as [`HumanPlan::at`] gives them (without
+    /// the gait's work).
+    pub fn floor_pose(&self, t_s: f64) -> (DVec3, f64, f64) {
+        let moves = self.motion.moves();
+        let speed = if moves { self.trajectory.velocity(t_s).truncate().length() } else { 0.0 };
+        (self.position_m(t_s), self.trajectory.heading_rad(if moves { t_s } else { 0.0 }), speed)
     }
 
     /// State at time `t_s` according to the motion mode (the paper's Table 5 ablations).

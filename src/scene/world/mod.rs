@@ -76,8 +76,8 @@ pub struct World {
     pub seats: Vec<Seat>,
     /// Its footprint (xy bounds), m.
     pub bounds: (DVec2, DVec2),
-    /// The movers driving through it ([`World::add_movers`]); their meshes are the last of
-    /// `env` and `draws`.
+    /// The things people push ([`World::add_pushed`]), then the movers driving through it
+    /// ([`World::add_movers`]); their meshes are the last of `env` and `draws`.
     pub movers: Vec<Mover>,
     /// Per draw: the mover it belongs to, or [`NO_MOVER`].
     pub mover_of_draw: Vec<u32>,

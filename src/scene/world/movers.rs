@@ -1,10 +1,10 @@
 //! Other movers: cars driving and cyclists riding the street's oncoming lane, one after the
 //! other, and cars ahead of and behind the sensor's own vehicle in its lane; delivery robots and
 //! motorised carts along the indoor hall's service aisle; and the strollers and trolleys people
-//! push ([`super::pushed`], [`MoverPath::Pushed`]). Each is a rigid
-//! mesh of its own (a cyclist's rider and bicycle together), held level and following the
-//! ground under it (the raised crossings' ramps), with its own instance id and per-beam
-//! velocity in the frames.
+//! push ([`super::pushed`], [`MoverPath::Pushed`]). Each is a rigid mesh of its own (a
+//! cyclist's rider and bicycle together), held level, with its own instance id and per-beam
+//! velocity in the frames; the lanes' movers follow the ground under them (the raised
+//! crossings' ramps), a pushed thing its pusher's floor.
 //!
 //! A lane's movers drive by the Intelligent Driver Model (Treiber, Hennecke and Helbing 2000):
 //! each keeps a time gap to the one ahead and stops at a crossing while somebody is on it or
@@ -284,13 +284,25 @@ impl Mover {
             *o = p + DVec3::new(c * l.x - s * l.y, s * l.x + c * l.y, l.z);
         }
     }
-    /// Whether a person at `p` (floor plane) touches its footprint at `t_s`.
+    /// Whether a person at `p` (floor plane) touches its footprint at `t_s`: within
+    /// [`PERSON_RADIUS_M`] of a pushed thing's, or its box that far around overlapping a lane
+    /// mover's.
     pub fn touches(&self, t_s: f64, p: DVec2) -> bool {
-        self.overlaps(t_s, p, DVec2::splat(PERSON_RADIUS_M))
+        match &self.path {
+            MoverPath::Lane(_) => self.overlaps(t_s, p, DVec2::splat(PERSON_RADIUS_M)),
+            MoverPath::Pushed(_) => self.gap(t_s, p) < PERSON_RADIUS_M,
+        }
+    }
+    /// How far `p` is from its footprint at `t_s` (turned to its heading), m; 0 inside.
+    fn gap(&self, t_s: f64, p: DVec2) -> f64 {
+        let d = p - self.position(t_s).truncate();
+        let (s, c) = self.heading_rad(t_s).sin_cos();
+        let local = DVec2::new(c * d.x + s * d.y, -s * d.x + c * d.y).abs();
+        (local - self.half).max(DVec2::ZERO).length()
     }
     /// Whether its footprint at `t_s` overlaps a box of half size `half` centred at `p`,
-    /// axis-aligned (a lane runs along x; a pushed thing's footprint is turned to its heading
-    /// and the box taken as the circle around it).
+    /// axis-aligned (a lane runs along x; a pushed thing's footprint is turned to its heading:
+    /// the two boxes apart along none of their four axes).
     pub fn overlaps(&self, t_s: f64, p: DVec2, half: DVec2) -> bool {
         let d = p - self.position(t_s).truncate();
         match &self.path {
@@ -300,10 +312,11 @@ impl Mover {
             }
             MoverPath::Pushed(_) => {
                 let (s, c) = self.heading_rad(t_s).sin_cos();
-                let local = DVec2::new(c * d.x + s * d.y, -s * d.x + c * d.y).abs();
-                let r = half.length();
-                let out = (local - self.half).max(DVec2::ZERO);
-                out.length() < r
+                let (u, v) = (DVec2::new(c, s), DVec2::new(-s, c));
+                [DVec2::X, DVec2::Y, u, v].iter().all(|a| {
+                    let own = self.half.x * u.dot(*a).abs() + self.half.y * v.dot(*a).abs();
+                    d.dot(*a).abs() < own + half.x * a.x.abs() + half.y * a.y.abs()
+                })
             }
         }
     }
@@ -350,7 +363,19 @@ impl PushedPath {
     }
     /// The centre's velocity and the turning rate at `t_s` (0 outside the table).
     pub fn rates(&self, t_s: f64) -> (DVec3, f64) {
-        let Some((k, _)) = self.step(t_s) else { return (DVec3::ZERO, 0.0) };
+        self.step(t_s).map_or((DVec3::ZERO, 0.0), |(k, _)| self.segment_rates(k))
+    }
+    /// How many rows the table has.
+    pub fn rows(&self) -> usize {
+        self.table.len()
+    }
+    /// Row `k`'s time, centre and heading.
+    pub fn row(&self, k: usize) -> (f64, DVec3, f64) {
+        let r = self.table[k];
+        (self.t0_s + k as f64 * STEP_S, DVec3::new(r[0], r[1], r[2]), r[3])
+    }
+    /// The centre's velocity and the turning rate from row `k` to row `k + 1`.
+    pub fn segment_rates(&self, k: usize) -> (DVec3, f64) {
         let (a, b) = (self.table[k], self.table[k + 1]);
         let d = [0, 1, 2, 3].map(|i| (b[i] - a[i]) / STEP_S);
         (DVec3::new(d[0], d[1], d[2]), d[3])

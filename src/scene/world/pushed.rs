@@ -5,11 +5,10 @@
 //! turn's: `v + w z x r`), and it is not a person (SemanticKITTI's other-object, 99). A
 //! person pushes only where the thing stays clear of everything all through the sequence: the
 //! walkable area's obstacles, the other people, the sensor's carrier or vehicle, the other
-//! pushed things;
-//! nobody turns one on the spot, and a person who leaves and comes back in (a long sequence)
-//! pushes nothing. The traffic then keeps clear of the things as of the people.
+//! pushed things; nobody turns one on the spot, and a person who leaves and comes back in (a
+//! long sequence) pushes nothing. The traffic then keeps clear of the things as of the people.
 
-use super::movers::{Mover, MoverKind, MoverPath, PushedPath, EGO_HALF_M, STEP_S};
+use super::movers::{Mover, MoverKind, MoverPath, PushedPath, EGO_HALF_M, PERSON_RADIUS_M, STEP_S};
 use super::shapes::Builder;
 use super::things::{class, material};
 use super::{chance, uni, World, WorldKind};
@@ -22,8 +21,10 @@ use rand::{Rng, RngExt, SeedableRng};
 const PUSHED_STREAM_KEY: u64 = 0x5055_5348_5f76_3031; // "PUSH_v01"
 
 /// How far before time 0 and past the sequence's end the table reaches, s (a rolling sweep
-/// places a mover at the time its column fires, after the frame's).
-const MARGIN_S: f64 = 1.0;
+/// places a mover at the time its column fires, after the frame's). The table's rows are half
+/// a step off the multiples of [`STEP_S`], so frames (at multiples of 0.05 s at the usual
+/// rates) fall in the middle of a step, where the rates are the central difference about them.
+const MARGIN_S: f64 = 1.0 + 0.5 * STEP_S;
 /// The fastest a pushed thing goes and turns, m/s and rad/s: a person walking one is slower;
 /// faster is a person taken out of the sequence or put back in.
 const MAX_SPEED_MPS: f64 = 3.0;
@@ -105,13 +106,14 @@ pub fn trolley(rng: &mut impl Rng, h: &PushHandle) -> PushedSpec {
 }
 
 /// The path of a thing with `spec`'s handle at the hands of person `pusher` (`handle` ahead of
-/// them; `at`: the person's floor position, heading and speed at a time) from `t0_s` to `t1_s`.
-fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> (DVec3, f64, f64), handle: &PushHandle, spec: &PushedSpec, t0_s: f64, t1_s: f64) -> PushedPath {
+/// them; `at`: the person's floor position and heading at a time, first) over `rows` rows from
+/// `t0_s`.
+fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> Walker, handle: &PushHandle, spec: &PushedSpec, t0_s: f64, rows: usize) -> PushedPath {
     let ahead = handle.forward_m as f64 + spec.handle_behind_m;
-    let steps = ((t1_s - t0_s) / STEP_S).ceil().max(1.0) as usize;
-    let mut table: Vec<[f64; 4]> = Vec::with_capacity(steps + 1);
-    for k in 0..=steps {
-        let (p, mut h, _) = at(pusher, t0_s + k as f64 * STEP_S);
+    let mut table: Vec<[f64; 4]> = Vec::with_capacity(rows);
+    for k in 0..rows {
+        let w = at(pusher, t0_s + k as f64 * STEP_S);
+        let (p, mut h) = (w.position_m, w.heading_rad);
         if let Some(prev) = table.last() {
             // Unwrapped: the nearest turn of the heading to the last one.
             h = prev[3] + (h - prev[3] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
@@ -121,42 +123,37 @@ fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> (DVec3, f64, f64), handl
     PushedPath::new(pusher, t0_s, table)
 }
 
+/// A person at one instant, as [`World::add_pushed`] asks: where the hips are over the floor
+/// and the heading (a pushed thing is held ahead of them), the speed, and the middle of the
+/// body on the floor that others keep clear of (a seated person's, ahead of the hips).
+#[derive(Clone, Copy, Debug)]
+pub struct Walker {
+    pub position_m: DVec3,
+    pub heading_rad: f64,
+    pub speed_mps: f64,
+    pub footprint_m: DVec2,
+}
+
 impl World {
     /// Draws who pushes something over a sequence of `duration_s` (each person with
     /// probability `share`, on a random stream of its own), builds a stroller (street) or a
     /// trolley (indoors) to the pusher's hands and keeps it where it stays clear of everything
     /// (the module's rules) all through; the things are added to the world as movers (before
     /// its traffic), their meshes to the environment. Per person: `handles`, where their hands
-    /// hold a handle (None: they cannot push: a child, a bag in a hand, seated); `at`, their
-    /// floor position, heading and speed at a time. `carrier`: the sensor's carrier's floor
-    /// position at a time, where it walks among the people (the world's own sensor vehicle,
-    /// the street's, is kept clear of too). Returns who pushes, in order.
-    pub fn add_pushed(
-        &mut self,
-        share: f64,
-        handles: &[Option<PushHandle>],
-        at: impl Fn(usize, f64) -> (DVec3, f64, f64),
-        duration_s: f64,
-        carrier: impl Fn(f64) -> Option<DVec2>,
-    ) -> Vec<usize> {
-        let mut pushers = Vec::new();
+    /// hold a handle (None: they cannot push: a child, a bag in a hand, seated); `at`, the
+    /// person at a time. `carrier`: the sensor's carrier's floor position at a time, where it
+    /// walks among the people (the world's own sensor vehicle, the street's, is kept clear of
+    /// too). Returns who pushes, in order.
+    pub fn add_pushed(&mut self, share: f64, handles: &[Option<PushHandle>], at: impl Fn(usize, f64) -> Walker, duration_s: f64, carrier: impl Fn(f64) -> Option<DVec2>) -> Vec<usize> {
         if share <= 0.0 || handles.is_empty() {
-            return pushers;
+            return Vec::new();
         }
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed ^ PUSHED_STREAM_KEY);
         rng.set_stream(self.index as u64);
-        let (t0, t1) = (-MARGIN_S, duration_s.max(0.0) + MARGIN_S);
-        let steps = ((t1 - t0) / STEP_S).ceil().max(1.0) as usize;
-        let time = |k: usize| t0 + k as f64 * STEP_S;
-        // Everybody's floor position and speed at every step, and the carrier's position.
-        let people: Vec<Vec<(DVec2, f64)>> = (0..handles.len()).map(|i| (0..=steps).map(|k| {
-            let (p, _, v) = at(i, time(k));
-            (p.truncate(), v)
-        }).collect()).collect();
-        let carried: Vec<Option<DVec2>> = (0..=steps).map(|k| carrier(time(k))).collect();
-        // The sensor's vehicle, where the world drives it (the street).
-        let vehicle: Vec<Option<DVec2>> = (0..=steps).map(|k| self.sensor.map(|s| s.position(time(k)).truncate())).collect();
-        let mut kept: Vec<Mover> = Vec::new();
+        let t0 = -MARGIN_S;
+        let rows = ((duration_s.max(0.0) + 2.0 * MARGIN_S) / STEP_S).ceil() as usize + 1;
+        // Those drawn who can push, each with its thing.
+        let mut drawn: Vec<(usize, PushedSpec, Mover)> = Vec::new();
         for (i, handle) in handles.iter().enumerate() {
             let (draw, spec_seed) = (chance(&mut rng, share), rng.random::<u64>());
             let (true, Some(handle)) = (draw, handle) else { continue };
@@ -165,30 +162,63 @@ impl World {
                 WorldKind::Street => stroller(&mut spec_rng, handle),
                 WorldKind::Indoor => trolley(&mut spec_rng, handle),
             };
-            let path = push_path(i, &at, handle, &spec, t0, time(steps));
-            let m = Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex: self.env.positions.len(), half: spec.half, path: MoverPath::Pushed(path) };
-            let clear = (0..=steps).all(|k| {
-                let t = time(k);
-                let MoverPath::Pushed(p) = &m.path else { return false };
-                let (c, h) = p.pose(t);
-                let (v, w) = p.rates(t);
-                let axis = DVec2::new(h.cos(), h.sin()) * (spec.half.x - spec.half.y).max(0.0);
-                v.truncate().length() <= MAX_SPEED_MPS
+            let path = push_path(i, &at, handle, &spec, t0, rows);
+            let m = Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex: 0, half: spec.half, path: MoverPath::Pushed(path) };
+            drawn.push((i, spec, m));
+        }
+        // Row by row (the people's positions one row at a time), each thing against the world,
+        // the people and the sensor; a thing that fails once is out.
+        let mut clear = vec![true; drawn.len()];
+        let mut by_x: Vec<(f64, usize)> = Vec::with_capacity(handles.len());
+        let mut people: Vec<Walker> = Vec::with_capacity(handles.len());
+        for k in 0..rows {
+            let t = t0 + k as f64 * STEP_S;
+            people.clear();
+            people.extend((0..handles.len()).map(|j| at(j, t)));
+            by_x.clear();
+            by_x.extend(people.iter().enumerate().map(|(j, w)| (w.footprint_m.x, j)));
+            by_x.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let (carried, vehicle) = (carrier(t), self.sensor.map(|s| s.position(t).truncate()));
+            for ((i, spec, m), ok) in drawn.iter().zip(clear.iter_mut()).filter(|(_, ok)| **ok) {
+                let MoverPath::Pushed(p) = &m.path else { unreachable!("a pushed thing") };
+                let (_, c, h) = p.row(k);
+                let c = c.truncate();
+                let (v, w) = p.segment_rates(k.min(rows - 2));
+                let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
+                let axis = ax * (spec.half.x - spec.half.y).max(0.0);
+                let corners = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * spec.half.x) + ay * (b * spec.half.y));
+                // Only somebody this near its centre can touch it.
+                let reach = m.half.length() + PERSON_RADIUS_M;
+                let lo = by_x.partition_point(|e| e.0 < c.x - reach);
+                let near = by_x[lo..].iter().take_while(|e| e.0 <= c.x + reach).map(|e| e.1);
+                *ok = v.truncate().length() <= MAX_SPEED_MPS
                     && w.abs() <= MAX_TURN_RPS
-                    && (people[i][k].1 >= STANDING_MPS || w.abs() <= STANDING_TURN_RPS)
-                    && [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c.truncate() + s * axis) >= spec.half.y + ROOM_M)
-                    && people.iter().enumerate().all(|(j, q)| j == i || !m.touches(t, q[k].0))
-                    && carried[k].is_none_or(|q| !m.touches(t, q))
-                    && vehicle[k].is_none_or(|q| !m.overlaps(t, q, EGO_HALF_M))
-                    && kept.iter().all(|o| o.position(t).truncate().distance(c.truncate()) > o.half.length() + m.half.length())
-            });
-            if !clear {
-                continue;
+                    && (people[*i].speed_mps >= STANDING_MPS || w.abs() <= STANDING_TURN_RPS)
+                    && [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c + s * axis) >= spec.half.y + ROOM_M)
+                    && corners.iter().all(|&q| self.grid.clearance(q) >= ROOM_M)
+                    && near.filter(|&j| j != *i).all(|j| !m.touches(t, people[j].footprint_m))
+                    && carried.is_none_or(|q| !m.touches(t, q))
+                    && vehicle.is_none_or(|q| !m.overlaps(t, q, EGO_HALF_M));
             }
-            pushers.push(i);
+        }
+        // In order, each thing still clear against the things kept before it.
+        let mut kept: Vec<usize> = Vec::new();
+        for (n, (_, _, m)) in drawn.iter().enumerate().filter(|(n, _)| clear[*n]) {
+            let apart = |o: &Mover| {
+                let (MoverPath::Pushed(a), MoverPath::Pushed(b)) = (&o.path, &m.path) else { unreachable!("pushed things") };
+                (0..rows).all(|k| a.row(k).1.truncate().distance(b.row(k).1.truncate()) > o.half.length() + m.half.length())
+            };
+            if kept.iter().all(|&o| apart(&drawn[o].2)) {
+                kept.push(n);
+            }
+        }
+        let mut pushers = Vec::with_capacity(kept.len());
+        for n in kept {
+            let (i, spec, mut m) = (drawn[n].0, &drawn[n].1, drawn[n].2.clone());
+            m.first_vertex = self.env.positions.len();
             let what = if spec.kind == MoverKind::Stroller { "stroller pushed" } else { "trolley pushed" };
-            self.add_mover(m.clone(), &spec.mesh, what);
-            kept.push(m);
+            self.add_mover(m, &spec.mesh, what);
+            pushers.push(i);
         }
         pushers
     }
