@@ -58,7 +58,7 @@ impl Generator {
             let (position_m, heading_rad, speed_mps) = h.floor_pose(t);
             Walker { position_m, heading_rad, speed_mps, footprint_m: h.footprint_m(t) }
         };
-        let pushers = w.add_pushed(share, &handles, at, duration, |t| carrier.map(|s| s.position(t).truncate()));
+        let pushers = w.add_pushed(share, &handles, at, |i| humans[i].cuts(), duration, |t| carrier.map(|s| s.position(t).truncate()));
         let pushed = w.movers.clone();
         w.add_movers(duration, |t, out| {
             out.clear();

@@ -382,6 +382,17 @@ impl HumanPlan {
         self.trajectory.position(if self.motion.moves() { t_s } else { 0.0 })
     }
 
+    /// The times the person is taken from one place to another, s: a long sequence's legs that
+    /// start more than half a metre from where the leg before ends (leaving and coming back in).
+    pub fn cuts(&self) -> Vec<f64> {
+        let HumanPath::Legs(legs) = &self.trajectory else { return Vec::new() };
+        if !self.motion.moves() {
+            return Vec::new();
+        }
+        let ends = |w: &[Leg]| w[0].path.position(w[1].t0_s - w[0].t0_s).truncate().distance(w[1].path.position(0.0).truncate());
+        legs.windows(2).filter(|w| ends(w) > 0.5).map(|w| w[1].t0_s).collect()
+    }
+
     /// Floor position, heading and speed at `t_s`, as [`HumanPlan::at`] gives them (without
     /// the gait's work).
     pub fn floor_pose(&self, t_s: f64) -> (DVec3, f64, f64) {

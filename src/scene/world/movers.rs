@@ -322,62 +322,68 @@ impl Mover {
     }
 }
 
-/// A pushed thing's path: its footprint's centre on the ground and its heading, per
-/// [`STEP_S`] from `t0_s`, linear in between (so the velocity and turning rate are the exact
-/// derivatives of the pose); held before the table and after it.
+/// A pushed thing's path: its footprint's centre on the ground and its heading at rows of
+/// increasing time, linear in between (so the velocity and turning rate are the exact
+/// derivatives of the pose); held before the first row and after the last. Two rows at the same
+/// time are a cut: the thing is taken from one place to another with its pusher (a person who
+/// leaves and comes back in), the later row holding from that time on.
 #[derive(Clone, Debug)]
 pub struct PushedPath {
     /// The person pushing it: their index in the sequence's plan.
     pub pusher: usize,
-    t0_s: f64,
-    /// Centre x, y, z and heading (unwrapped: no jumps of 2 pi).
-    table: Vec<[f64; 4]>,
+    /// Time, centre x, y, z and heading (unwrapped but across a cut: no jumps of 2 pi).
+    table: Vec<[f64; 5]>,
 }
 
 impl PushedPath {
-    /// A path from its table (per [`STEP_S`] from `t0_s`: centre x, y, z, unwrapped heading).
-    pub fn new(pusher: usize, t0_s: f64, table: Vec<[f64; 4]>) -> PushedPath {
-        PushedPath { pusher, t0_s, table }
+    /// A path from its rows (time, centre x, y, z, heading), at least one, in time order.
+    pub fn new(pusher: usize, table: Vec<[f64; 5]>) -> PushedPath {
+        debug_assert!(!table.is_empty() && table.windows(2).all(|w| w[0][0] <= w[1][0]));
+        PushedPath { pusher, table }
     }
-    /// The step `t_s` falls in and how far into it, or None outside the table.
+    /// The row `t_s` is at or after (its segment to the next row of a later time), and how far
+    /// into the segment, or None before the first row or from the last on.
     fn step(&self, t_s: f64) -> Option<(usize, f64)> {
-        let u = (t_s - self.t0_s) / STEP_S;
-        let last = self.table.len().checked_sub(1)?;
-        if !(0.0..=last as f64).contains(&u) || last == 0 {
-            return None;
-        }
-        let k = (u.floor() as usize).min(last - 1);
-        Some((k, u - k as f64))
+        let k = self.table.partition_point(|r| r[0] <= t_s).checked_sub(1)?;
+        let (a, b) = (self.table[k], *self.table.get(k + 1)?);
+        Some((k, (t_s - a[0]) / (b[0] - a[0])))
     }
     /// Centre and heading at `t_s`.
     pub fn pose(&self, t_s: f64) -> (DVec3, f64) {
         let row = match self.step(t_s) {
             Some((k, f)) => {
                 let (a, b) = (self.table[k], self.table[k + 1]);
-                [0, 1, 2, 3].map(|i| a[i] + f * (b[i] - a[i]))
+                [1, 2, 3, 4].map(|i| a[i] + f * (b[i] - a[i]))
             }
-            None if t_s < self.t0_s => self.table[0],
-            None => *self.table.last().expect("a pushed path has a pose"),
+            None if t_s < self.table[0][0] => [1, 2, 3, 4].map(|i| self.table[0][i]),
+            None => {
+                let r = self.table[self.table.len() - 1];
+                [1, 2, 3, 4].map(|i| r[i])
+            }
         };
         (DVec3::new(row[0], row[1], row[2]), row[3])
     }
-    /// The centre's velocity and the turning rate at `t_s` (0 outside the table).
+    /// The centre's velocity and the turning rate at `t_s` (0 outside the rows).
     pub fn rates(&self, t_s: f64) -> (DVec3, f64) {
         self.step(t_s).map_or((DVec3::ZERO, 0.0), |(k, _)| self.segment_rates(k))
     }
-    /// How many rows the table has.
+    /// How many rows it has.
     pub fn rows(&self) -> usize {
         self.table.len()
     }
     /// Row `k`'s time, centre and heading.
     pub fn row(&self, k: usize) -> (f64, DVec3, f64) {
         let r = self.table[k];
-        (self.t0_s + k as f64 * STEP_S, DVec3::new(r[0], r[1], r[2]), r[3])
+        (r[0], DVec3::new(r[1], r[2], r[3]), r[4])
     }
-    /// The centre's velocity and the turning rate from row `k` to row `k + 1`.
+    /// The centre's velocity and the turning rate from row `k` to row `k + 1` (0 across a cut).
     pub fn segment_rates(&self, k: usize) -> (DVec3, f64) {
         let (a, b) = (self.table[k], self.table[k + 1]);
-        let d = [0, 1, 2, 3].map(|i| (b[i] - a[i]) / STEP_S);
+        let dt = b[0] - a[0];
+        if dt <= 0.0 {
+            return (DVec3::ZERO, 0.0);
+        }
+        let d = [1, 2, 3, 4].map(|i| (b[i] - a[i]) / dt);
         (DVec3::new(d[0], d[1], d[2]), d[3])
     }
 }

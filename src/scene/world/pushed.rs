@@ -5,8 +5,10 @@
 //! turn's: `v + w z x r`), and it is not a person (SemanticKITTI's other-object, 99). A
 //! person pushes only where the thing stays clear of everything all through the sequence: the
 //! walkable area's obstacles, the other people, the sensor's carrier or vehicle, the other
-//! pushed things; nobody turns one on the spot, and a person who leaves and comes back in (a
-//! long sequence) pushes nothing. The traffic then keeps clear of the things as of the people.
+//! pushed things; nobody who stands all through turns one on the spot (a walker who stops and
+//! turns pivots it). A person who leaves and comes back in (a long sequence) takes the thing
+//! along. The traffic then keeps clear of the things as of the
+//! people.
 
 use super::movers::{Mover, MoverKind, MoverPath, PushedPath, EGO_HALF_M, PERSON_RADIUS_M, STEP_S};
 use super::shapes::Builder;
@@ -25,12 +27,13 @@ const PUSHED_STREAM_KEY: u64 = 0x5055_5348_5f76_3031; // "PUSH_v01"
 /// a step off the multiples of [`STEP_S`], so frames (at multiples of 0.05 s at the usual
 /// rates) fall in the middle of a step, where the rates are the central difference about them.
 const MARGIN_S: f64 = 1.0 + 0.5 * STEP_S;
-/// The fastest a pushed thing goes and turns, m/s and rad/s: a person walking one is slower;
-/// faster is a person taken out of the sequence or put back in.
+/// The fastest a pushed thing goes and turns, m/s and rad/s: a person pushing one walks and
+/// pivots it slower (a person taken from one place to another is a cut, not a move).
 const MAX_SPEED_MPS: f64 = 3.0;
 const MAX_TURN_RPS: f64 = 2.0;
-/// Below this speed a pusher is standing: its heading may not change (nobody turns a stroller
-/// on the spot), rad/s.
+/// Below this speed a person stands, m/s; one who stands the whole sequence may not turn the
+/// thing (the idle turning on the spot of those who stand), rad/s. A walker who stops and
+/// turns toward the next goal pivots it.
 const STANDING_MPS: f64 = 0.1;
 const STANDING_TURN_RPS: f64 = 0.05;
 /// Room kept between a thing and the walkable area's obstacles, beside its half width, m.
@@ -105,22 +108,39 @@ pub fn trolley(rng: &mut impl Rng, h: &PushHandle) -> PushedSpec {
     PushedSpec { kind: MoverKind::Trolley, mesh: b.finish(), half: DVec2::new(0.5 * len, half_w), handle_behind_m: -handle_x }
 }
 
+/// How long before a cut the person is read for the row that ends there, s.
+const BEFORE_CUT_S: f64 = 1e-6;
+
 /// The path of a thing with `spec`'s handle at the hands of person `pusher` (`handle` ahead of
 /// them; `at`: the person's floor position and heading at a time, first) over `rows` rows from
-/// `t0_s`.
-fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> Walker, handle: &PushHandle, spec: &PushedSpec, t0_s: f64, rows: usize) -> PushedPath {
+/// `t0_s`, [`STEP_S`] apart, and two rows at each of `cuts` (the times the person is taken from
+/// one place to another: the row before read just before it).
+fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> Walker, cuts: &[f64], handle: &PushHandle, spec: &PushedSpec, t0_s: f64, rows: usize) -> PushedPath {
     let ahead = handle.forward_m as f64 + spec.handle_behind_m;
-    let mut table: Vec<[f64; 4]> = Vec::with_capacity(rows);
-    for k in 0..rows {
-        let w = at(pusher, t0_s + k as f64 * STEP_S);
-        let (p, mut h) = (w.position_m, w.heading_rad);
-        if let Some(prev) = table.last() {
-            // Unwrapped: the nearest turn of the heading to the last one.
-            h = prev[3] + (h - prev[3] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-        }
-        table.push([p.x + ahead * h.cos(), p.y + ahead * h.sin(), p.z, h]);
+    let t1 = t0_s + (rows.max(1) - 1) as f64 * STEP_S;
+    let cuts: Vec<f64> = cuts.iter().copied().filter(|&c| c > t0_s && c < t1).collect();
+    // The steps' rows, but for one at a cut's time (or within a millisecond of it).
+    let mut times: Vec<(f64, f64, bool)> = (0..rows)
+        .map(|k| t0_s + k as f64 * STEP_S)
+        .filter(|t| cuts.iter().all(|c| (t - c).abs() >= 1e-3))
+        .map(|t| (t, t, false))
+        .collect();
+    for &c in &cuts {
+        times.push((c, c - BEFORE_CUT_S, false));
+        times.push((c, c, true));
     }
-    PushedPath::new(pusher, t0_s, table)
+    times.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2)));
+    let mut table: Vec<[f64; 5]> = Vec::with_capacity(times.len());
+    for (t, read, after_cut) in times {
+        let w = at(pusher, read);
+        let (p, mut h) = (w.position_m, w.heading_rad);
+        if let (Some(prev), false) = (table.last(), after_cut) {
+            // Unwrapped: the nearest turn of the heading to the last one.
+            h = prev[4] + (h - prev[4] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        }
+        table.push([t, p.x + ahead * h.cos(), p.y + ahead * h.sin(), p.z, h]);
+    }
+    PushedPath::new(pusher, table)
 }
 
 /// A person at one instant, as [`World::add_pushed`] asks: where the hips are over the floor
@@ -141,10 +161,19 @@ impl World {
     /// (the module's rules) all through; the things are added to the world as movers (before
     /// its traffic), their meshes to the environment. Per person: `handles`, where their hands
     /// hold a handle (None: they cannot push: a child, a bag in a hand, seated); `at`, the
-    /// person at a time. `carrier`: the sensor's carrier's floor position at a time, where it
+    /// person at a time; `cuts`, the times the person is taken from one place to another (a
+    /// long sequence's, leaving and coming back in), the thing with them. `carrier`: the sensor's carrier's floor position at a time, where it
     /// walks among the people (the world's own sensor vehicle, the street's, is kept clear of
     /// too). Returns who pushes, in order.
-    pub fn add_pushed(&mut self, share: f64, handles: &[Option<PushHandle>], at: impl Fn(usize, f64) -> Walker, duration_s: f64, carrier: impl Fn(f64) -> Option<DVec2>) -> Vec<usize> {
+    pub fn add_pushed(
+        &mut self,
+        share: f64,
+        handles: &[Option<PushHandle>],
+        at: impl Fn(usize, f64) -> Walker,
+        cuts: impl Fn(usize) -> Vec<f64>,
+        duration_s: f64,
+        carrier: impl Fn(f64) -> Option<DVec2>,
+    ) -> Vec<usize> {
         if share <= 0.0 || handles.is_empty() {
             return Vec::new();
         }
@@ -162,12 +191,21 @@ impl World {
                 WorldKind::Street => stroller(&mut spec_rng, handle),
                 WorldKind::Indoor => trolley(&mut spec_rng, handle),
             };
-            let path = push_path(i, &at, handle, &spec, t0, rows);
-            let m = Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex: 0, half: spec.half, path: MoverPath::Pushed(path) };
-            drawn.push((i, spec, m));
+            let path = push_path(i, &at, &cuts(i), handle, &spec, t0, rows);
+            // Its speed and turning, segment by segment (none across a cut); somebody who never
+            // walks does not turn it.
+            let walks = (0..path.rows()).any(|k| at(i, path.row(k).0).speed_mps >= STANDING_MPS);
+            let moves = (0..path.rows() - 1).all(|k| {
+                let (v, w) = path.segment_rates(k);
+                v.truncate().length() <= MAX_SPEED_MPS && w.abs() <= MAX_TURN_RPS && (walks || w.abs() <= STANDING_TURN_RPS)
+            });
+            if moves {
+                let m = Mover { kind: spec.kind, local: spec.mesh.positions.clone(), first_vertex: 0, half: spec.half, path: MoverPath::Pushed(path) };
+                drawn.push((i, spec, m));
+            }
         }
-        // Row by row (the people's positions one row at a time), each thing against the world,
-        // the people and the sensor; a thing that fails once is out.
+        // Step by step (the people's positions one step at a time), each thing against the
+        // world, the people and the sensor; a thing that fails once is out.
         let mut clear = vec![true; drawn.len()];
         let mut by_x: Vec<(f64, usize)> = Vec::with_capacity(handles.len());
         let mut people: Vec<Walker> = Vec::with_capacity(handles.len());
@@ -180,10 +218,7 @@ impl World {
             by_x.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             let (carried, vehicle) = (carrier(t), self.sensor.map(|s| s.position(t).truncate()));
             for ((i, spec, m), ok) in drawn.iter().zip(clear.iter_mut()).filter(|(_, ok)| **ok) {
-                let MoverPath::Pushed(p) = &m.path else { unreachable!("a pushed thing") };
-                let (_, c, h) = p.row(k);
-                let c = c.truncate();
-                let (v, w) = p.segment_rates(k.min(rows - 2));
+                let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
                 let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
                 let axis = ax * (spec.half.x - spec.half.y).max(0.0);
                 let corners = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * spec.half.x) + ay * (b * spec.half.y));
@@ -191,10 +226,7 @@ impl World {
                 let reach = m.half.length() + PERSON_RADIUS_M;
                 let lo = by_x.partition_point(|e| e.0 < c.x - reach);
                 let near = by_x[lo..].iter().take_while(|e| e.0 <= c.x + reach).map(|e| e.1);
-                *ok = v.truncate().length() <= MAX_SPEED_MPS
-                    && w.abs() <= MAX_TURN_RPS
-                    && (people[*i].speed_mps >= STANDING_MPS || w.abs() <= STANDING_TURN_RPS)
-                    && [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c + s * axis) >= spec.half.y + ROOM_M)
+                *ok = [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c + s * axis) >= spec.half.y + ROOM_M)
                     && corners.iter().all(|&q| self.grid.clearance(q) >= ROOM_M)
                     && near.filter(|&j| j != *i).all(|j| !m.touches(t, people[j].footprint_m))
                     && carried.is_none_or(|q| !m.touches(t, q))
@@ -204,10 +236,7 @@ impl World {
         // In order, each thing still clear against the things kept before it.
         let mut kept: Vec<usize> = Vec::new();
         for (n, (_, _, m)) in drawn.iter().enumerate().filter(|(n, _)| clear[*n]) {
-            let apart = |o: &Mover| {
-                let (MoverPath::Pushed(a), MoverPath::Pushed(b)) = (&o.path, &m.path) else { unreachable!("pushed things") };
-                (0..rows).all(|k| a.row(k).1.truncate().distance(b.row(k).1.truncate()) > o.half.length() + m.half.length())
-            };
+            let apart = |o: &Mover| (0..rows).map(|k| t0 + k as f64 * STEP_S).all(|t| o.position(t).distance(m.position(t)) > o.half.length() + m.half.length());
             if kept.iter().all(|&o| apart(&drawn[o].2)) {
                 kept.push(n);
             }

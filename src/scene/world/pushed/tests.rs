@@ -16,26 +16,42 @@ fn inside(p: DVec2, t: &[DVec2; 3]) -> bool {
 }
 
 /// The path's velocity and turning rate are the derivatives of its pose (central differences
-/// inside a step), and the pose is held outside the table with both rates 0. A heading read
-/// back into (-pi, pi] (a recorded track's) is unwrapped: a walk around a circle turns the
-/// thing on smoothly.
+/// inside a step), and the pose is held outside the rows with both rates 0; at a cut the pose
+/// jumps, the rates on either side are their segments'. A heading read back into (-pi, pi] (a
+/// recorded track's) is unwrapped: a walk around a circle turns the thing on smoothly; a walker
+/// taken to another place takes it along.
 #[test]
 fn a_pushed_path_moves_as_its_rates_say() {
-    let table: Vec<[f64; 4]> = (0..40).map(|k| {
-        let t = k as f64 * STEP_S;
-        [t.sin(), 0.5 * t * t, 0.1 * t, 3.0 - 2.0 * t]
-    }).collect();
-    let p = PushedPath::new(0, -0.5, table);
+    let f = |t: f64| [t.sin(), 0.5 * t * t, 0.1 * t, 3.0 - 2.0 * t];
+    let mut table: Vec<[f64; 5]> = Vec::new();
+    for k in 0..40 {
+        let t = -0.5 + k as f64 * STEP_S;
+        let g = f(t);
+        // A cut at row 20: 10 m further on from there.
+        table.push([t, g[0] + if k > 20 { 10.0 } else { 0.0 }, g[1], g[2], g[3]]);
+        if k == 20 {
+            table.push([t, g[0] + 10.0, g[1], g[2], g[3]]);
+        }
+    }
+    let shift = |t: f64| if t >= -0.5 + 20.0 * STEP_S { 10.0 } else { 0.0 };
+    let p = PushedPath::new(0, table);
     for k in 0..200 {
         let t = -0.49 + k as f64 * 0.0097;
-        if ((t + 0.5) / STEP_S).fract() < 0.02 || ((t + 0.5) / STEP_S).fract() > 0.98 {
+        let u = (t + 0.5) / STEP_S;
+        if u.fract() < 0.02 || u.fract() > 0.98 {
             continue;
         }
         let h = 1e-5;
         let ((a, ha), (b, hb)) = (p.pose(t - h), p.pose(t + h));
         let (v, w) = p.rates(t);
         assert!(((b - a) / (2.0 * h) - v).length() < 1e-6 && ((hb - ha) / (2.0 * h) - w).abs() < 1e-6, "t {t}: {v} {w}");
+        let g = f(t);
+        assert!((p.pose(t).0.x - shift(t) - g[0]).abs() < 0.01, "t {t}: off the curve");
     }
+    let cut = -0.5 + 20.0 * STEP_S;
+    assert_eq!(p.pose(cut).0.x, f(cut)[0] + 10.0, "from the cut on, the later row");
+    assert!((p.pose(cut - 1e-9).0.x - f(cut)[0]).abs() < 1e-6, "before it, the earlier");
+    assert!(p.rates(cut).0.length() < 5.0 && p.rates(cut - 1e-9).0.length() < 5.0, "no rate across the cut");
     assert_eq!(p.pose(-3.0), p.pose(-0.5));
     assert_eq!(p.pose(30.0), p.pose(-0.5 + 39.0 * STEP_S));
     assert_eq!(p.rates(-3.0), (DVec3::ZERO, 0.0));
@@ -48,11 +64,29 @@ fn a_pushed_path_moves_as_its_rates_say() {
         let h = (a + std::f64::consts::FRAC_PI_2 + std::f64::consts::PI).rem_euclid(TAU) - std::f64::consts::PI;
         Walker { position_m: DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.0), heading_rad: h, speed_mps: 1.5, footprint_m: DVec2::ZERO }
     };
-    let path = push_path(0, &at, &handle, &spec, 0.0, 400);
+    let path = push_path(0, &at, &[], &handle, &spec, 0.0, 400);
     for k in 0..399 {
         let (v, w) = path.segment_rates(k);
         assert!((w - 0.5).abs() < 1e-9 && (v.length() - 0.5 * (9.0 + (0.3 + spec.handle_behind_m).powi(2)).sqrt()).abs() < 1e-3, "row {k}: {v} {w}");
     }
+    // Taken 40 m along x at 7.3 s: the rows there twice, the thing with the walker on both sides.
+    let jump = |_: usize, t: f64| {
+        let mut w = at(0, t);
+        if t >= 7.3 {
+            w.position_m.x += 40.0;
+        }
+        w
+    };
+    let path = push_path(0, &jump, &[7.3], &handle, &spec, 0.0, 400);
+    assert_eq!(path.rows(), 401, "the step at the cut replaced by its two rows");
+    let ahead = 0.3 + spec.handle_behind_m;
+    for t in [7.2, 7.3 - 1e-3, 7.3, 7.31, 9.0] {
+        let (c, h) = path.pose(t);
+        let w = jump(0, t);
+        let want = w.position_m.truncate() + ahead * DVec2::new(w.heading_rad.cos(), w.heading_rad.sin());
+        assert!(c.truncate().distance(want) < 1e-3 && (h - w.heading_rad).sin().abs() < 1e-3, "t {t}: {c} against {want}");
+    }
+    assert!((0..path.rows() - 1).all(|k| path.segment_rates(k).0.length() < 2.0), "no segment across the cut moves it");
 }
 
 /// People walking and turning through built worlds, a child and standing people among them:
@@ -88,7 +122,7 @@ fn pushed_things_keep_clear_of_the_world_the_people_and_each_other() {
                     let p = &people[i];
                     Walker { position_m: p.position(t), heading_rad: p.heading_rad(t), speed_mps: p.speed_mps, footprint_m: p.position(t).truncate() }
                 };
-                let pushers = w.add_pushed(1.0, &handles, at, duration, |_| None);
+                let pushers = w.add_pushed(1.0, &handles, at, |_| Vec::new(), duration, |_| None);
                 (w, people, handles, before, pushers)
             };
             let (w, people, handles, before, pushers) = make();
