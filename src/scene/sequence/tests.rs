@@ -726,3 +726,24 @@ fn a_share_of_the_people_carry_each_kind_evenly() {
         assert!((s - 0.2).abs() < 0.01, "body {body}: {counts:?}");
     }
 }
+
+/// A long sequence's legs that start where the leg before ends are one walk; one that starts
+/// more than half a metre away (leaving and coming back in) is a cut at its start. A path of
+/// one piece, or a person who does not move, has none.
+#[test]
+fn a_leg_that_starts_elsewhere_is_a_cut() {
+    let arc = |x: f64, y: f64| HumanPath::from(Trajectory { start_m: DVec2::new(x, y), z_m: 0.0, heading0_rad: 0.0, speed_mps: 1.0, yaw_rate_rps: 0.0 });
+    let legs = vec![
+        Leg { t0_s: 0.0, d0_m: 0.0, path: arc(0.0, 0.0) },
+        Leg { t0_s: 5.0, d0_m: 5.0, path: arc(5.0, 0.0) },
+        Leg { t0_s: 9.0, d0_m: 9.0, path: arc(60.0, 3.0) },
+        // 0.3 m on from where the leg before ends: the same walk, not a cut.
+        Leg { t0_s: 12.0, d0_m: 12.0, path: arc(63.3, 3.0) },
+    ];
+    let mut p = plan(MotionMode::Full);
+    p.trajectory = HumanPath::Legs(Arc::new(legs));
+    assert_eq!(p.cuts(), vec![9.0]);
+    p.motion = MotionMode::Static;
+    assert!(p.cuts().is_empty());
+    assert!(plan(MotionMode::Full).cuts().is_empty());
+}
