@@ -162,9 +162,10 @@ impl World {
     /// its traffic), their meshes to the environment. Per person: `handles`, where their hands
     /// hold a handle (None: they cannot push: a child, a bag in a hand, seated); `at`, the
     /// person at a time; `cuts`, the times the person is taken from one place to another (a
-    /// long sequence's, leaving and coming back in), the thing with them. `carrier`: the sensor's carrier's floor position at a time, where it
-    /// walks among the people (the world's own sensor vehicle, the street's, is kept clear of
-    /// too). Returns who pushes, in order.
+    /// long sequence's, leaving and coming back in), the thing with them. `carrier`: the
+    /// sensor's carrier's floor position at a time, where it walks among the people (the
+    /// world's own sensor vehicle, the street's, is kept clear of too). Returns who pushes, in
+    /// order.
     pub fn add_pushed(
         &mut self,
         share: f64,
