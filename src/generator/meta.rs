@@ -9,10 +9,6 @@ impl Generator {
     /// Metadata of sequence `index`.
     pub fn meta(&self, index: usize, plan: &SequencePlan) -> SequenceMeta {
         let movers = plan.world.as_ref().map_or(&[][..], |w| &w.movers[..]);
-        let pusher = |m: &crate::scene::world::Mover| match &m.path {
-            crate::scene::world::movers::MoverPath::Pushed(p) => Some(p.pusher),
-            crate::scene::world::movers::MoverPath::Lane(_) => None,
-        };
         SequenceMeta {
             index,
             seed: self.cfg.seed,
@@ -26,13 +22,13 @@ impl Generator {
                 .enumerate()
                 .map(|(i, h)| {
                     let m = &self.inputs.models[h.model];
-                    let pushing = movers.iter().find(|m| pusher(m) == Some(i)).map(|m| m.kind.name().to_string());
+                    let pushing = movers.iter().find(|m| m.pusher() == Some(i)).map(|m| m.kind.name().to_string());
                     HumanMeta { height_m: m.nominal_height_m(), weight_kg: m.weight_kg.unwrap_or(0.0), model: m.name.clone(), seat_m: (h.seat_m > 0.0).then_some(h.seat_m as f32), pushing }
                 })
                 .collect(),
             movers: movers
                 .iter()
-                .map(|m| MoverMeta { kind: m.kind.name().into(), length_m: (2.0 * m.half.x) as f32, width_m: (2.0 * m.half.y) as f32, pushed_by: pusher(m).map_or(0, |i| i as u32 + 1) })
+                .map(|m| MoverMeta { kind: m.kind.name().into(), length_m: (2.0 * m.half.x) as f32, width_m: (2.0 * m.half.y) as f32, pushed_by: m.pusher().map_or(0, |i| i as u32 + 1) })
                 .collect(),
             outputs: self.outputs(),
             provenance: self.provenance(plan),

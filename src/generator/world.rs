@@ -66,10 +66,9 @@ impl Generator {
             out.extend(carrier.map(|s| s.position(t).truncate()));
             for m in &pushed {
                 let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
-                let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
-                let along = ax * (m.half.x - PERSON_RADIUS_M).max(0.0);
+                let along = DVec2::new(h.cos(), h.sin()) * (m.half.x - PERSON_RADIUS_M).max(0.0);
                 out.extend([c - along, c, c + along]);
-                out.extend([(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * m.half.x) + ay * (b * m.half.y)));
+                out.extend(m.corners(t));
             }
         });
         for i in pushers {

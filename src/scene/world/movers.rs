@@ -293,6 +293,19 @@ impl Mover {
             MoverPath::Pushed(_) => self.gap(t_s, p) < PERSON_RADIUS_M,
         }
     }
+    /// The person pushing it, where it is pushed: their index in the sequence's plan.
+    pub fn pusher(&self) -> Option<usize> {
+        match &self.path {
+            MoverPath::Pushed(p) => Some(p.pusher),
+            MoverPath::Lane(_) => None,
+        }
+    }
+    /// Its footprint's corners at `t_s` (turned to its heading), floor plane.
+    pub fn corners(&self, t_s: f64) -> [DVec2; 4] {
+        let (c, h) = (self.position(t_s).truncate(), self.heading_rad(t_s));
+        let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
+        [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * self.half.x) + ay * (b * self.half.y))
+    }
     /// How far `p` is from its footprint at `t_s` (turned to its heading), m; 0 inside.
     fn gap(&self, t_s: f64, p: DVec2) -> f64 {
         let d = p - self.position(t_s).truncate();

@@ -220,15 +220,13 @@ impl World {
             let (carried, vehicle) = (carrier(t), self.sensor.map(|s| s.position(t).truncate()));
             for ((i, spec, m), ok) in drawn.iter().zip(clear.iter_mut()).filter(|(_, ok)| **ok) {
                 let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
-                let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
-                let axis = ax * (spec.half.x - spec.half.y).max(0.0);
-                let corners = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * spec.half.x) + ay * (b * spec.half.y));
+                let axis = DVec2::new(h.cos(), h.sin()) * (spec.half.x - spec.half.y).max(0.0);
                 // Only somebody this near its centre can touch it.
                 let reach = m.half.length() + PERSON_RADIUS_M;
                 let lo = by_x.partition_point(|e| e.0 < c.x - reach);
                 let near = by_x[lo..].iter().take_while(|e| e.0 <= c.x + reach).map(|e| e.1);
                 *ok = [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c + s * axis) >= spec.half.y + ROOM_M)
-                    && corners.iter().all(|&q| self.grid.clearance(q) >= ROOM_M)
+                    && m.corners(t).iter().all(|&q| self.grid.clearance(q) >= ROOM_M)
                     && near.filter(|&j| j != *i).all(|j| !m.touches(t, people[j].footprint_m))
                     && carried.is_none_or(|q| !m.touches(t, q))
                     && vehicle.is_none_or(|q| !m.overlaps(t, q, EGO_HALF_M));
