@@ -104,6 +104,50 @@ pub struct Ego {
 /// The sensor's vehicle's half length and half width, m (a car's, the sensor over its middle).
 pub const EGO_HALF_M: DVec2 = DVec2::new(2.3, 0.95);
 
+/// A box on the floor turned to a heading: a mover's footprint at an instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    pub centre: DVec2,
+    pub heading_rad: f64,
+    /// Half its length (along the heading) and half its width, m.
+    pub half: DVec2,
+}
+
+impl Footprint {
+    /// Its unit axes: along the heading, and to the left of it.
+    fn axes(&self) -> (DVec2, DVec2) {
+        let (s, c) = self.heading_rad.sin_cos();
+        (DVec2::new(c, s), DVec2::new(-s, c))
+    }
+    /// Its corners.
+    pub fn corners(&self) -> [DVec2; 4] {
+        let (ax, ay) = self.axes();
+        [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| self.centre + ax * (a * self.half.x) + ay * (b * self.half.y))
+    }
+    /// How far `p` is from it, m; 0 inside.
+    pub fn gap(&self, p: DVec2) -> f64 {
+        let (ax, ay) = self.axes();
+        let d = p - self.centre;
+        let local = DVec2::new(ax.dot(d), ay.dot(d)).abs();
+        (local - self.half).max(DVec2::ZERO).length()
+    }
+    /// Whether it overlaps an axis-aligned box of half size `half` centred at `p`: the two
+    /// boxes apart along none of their four axes.
+    pub fn overlaps(&self, p: DVec2, half: DVec2) -> bool {
+        let d = p - self.centre;
+        let (u, v) = self.axes();
+        [DVec2::X, DVec2::Y, u, v].iter().all(|a| {
+            let own = self.half.x * u.dot(*a).abs() + self.half.y * v.dot(*a).abs();
+            d.dot(*a).abs() < own + half.x * a.x.abs() + half.y * a.y.abs()
+        })
+    }
+    /// Whether it and `other` are apart by their circumscribed circles (the pushed things'
+    /// rule among themselves).
+    pub fn apart(&self, other: &Footprint) -> bool {
+        self.centre.distance(other.centre) > self.half.length() + other.half.length()
+    }
+}
+
 /// The drive table's step, and a pushed thing's pose table's, s.
 pub const STEP_S: f64 = 0.05;
 
@@ -300,37 +344,27 @@ impl Mover {
             MoverPath::Lane(_) => None,
         }
     }
+    /// Its footprint at `t_s`: its box turned to its heading, floor plane.
+    pub fn footprint(&self, t_s: f64) -> Footprint {
+        Footprint { centre: self.position(t_s).truncate(), heading_rad: self.heading_rad(t_s), half: self.half }
+    }
     /// Its footprint's corners at `t_s` (turned to its heading), floor plane.
     pub fn corners(&self, t_s: f64) -> [DVec2; 4] {
-        let (c, h) = (self.position(t_s).truncate(), self.heading_rad(t_s));
-        let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
-        [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].map(|(a, b)| c + ax * (a * self.half.x) + ay * (b * self.half.y))
+        self.footprint(t_s).corners()
     }
     /// How far `p` is from its footprint at `t_s` (turned to its heading), m; 0 inside.
     fn gap(&self, t_s: f64, p: DVec2) -> f64 {
-        let d = p - self.position(t_s).truncate();
-        let (s, c) = self.heading_rad(t_s).sin_cos();
-        let local = DVec2::new(c * d.x + s * d.y, -s * d.x + c * d.y).abs();
-        (local - self.half).max(DVec2::ZERO).length()
+        self.footprint(t_s).gap(p)
     }
     /// Whether its footprint at `t_s` overlaps a box of half size `half` centred at `p`,
-    /// axis-aligned (a lane runs along x; a pushed thing's footprint is turned to its heading:
-    /// the two boxes apart along none of their four axes).
+    /// axis-aligned (a lane runs along x; a pushed thing's footprint is turned to its heading).
     pub fn overlaps(&self, t_s: f64, p: DVec2, half: DVec2) -> bool {
-        let d = p - self.position(t_s).truncate();
         match &self.path {
             MoverPath::Lane(_) => {
-                let d = d.abs();
+                let d = (p - self.position(t_s).truncate()).abs();
                 d.x < self.half.x + half.x && d.y < self.half.y + half.y
             }
-            MoverPath::Pushed(_) => {
-                let (s, c) = self.heading_rad(t_s).sin_cos();
-                let (u, v) = (DVec2::new(c, s), DVec2::new(-s, c));
-                [DVec2::X, DVec2::Y, u, v].iter().all(|a| {
-                    let own = self.half.x * u.dot(*a).abs() + self.half.y * v.dot(*a).abs();
-                    d.dot(*a).abs() < own + half.x * a.x.abs() + half.y * a.y.abs()
-                })
-            }
+            MoverPath::Pushed(_) => self.footprint(t_s).overlaps(p, half),
         }
     }
 }
