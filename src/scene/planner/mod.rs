@@ -265,6 +265,10 @@ pub struct Planner {
     /// asked of the same grid and clearance (a long sequence plans hundreds of walks over one
     /// street of millions of cells).
     prepared: Option<GridKey>,
+    /// The least radius a corner may be rounded with, m (a path that needs less is rejected;
+    /// below [`MIN_FILLET_RADIUS_M`], that): the planned walks of people who push something
+    /// turn no faster than their speed over it.
+    pub min_turn_radius_m: f64,
 }
 
 /// A grid and a clearance as [`Planner::prepare`] tells them apart: where its clearances lie
@@ -671,7 +675,7 @@ impl Planner {
         if self.shortcut.len() < 2 {
             return None;
         }
-        let path = fillet(grid, c, &self.shortcut, speed)?;
+        let path = fillet(grid, c, &self.shortcut, speed, self.min_turn_radius_m.max(MIN_FILLET_RADIUS_M))?;
         // Final check of every line exactly (arcs were checked when they were made).
         let lines_clear = path
             .pieces
@@ -837,8 +841,8 @@ fn arc_clear(grid: &WalkableGrid, arc: &PathPiece, c: f64) -> bool {
 
 /// Rounds every interior corner of the polyline `v` (no repeated vertices) with a checked
 /// circular fillet and returns the walked path, or None when a corner needs a radius under
-/// [`MIN_FILLET_RADIUS_M`].
-fn fillet(grid: &WalkableGrid, c: f64, v: &[DVec2], speed: f64) -> Option<WalkPath> {
+/// `min_r` (m).
+fn fillet(grid: &WalkableGrid, c: f64, v: &[DVec2], speed: f64, min_r: f64) -> Option<WalkPath> {
     let m = v.len();
     let len: Vec<f64> = v.windows(2).map(|w| w[0].distance(w[1])).collect();
     let dir: Vec<DVec2> = v.windows(2).zip(&len).map(|(w, l)| (w[1] - w[0]) / l).collect();
@@ -856,9 +860,9 @@ fn fillet(grid: &WalkableGrid, c: f64, v: &[DVec2], speed: f64) -> Option<WalkPa
         let tan_half = (0.5 * theta.abs()).tan();
         let room_in = len[i - 1] * if i == 1 { 1.0 } else { 0.5 };
         let room_out = len[i] * if i == m - 2 { 1.0 } else { 0.5 };
-        let mut r = MAX_FILLET_RADIUS_M.min(room_in.min(room_out) / tan_half);
+        let mut r = MAX_FILLET_RADIUS_M.max(min_r).min(room_in.min(room_out) / tan_half);
         loop {
-            if r.is_nan() || r < MIN_FILLET_RADIUS_M {
+            if r.is_nan() || r < min_r {
                 return None;
             }
             let t = r * tan_half;
