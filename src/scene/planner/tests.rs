@@ -147,6 +147,32 @@ fn kinematics_are_exact_and_c1() {
     assert!(arcs > 5, "the paths should turn ({arcs} arcs)");
 }
 
+/// With a least turn radius (a pusher's walk) every corner is rounded at least that wide and
+/// the walk's kinematics stay exact; without it the same hall's walks hold tighter corners.
+#[test]
+fn a_least_turn_radius_rounds_every_corner_at_least_that_wide() {
+    let g = hall();
+    let mut planner = Planner::new();
+    // The tightest corner of twenty walks' and how many walks were found.
+    let tightest = |planner: &mut Planner| {
+        let (mut r, mut found) = (f64::INFINITY, 0);
+        for seed in 0..20 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            if let Some(path) = planner.plan_walk(&mut rng, &g, 0.3, 1.3, 12.0, None) {
+                assert_kinematics(&path);
+                found += 1;
+                r = path.pieces().iter().filter(|p| p.curvature_per_m != 0.0).map(|p| 1.0 / p.curvature_per_m.abs()).fold(r, f64::min);
+            }
+        }
+        (r, found)
+    };
+    let (free, _) = tightest(&mut planner);
+    assert!(free < 1.2, "the hall's walks round a corner at {free} m");
+    planner.min_turn_radius_m = 1.2;
+    let (r, found) = tightest(&mut planner);
+    assert!(found >= 10 && r >= 1.2 - 1e-9, "{found} walks, a corner of radius {r} m");
+}
+
 /// A planner keeps its search grid while it is asked of the same grid and clearance, and
 /// builds it anew for another grid of the same size (two doors' widths) or another clearance:
 /// each walk is the one a fresh planner plans, whatever was planned before.
