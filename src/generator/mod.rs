@@ -192,7 +192,7 @@ impl Generator {
             Some(w) => (Some(&w.grid), w.sensor, &w.places[..], &w.doors[..], &w.seats[..]),
             None => (grid, None, &[][..], &[][..], &[][..]),
         };
-        let inputs = PlanInputs { rate_hz: self.inputs.sensor.rate_hz, grid, models: &self.inputs.models, tracks: &self.inputs.tracks, sensor, floor_z_m, sensor_arc, places, doors, seats };
+        let inputs = PlanInputs { rate_hz: self.inputs.sensor.rate_hz, grid, models: &self.inputs.models, tracks: &self.inputs.tracks, sensor, floor_z_m, sensor_arc, places, doors, seats, world: world.as_ref() };
         let mut plan = sample_plan(&mut rng, &self.cfg, &inputs)?;
         plan.recording_start = if self.inputs.recording.is_some() { start } else { None };
         plan.floor_z_m = floor_z_m;

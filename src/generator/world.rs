@@ -38,27 +38,25 @@ impl Generator {
     }
 
     /// Adds a planned sequence's movers to its world: the things its people push
-    /// (`humans.pushing`, the pushers' plans marked), then the traffic, which keeps clear of
-    /// the people and of the pushed things (each counted as people at its middle, its ends and
-    /// its corners).
+    /// (`humans.pushing`: those the planner drew and kept clear; one whose thing does not fit
+    /// between the frames pushes nothing), then the traffic, which keeps clear of the people
+    /// and of the pushed things (each counted as people at its middle, its ends and its
+    /// corners).
     pub(super) fn add_world_movers(&self, plan: &mut SequencePlan, w: &mut World) {
         let duration = plan.times_s.last().copied().unwrap_or(0.0);
         // Indoors the sensor's carrier walks where people do: the movers keep clear of it too.
         let carrier = w.sensor.is_none().then_some(&plan.sensor);
         let models = &self.inputs.models;
-        let share = self.cfg.humans.pushing;
-        let handles: Vec<_> = if share > 0.0 {
-            plan.humans.iter().map(|h| if h.seat_m > 0.0 { None } else { models.get(h.model).and_then(|m| m.push_handle()) }).collect()
-        } else {
-            Vec::new()
-        };
+        let handles: Vec<_> = plan.humans.iter().map(|h| h.pushed.and_then(|_| models.get(h.model)?.push_handle())).collect();
         let humans = &plan.humans;
         let at = |i: usize, t: f64| {
             let h = &humans[i];
             let (position_m, heading_rad, speed_mps) = h.floor_pose(t);
             Walker { position_m, heading_rad, speed_mps, footprint_m: h.footprint_m(t) }
         };
-        let pushers = w.add_pushed(share, &handles, at, |i| humans[i].cuts(), duration, |t| carrier.map(|s| s.position(t).truncate()));
+        // Over the frames, the last one's sweep included.
+        let swept = duration + 1.0 / self.inputs.sensor.rate_hz;
+        let pushers = w.add_pushed(&handles, at, |i| humans[i].cuts(), swept, |t| carrier.map(|s| s.position(t).truncate()));
         let pushed = w.movers.clone();
         w.add_movers(duration, |t, out| {
             out.clear();
@@ -71,8 +69,10 @@ impl Generator {
                 out.extend(m.corners(t));
             }
         });
-        for i in pushers {
-            plan.humans[i].pushing = true;
+        for (i, h) in plan.humans.iter_mut().enumerate() {
+            if !pushers.contains(&i) {
+                h.pushed = None;
+            }
         }
     }
 

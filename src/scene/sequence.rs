@@ -327,10 +327,10 @@ pub struct HumanPlan {
     pub seat_m: f64,
     /// Seated: how far ahead of the position the feet may reach, m; infinite otherwise.
     pub feet_room_m: f64,
-    /// Pushing a stroller or a trolley the whole sequence (`humans.pushing`): the arms held
-    /// to its handle ([`GaitStyle::pushing`]); the thing is the world's
-    /// (`crate::scene::world::World::add_pushed`).
-    pub pushing: bool,
+    /// Pushing a stroller or a trolley the whole sequence (`humans.pushing`), held where this
+    /// says: the arms held to its handle ([`GaitStyle::pushing`]); the thing is the world's
+    /// (`crate::scene::world::World::add_pushed`). None: pushing nothing.
+    pub pushed: Option<crate::scene::world::pushed::Held>,
 }
 
 /// A person's state at one instant (world frame).
@@ -353,7 +353,7 @@ pub struct HumanAt {
     /// The person's seat and the room for its feet ([`HumanPlan::seat_m`], `feet_room_m`).
     pub seat_m: f64,
     pub feet_room_m: f64,
-    /// Whether the person pushes something ([`HumanPlan::pushing`]).
+    /// Whether the person pushes something ([`HumanPlan::pushed`]).
     pub pushing: bool,
 }
 
@@ -429,7 +429,7 @@ impl HumanPlan {
             feet,
             seat_m: self.seat_m,
             feet_room_m: self.feet_room_m,
-            pushing: self.pushing,
+            pushing: self.pushed.is_some(),
         }
     }
 
@@ -516,6 +516,9 @@ pub struct PlanInputs<'a> {
     pub doors: &'a [crate::scene::world::Place],
     /// Seats people sit on (`humans.sitting`; [`crate::scene::world::World::seats`]).
     pub seats: &'a [crate::scene::world::Seat],
+    /// The built-in world the sequence is planned in (what its people push, `humans.pushing`,
+    /// is drawn from it and kept clear of it); None: none.
+    pub world: Option<&'a crate::scene::world::World>,
 }
 
 /// Tries at joining the person placed before (`humans.groups`) before placing one alone.
@@ -659,7 +662,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
-                pushing: false,
+                pushed: None,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -767,6 +770,9 @@ fn sample_synthetic_people(
     // The world's places within reach (`humans.at_places`).
     let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
     let seats: Vec<crate::scene::world::Seat> = inp.seats.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
+    // Where the sensor's carrier is, where it walks among the people (a built-in world
+    // without a sensor vehicle: indoors).
+    let carrier = |t: f64| inp.world.filter(|w| w.sensor.is_none()).map(|_| sensor.position(t).truncate());
     for k in 0..count {
         let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
@@ -776,6 +782,10 @@ fn sample_synthetic_people(
         let at_place = stands && hc.at_places > 0.0 && !places.is_empty() && rng.random::<f64>() < hc.at_places;
         let before = hc.before_things > 0.0 && rng.random::<f64>() < hc.before_things;
         let behind = hc.behind_things > 0.0 && rng.random::<f64>() < hc.behind_things;
+        // Pushing something (drawn only where asked for, in a built-in world), for the first
+        // half of the tries (it may fit nowhere): the walk then turns gently enough for it,
+        // and the thing is kept clear as the person is.
+        let push = push::draw(rng, hc.pushing, inp.world, k, &inp.models[model]);
         let mut placed = None;
         let mut tries = 0;
         // Clear of the sensor and the others at every frame; placeable where it stands on free
@@ -783,7 +793,9 @@ fn sample_synthetic_people(
         let clear = |plan: &HumanPlan| {
             times_s.iter().all(|&t| {
                 let p = plan.footprint_m(t);
-                p.distance(sensor.position(t).truncate()) >= hc.min_separation_m && humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m)
+                p.distance(sensor.position(t).truncate()) >= hc.min_separation_m
+                    && humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m)
+                    && push::clear(inp.world, &humans, carrier(t), p, plan.pushed_at(t), t)
             })
         };
         let placeable = |plan: &HumanPlan| {
@@ -804,6 +816,7 @@ fn sample_synthetic_people(
             // At a place for the first half of the tries (the places may all be taken), then
             // anywhere.
             let at_place = at_place && attempt < TRIES / 2;
+            let held = push.filter(|_| attempt < TRIES / 2);
             let mut facing = None;
             if at_place {
                 let q = places[crate::scene::even_index(u01(), places.len())];
@@ -842,9 +855,11 @@ fn sample_synthetic_people(
                 if tries >= LONG_TRIES {
                     break;
                 }
+                let held = push.filter(|_| tries < LONG_TRIES / 2);
                 tries += 1;
                 let (Some(grid), Some(planner)) = (inp.grid, planner.as_mut()) else { unreachable!("long sequences have a walkable area") };
-                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s, doors: inp.doors };
+                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s, doors: inp.doors, world: inp.world, held };
+                planner.min_turn_radius_m = held.map_or(0.0, |_| speed.max(0.1) / push::TURN_RPS);
                 let Some(path) = long_walk(rng, planner, &crowd, start, speed.max(0.1), stands, hc.spawn_radius_m, inp.floor_z_m, duration) else { continue };
                 placed = Some(HumanPlan {
                     model,
@@ -856,7 +871,7 @@ fn sample_synthetic_people(
                     stride_scale: 1.0,
                     seat_m: 0.0,
                     feet_room_m: f64::INFINITY,
-                    pushing: false,
+                    pushed: held,
                 });
                 break;
             }
@@ -866,6 +881,7 @@ fn sample_synthetic_people(
             let path: HumanPath = match (hc.walk, inp.grid, planner.as_mut()) {
                 // A person who does not walk (speed 0) stands: no path to plan.
                 (WalkMode::Goals, Some(grid), Some(planner)) if speed > 0.0 => {
+                    planner.min_turn_radius_m = held.map_or(0.0, |_| speed / push::TURN_RPS);
                     match planner.plan_walk(rng, grid, hc.clearance_m, speed, duration, Some(start)) {
                         Some(w) => HumanPath::Walk(w, inp.floor_z_m),
                         None => continue,
@@ -880,6 +896,8 @@ fn sample_synthetic_people(
                         None => (u01() * 2.0 - 1.0) * std::f64::consts::PI,
                     };
                     let turn = if u01() < 1.0 / 3.0 { (0.15 + 0.35 * u01()) * if u01() < 0.5 { -1.0 } else { 1.0 } } else { 0.0 };
+                    // One with something to push stands still with it.
+                    let turn = if held.is_some() { 0.0 } else { turn };
                     HumanPath::Arc(Trajectory { start_m: start, z_m: inp.floor_z_m, heading0_rad: heading, speed_mps: 0.0, yaw_rate_rps: turn })
                 }
                 _ => {
@@ -908,7 +926,7 @@ fn sample_synthetic_people(
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
-                pushing: false,
+                pushed: held,
             };
             if placeable(&plan) {
                 placed = Some(plan);
@@ -937,6 +955,7 @@ fn sample_synthetic_people(
 
 mod long;
 mod pauses;
+mod push;
 mod seats;
 mod together;
 mod track;

@@ -130,7 +130,7 @@ fn a_person_with_speed_0_stands_instead_of_freezing_mid_stride() {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
-        pushing: false,
+        pushed: None,
     };
     assert_eq!(plan(0.0, MotionMode::Full).at(2.0).walking, 0.0);
     assert_eq!(plan(0.05, MotionMode::Full).at(2.0).walking, 0.5);
@@ -217,7 +217,7 @@ fn sampled_strides_vary_within_the_configured_factor() {
     let mut cfg = pedscan::config::Config::default();
     cfg.humans.count = [6, 6];
     cfg.humans.stride_variation = [0.95, 1.05];
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let (mut inside, mut spread) = (0, (f64::INFINITY, 0.0f64));
     for seed in 0..20 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();

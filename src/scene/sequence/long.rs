@@ -1,7 +1,8 @@
 //! Long sequences: people (and, where no arc fits, the sensor) walking goal after goal for as
 //! long as the sequence lasts ([`long_walk`]).
 
-use super::{HumanPath, HumanPlan, Leg, Pauses, SensorPath};
+use super::{push, HumanPath, HumanPlan, Leg, Pauses, SensorPath};
+use crate::scene::world::pushed::Held;
 use crate::config::Config;
 use crate::scene::{Trajectory, WalkableGrid};
 use glam::DVec2;
@@ -14,7 +15,7 @@ use std::sync::Arc;
 pub(super) fn walk_the_sensor(rng: &mut impl rand::Rng, cfg: &Config, grid: &WalkableGrid, times_s: &[f64]) -> Option<SensorPath> {
     let sc = &cfg.scene;
     let duration = *times_s.last()?;
-    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s, doors: &[] };
+    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s, doors: &[], world: None, held: None };
     let mut planner = crate::scene::planner::Planner::new();
     let [lo, hi] = sc.sensor_speed_mps;
     for _ in 0..LONG_TRIES {
@@ -77,13 +78,27 @@ pub(super) struct Crowd<'a> {
     pub times_s: &'a [f64],
     /// Doorways one who comes back in may come out of ([`crate::scene::world::World::doors`]).
     pub doors: &'a [crate::scene::world::Place],
+    /// The built-in world (what people push is kept clear of it and of the others: [`push`]).
+    pub world: Option<&'a crate::scene::world::World>,
+    /// What the new person pushes, held where this says (`humans.pushing`); None: nothing.
+    pub held: Option<Held>,
 }
 
 impl Crowd<'_> {
     /// Whether `path` (its own time 0 at `t0`) keeps clear at every frame in `[t0, t1)`.
+    /// What the new person pushes is clear too.
     fn clear(&self, path: &HumanPath, t0: f64, t1: f64) -> bool {
         let a = self.times_s.partition_point(|&t| t < t0);
-        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| self.clear_at(path.position(t - t0).truncate(), t))
+        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| {
+            let p = path.position(t - t0).truncate();
+            self.clear_at(p, t) && self.held.is_none_or(|h| push::clear(self.world, self.others, self.carrier(t), p, Some(h.footprint(p, path.heading_rad(t - t0))), t))
+        })
+    }
+
+    /// Where the sensor's carrier is at `t`, where it walks among the people (a built-in
+    /// world without a sensor vehicle: indoors).
+    fn carrier(&self, t: f64) -> Option<DVec2> {
+        self.world.filter(|w| w.sensor.is_none()).and(self.sensor).map(|s| s.position(t).truncate())
     }
 
     /// Whether somebody at `p` is clear at time `t`, a frame's or any other (one coming back in
@@ -92,6 +107,7 @@ impl Crowd<'_> {
         self.grid.clearance(p) >= self.clearance_m
             && self.sensor.is_none_or(|s| p.distance(s.position(t).truncate()) >= self.separation_m)
             && self.others.iter().all(|h| h.footprint_m(t).distance(p) >= self.separation_m)
+            && push::clear(self.world, self.others, self.carrier(t), p, None, t)
     }
 }
 
@@ -214,13 +230,16 @@ pub(super) fn long_walk(
             let Some(w) = w else { continue };
             let walk_s = w.duration_s();
             let (path, arrive) = eased(HumanPath::Walk(w, floor_z), walk_s, at_rest);
+            // One who pushes something waits long enough to turn it at [`push::TURN_RPS`].
+            let angle = (path.heading_rad(0.0) - heading + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            let wait = if crowd.held.is_some() && at_rest { wait.max(angle.abs() / push::TURN_RPS) } else { wait };
             let turn = turning(pos, heading, path.heading_rad(0.0), wait);
             if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + arrive) {
-                walked = Some((arrive, path, turn, k == 0 && door_goal.is_some()));
+                walked = Some((arrive, path, turn, wait, k == 0 && door_goal.is_some()));
                 break;
             }
         }
-        let Some((arrive, path, turn, to_door)) = walked else {
+        let Some((arrive, path, turn, wait, to_door)) = walked else {
             // Nowhere to walk now: wait where one is, or give up the person.
             if !crowd.clear(&stand(pos, heading), t, t + 2.0) {
                 return None;

@@ -57,7 +57,7 @@ pub(super) fn seat(
             stride_scale: 1.0,
             seat_m: s.top_z_m - floor_z_m,
             feet_room_m: s.feet_room_m,
-            pushing: false,
+            pushed: None,
         };
         apart(&plan).then_some(plan)
     })

@@ -4,6 +4,7 @@ use super::*;
 use rand::SeedableRng;
 
 mod long;
+mod push;
 
 fn plan(motion: MotionMode) -> HumanPlan {
     HumanPlan {
@@ -16,7 +17,7 @@ fn plan(motion: MotionMode) -> HumanPlan {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
-        pushing: false,
+        pushed: None,
     }
 }
 
@@ -239,7 +240,7 @@ fn track_windows_take_only_tracks_that_cover_them() {
     };
     // 32 frames at 10 Hz; tracks of 32 samples span the same 3.1 s, one of 21 ends early.
     let tracks = [walk(1, 0.0, 32), walk(2, 8.0, 32), walk(3, -8.0, 21)];
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &tracks, sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     for seed in 0..5 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
         let mut ids: Vec<i64> = plan
@@ -264,7 +265,7 @@ fn track_windows_take_only_tracks_that_cover_them() {
     // Tracks longer than the sequence: its window starts anywhere they all cover it, and
     // a person's stride is the model's for the track's mean speed (1 m/s).
     let long = [walk(1, 0.0, 100), walk(2, 8.0, 100)];
-    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp_long = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &long, sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let starts: Vec<f64> = (0..30)
         .map(|seed| {
             let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp_long).unwrap();
@@ -315,7 +316,7 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
     cfg.humans.count = [4, 4];
     cfg.humans.speed_mps = [0.8, 1.5];
     let model = crate::human::tests_support::tiny_model();
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
     for seed in 0..12 {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
@@ -328,7 +329,7 @@ fn synthetic_people_walk_planned_paths_on_a_floor() {
     }
     assert!(lo.cmpge(DVec2::ZERO).all() && hi.cmple(DVec2::new(w, h)).all() && (hi - lo).min_element() > 10.0, "sensor starts within {lo}..{hi}");
     // People walk on the floor's height.
-    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let raised = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.75, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), &cfg, &raised).unwrap();
     for p in &plan.humans {
         assert!(matches!(p.trajectory, HumanPath::Walk(..)) && p.trajectory.position(1.0).z == 0.75, "{:?}", p.trajectory);
@@ -401,7 +402,7 @@ fn sampling_is_reproducible_and_respects_counts() {
     let mut cfg = Config::default();
     cfg.humans.count = [3, 5];
     let model = crate::human::tests_support::tiny_model();
-    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: None, models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let a = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
     let b = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(7), &cfg, &inp).unwrap();
     assert_eq!(a, b);
@@ -503,7 +504,7 @@ fn behaviours_come_in_the_shares_asked_for() {
     let model = crate::human::tests_support::tiny_model();
     let (w, h) = (40.0, 40.0);
     let grid = crate::scene::planner::tests::grid(w, h, &[], 0.25);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.humans.count = [10, 10];
     cfg.humans.spawn_radius_m = 18.0;
@@ -576,7 +577,7 @@ fn people_asked_to_stand_by_things_stand_beside_them() {
     let model = crate::human::tests_support::tiny_model();
     let boxes: Vec<[f64; 4]> = (0..4).map(|k| [6.0 + 8.0 * k as f64, 18.0, 6.6 + 8.0 * k as f64, 18.6]).collect();
     let grid = crate::scene::planner::tests::grid(40.0, 40.0, &boxes, 0.1);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.humans.count = [6, 6];
     cfg.humans.spawn_radius_m = 18.0;
@@ -606,7 +607,7 @@ fn placed_by_a_share(height_m: f64, share: fn(&mut Config) -> &mut f64, holds: f
     let boxes: Vec<[f64; 4]> = (0..16).map(|k| [4.0 + 9.0 * (k % 4) as f64, 6.0 + 9.0 * (k / 4) as f64, 7.0 + 9.0 * (k % 4) as f64, 6.6 + 9.0 * (k / 4) as f64]).collect();
     let env = crate::scene::planner::tests::floor_with_boxes(40.0, 40.0, &boxes, height_m);
     let grid = WalkableGrid::from_environment(&env, 0.1).unwrap();
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.humans.count = [6, 6];
     cfg.humans.spawn_radius_m = 18.0;
@@ -663,7 +664,7 @@ fn people_asked_to_stand_at_places_stand_on_them() {
     let params = WorldParams { duration_s: 0.3, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 2.0], clearance_m: 0.35, markets: 1.0, side_streets: 0.0 };
     let w = World::build(WorldKind::Street, 2, 0, &params).unwrap();
     assert!(w.places.len() > 20, "{} places: {}", w.places.len(), w.summary());
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places, doors: &w.doors, seats: &w.seats };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places, doors: &w.doors, seats: &w.seats, world: None };
     let mut cfg = Config::default();
     cfg.frames = 4;
     cfg.humans.count = [8, 8];

@@ -37,6 +37,6 @@ pub(super) fn companion(rng: &mut impl rand::Rng, leader: &HumanPlan, model: usi
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
-        pushing: false,
+        pushed: None,
     }
 }

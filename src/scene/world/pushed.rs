@@ -2,22 +2,24 @@
 //! is a rigid mesh of its own, its handle at the pusher's hands ([`PushHandle`]), held ahead
 //! of the pusher at the pusher's heading as the pusher walks, stops and turns; like the other
 //! movers it has its own instance id and its beams their own velocity (the centre's and the
-//! turn's: `v + w z x r`), and it is not a person (SemanticKITTI's other-object, 99). A
-//! person pushes only where the thing stays clear of everything all through the sequence: the
-//! walkable area's obstacles, the other people, the sensor's carrier or vehicle, the other
-//! pushed things; nobody who stands all through turns one on the spot (a walker who stops and
-//! turns pivots it). A person who leaves and comes back in (a long sequence) takes the thing
-//! along. The traffic then keeps clear of the things as of the
+//! turn's: `v + w z x r`), and it is not a person (SemanticKITTI's other-object, 99). The
+//! sequence's planner draws who pushes and plans their walks so the thing fits
+//! (`crate::scene::sequence`, with [`World::pushed_spec`] and [`World::pushed_clear`]); this
+//! module checks it between the frames too: a thing is added only where it stays clear all
+//! through of the walkable area's obstacles, the other people, the sensor's carrier or
+//! vehicle and the other pushed things, and nobody who stands all through turns one on the
+//! spot (a walker who stops and turns pivots it). A person who leaves and comes back in (a
+//! long sequence) takes the thing along. The traffic then keeps clear of the things as of the
 //! people.
 
-use super::movers::{Mover, MoverKind, MoverPath, PushedPath, EGO_HALF_M, PERSON_RADIUS_M, STEP_S};
+use super::movers::{Footprint, Mover, MoverKind, MoverPath, PushedPath, EGO_HALF_M, PERSON_RADIUS_M, STEP_S};
 use super::shapes::Builder;
 use super::things::{class, material};
-use super::{chance, uni, World, WorldKind};
+use super::{uni, World, WorldKind};
 use crate::human::push::PushHandle;
 use crate::scene::Environment;
 use glam::{DVec2, DVec3};
-use rand::{Rng, RngExt, SeedableRng};
+use rand::{Rng, SeedableRng};
 
 /// Keys the choice of who pushes apart from the world's other streams.
 const PUSHED_STREAM_KEY: u64 = 0x5055_5348_5f76_3031; // "PUSH_v01"
@@ -38,6 +40,10 @@ const STANDING_MPS: f64 = 0.1;
 const STANDING_TURN_RPS: f64 = 0.05;
 /// Room kept between a thing and the walkable area's obstacles, beside its half width, m.
 const ROOM_M: f64 = 0.05;
+/// Room a planner that checks a pushed thing at the frames keeps besides, m: about as far as
+/// its far corner moves in the quarter of a frame (at 10 Hz) between a frame and the nearest
+/// step of the table the world checks (1.5 m/s and 1.5 rad/s 1.5 m out).
+pub const PLANNED_ROOM_M: f64 = 0.1;
 
 /// A thing to push, not yet pushed: its mesh (body frame: x forward, z up from the ground, the
 /// origin its footprint's centre), half its footprint's length and width, and how far behind
@@ -47,6 +53,29 @@ pub struct PushedSpec {
     pub mesh: Environment,
     pub half: DVec2,
     pub handle_behind_m: f64,
+}
+
+impl PushedSpec {
+    /// Where it is held for a pusher whose hands are at `handle`.
+    pub fn held(&self, handle: &PushHandle) -> Held {
+        Held { ahead_m: handle.forward_m as f64 + self.handle_behind_m, half: self.half }
+    }
+}
+
+/// Where a pushed thing is, seen from its pusher: its footprint's centre `ahead_m` ahead of
+/// the pusher's hips along the heading, and half its footprint's length and width, m. What a
+/// sequence's planner keeps clear while it plans a pusher's walk.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Held {
+    pub ahead_m: f64,
+    pub half: DVec2,
+}
+
+impl Held {
+    /// Its footprint with the pusher's hips over `p`, heading `heading_rad`.
+    pub fn footprint(&self, p: DVec2, heading_rad: f64) -> Footprint {
+        Footprint { centre: p + self.ahead_m * DVec2::new(heading_rad.cos(), heading_rad.sin()), heading_rad, half: self.half }
+    }
 }
 
 /// A stroller for hands at `h`: four wheels (the rear ones larger), a frame, a seat or
@@ -155,48 +184,77 @@ pub struct Walker {
 }
 
 impl World {
-    /// Draws who pushes something over a sequence of `duration_s` (each person with
-    /// probability `share`, on a random stream of its own), builds a stroller (street) or a
-    /// trolley (indoors) to the pusher's hands and keeps it where it stays clear of everything
-    /// (the module's rules) all through; the things are added to the world as movers (before
-    /// its traffic), their meshes to the environment. Per person: `handles`, where their hands
-    /// hold a handle (None: they cannot push: a child, a bag in a hand, seated); `at`, the
-    /// person at a time; `cuts`, the times the person is taken from one place to another (a
+    /// The thing person `person` of the sequence pushes where they do, for hands at `handle`:
+    /// a stroller (the street) or a trolley (indoors), drawn from a stream of its own (the
+    /// world's seed and sequence, the person), so the planner that keeps it clear and
+    /// [`World::add_pushed`] that adds it see the same thing.
+    pub fn pushed_spec(&self, person: usize, handle: &PushHandle) -> PushedSpec {
+        let key = self.seed ^ PUSHED_STREAM_KEY ^ (person as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(key);
+        rng.set_stream(self.index as u64);
+        match self.kind {
+            WorldKind::Street => stroller(&mut rng, handle),
+            WorldKind::Indoor => trolley(&mut rng, handle),
+        }
+    }
+
+    /// Whether a pushed thing's footprint `f` keeps clear of the world at `t_s` with `room_m`
+    /// to spare: the walkable area's obstacles (clearance at the middle and the ends of its
+    /// long axis at least its half width and [`ROOM_M`], at its corners [`ROOM_M`], each and
+    /// `room_m`) and the sensor's vehicle (an exact test of the two boxes, the vehicle's grown
+    /// by `room_m` and, along its way, by as far as it drives in a step of the pose table).
+    /// The world's own check spares nothing; a planner checking frames spares what moves
+    /// between them ([`PLANNED_ROOM_M`]).
+    pub fn pushed_clear(&self, f: &Footprint, t_s: f64, room_m: f64) -> bool {
+        let axis = DVec2::new(f.heading_rad.cos(), f.heading_rad.sin()) * (f.half.x - f.half.y).max(0.0);
+        let room = ROOM_M + room_m;
+        [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(f.centre + s * axis) >= f.half.y + room)
+            && f.corners().iter().all(|&q| self.grid.clearance(q) >= room)
+            && self.sensor.as_ref().is_none_or(|s| {
+                let drive = if room_m > 0.0 { s.speed_mps.abs() * STEP_S } else { 0.0 };
+                !f.overlaps(s.position(t_s).truncate(), EGO_HALF_M + DVec2::new(room_m + drive, room_m))
+            })
+    }
+
+    /// Adds the things a sequence's people push over its `duration_s` (from its first frame to
+    /// the end of its last frame's sweep): to each person with a
+    /// `handles` entry (where their hands hold it; None: they push nothing) the thing of
+    /// [`World::pushed_spec`], held ahead of them, where it stays clear of everything (the
+    /// module's rules) over that time; the things are added
+    /// to the world as movers (before its traffic), their meshes to the environment. `at`:
+    /// a person at a time; `cuts`: the times a person is taken from one place to another (a
     /// long sequence's, leaving and coming back in), the thing with them. `carrier`: the
     /// sensor's carrier's floor position at a time, where it walks among the people (the
-    /// world's own sensor vehicle, the street's, is kept clear of too). Returns who pushes, in
-    /// order.
+    /// world's own sensor vehicle, the street's, is kept clear of too). The sequence's planner
+    /// has kept the things clear at its frames ([`crate::scene::sequence`]); this is the
+    /// check between them. Returns who pushes, in order.
     pub fn add_pushed(
         &mut self,
-        share: f64,
         handles: &[Option<PushHandle>],
         at: impl Fn(usize, f64) -> Walker,
         cuts: impl Fn(usize) -> Vec<f64>,
         duration_s: f64,
         carrier: impl Fn(f64) -> Option<DVec2>,
     ) -> Vec<usize> {
-        if share <= 0.0 || handles.is_empty() {
+        if handles.iter().all(Option::is_none) {
             return Vec::new();
         }
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed ^ PUSHED_STREAM_KEY);
-        rng.set_stream(self.index as u64);
         let t0 = -MARGIN_S;
         let rows = ((duration_s.max(0.0) + 2.0 * MARGIN_S) / STEP_S).ceil() as usize + 1;
-        // Those drawn who can push, each with its thing.
+        // The rows from the one before time 0 to the one after `duration_s` are checked: those
+        // about the frames' sweeps (the rest only carry the table on either side).
+        let first = (MARGIN_S / STEP_S).floor() as usize;
+        let last = (((duration_s.max(0.0) + MARGIN_S) / STEP_S).ceil() as usize).min(rows - 1);
         let mut drawn: Vec<(usize, PushedSpec, Mover)> = Vec::new();
         for (i, handle) in handles.iter().enumerate() {
-            let (draw, spec_seed) = (chance(&mut rng, share), rng.random::<u64>());
-            let (true, Some(handle)) = (draw, handle) else { continue };
-            let mut spec_rng = rand_chacha::ChaCha8Rng::seed_from_u64(spec_seed);
-            let spec = match self.kind {
-                WorldKind::Street => stroller(&mut spec_rng, handle),
-                WorldKind::Indoor => trolley(&mut spec_rng, handle),
-            };
+            let Some(handle) = handle else { continue };
+            let spec = self.pushed_spec(i, handle);
             let path = push_path(i, &at, &cuts(i), handle, &spec, t0, rows);
             // Its speed and turning, segment by segment (none across a cut); somebody who never
             // walks does not turn it.
             let walks = (0..path.rows()).any(|k| at(i, path.row(k).0).speed_mps >= STANDING_MPS);
-            let moves = (0..path.rows() - 1).all(|k| {
+            let checked = |k: &usize| path.row(k + 1).0 > t0 + first as f64 * STEP_S && path.row(*k).0 < t0 + last as f64 * STEP_S;
+            let moves = (0..path.rows() - 1).filter(checked).all(|k| {
                 let (v, w) = path.segment_rates(k);
                 v.truncate().length() <= MAX_SPEED_MPS && w.abs() <= MAX_TURN_RPS && (walks || w.abs() <= STANDING_TURN_RPS)
             });
@@ -210,32 +268,29 @@ impl World {
         let mut clear = vec![true; drawn.len()];
         let mut by_x: Vec<(f64, usize)> = Vec::with_capacity(handles.len());
         let mut people: Vec<Walker> = Vec::with_capacity(handles.len());
-        for k in 0..rows {
+        for k in first..=last {
             let t = t0 + k as f64 * STEP_S;
             people.clear();
             people.extend((0..handles.len()).map(|j| at(j, t)));
             by_x.clear();
             by_x.extend(people.iter().enumerate().map(|(j, w)| (w.footprint_m.x, j)));
             by_x.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let (carried, vehicle) = (carrier(t), self.sensor.map(|s| s.position(t).truncate()));
-            for ((i, spec, m), ok) in drawn.iter().zip(clear.iter_mut()).filter(|(_, ok)| **ok) {
-                let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
-                let axis = DVec2::new(h.cos(), h.sin()) * (spec.half.x - spec.half.y).max(0.0);
+            let carried = carrier(t);
+            for ((i, _, m), ok) in drawn.iter().zip(clear.iter_mut()).filter(|(_, ok)| **ok) {
+                let f = m.footprint(t);
                 // Only somebody this near its centre can touch it.
                 let reach = m.half.length() + PERSON_RADIUS_M;
-                let lo = by_x.partition_point(|e| e.0 < c.x - reach);
-                let near = by_x[lo..].iter().take_while(|e| e.0 <= c.x + reach).map(|e| e.1);
-                *ok = [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(c + s * axis) >= spec.half.y + ROOM_M)
-                    && m.corners(t).iter().all(|&q| self.grid.clearance(q) >= ROOM_M)
+                let lo = by_x.partition_point(|e| e.0 < f.centre.x - reach);
+                let near = by_x[lo..].iter().take_while(|e| e.0 <= f.centre.x + reach).map(|e| e.1);
+                *ok = self.pushed_clear(&f, t, 0.0)
                     && near.filter(|&j| j != *i).all(|j| !m.touches(t, people[j].footprint_m))
-                    && carried.is_none_or(|q| !m.touches(t, q))
-                    && vehicle.is_none_or(|q| !m.overlaps(t, q, EGO_HALF_M));
+                    && carried.is_none_or(|q| !m.touches(t, q));
             }
         }
         // In order, each thing still clear against the things kept before it.
         let mut kept: Vec<usize> = Vec::new();
         for (n, (_, _, m)) in drawn.iter().enumerate().filter(|(n, _)| clear[*n]) {
-            let apart = |o: &Mover| (0..rows).map(|k| t0 + k as f64 * STEP_S).all(|t| o.position(t).distance(m.position(t)) > o.half.length() + m.half.length());
+            let apart = |o: &Mover| (first..=last).map(|k| t0 + k as f64 * STEP_S).all(|t| o.footprint(t).apart(&m.footprint(t)));
             if kept.iter().all(|&o| apart(&drawn[o].2)) {
                 kept.push(n);
             }

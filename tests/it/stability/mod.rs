@@ -223,7 +223,7 @@ fn far_plan(origin: DVec2) -> SequencePlan {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
-        pushing: false,
+        pushed: None,
     };
     SequencePlan { sensor: sensor.into(), humans: vec![human], times_s: vec![t], recording_start: None, floor_z_m: 0.0, world: None }
 }

@@ -98,7 +98,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
-                pushing: false,
+                pushed: None,
             };
             for k in (0..=10_000usize).step_by(7).chain([9_999, 10_000]) {
                 let t = k as f64 / 10.0;
@@ -128,7 +128,7 @@ fn gait_phase_at_999_9_s_stays_in_unit_interval_and_matches_closed_form() {
         stride_scale: 1.0,
         seat_m: 0.0,
         feet_room_m: f64::INFINITY,
-        pushing: false,
+        pushed: None,
     };
     let s = plan.at(T_LONG);
     assert_eq!(s.velocity_mps, DVec3::ZERO, "zero speed: zero velocity");
@@ -161,7 +161,7 @@ fn frame_times_k_over_rate_have_no_drift_unlike_accumulation() {
     cfg.humans.models = Vec::new();
     cfg.frames = 10_001;
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
-    let inputs = pedscan::scene::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inputs = pedscan::scene::sequence::PlanInputs { rate_hz: 10.0, grid: None, models: &[], tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let plan = sample_plan(&mut rng, &cfg, &inputs).expect("plan");
     assert_eq!(plan.times_s.len(), 10_001);
     let mut acc = 0.0f64;

@@ -27,7 +27,7 @@ fn people_drawn_to_sit_sit_on_the_worlds_seats() {
         for index in 0..4 {
             let w = World::build(kind, 3, index, &params).unwrap();
             assert!(w.seats.len() >= 4, "{}: {} seats", w.summary(), w.seats.len());
-            let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places, doors: &w.doors, seats: &w.seats };
+            let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places, doors: &w.doors, seats: &w.seats, world: None };
             let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(index as u64), &cfg, &inp).unwrap();
             let s0 = plan.sensor.position(0.0).truncate();
             for (i, p) in plan.humans.iter().enumerate() {

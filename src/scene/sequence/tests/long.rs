@@ -59,7 +59,7 @@ fn check_long(plan: &SequencePlan, grid: &crate::scene::WalkableGrid, cfg: &Conf
 fn long_sequences_keep_their_people_walking_to_the_end() {
     let model = crate::human::tests_support::tiny_model();
     let grid = crate::scene::planner::tests::grid(30.0, 20.0, &[], 0.25);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.frames = 1201;
     cfg.humans.count = [6, 6];
@@ -97,7 +97,7 @@ fn long_sequences_keep_their_people_walking_to_the_end() {
 fn a_long_sequences_sensor_walks_and_a_driving_one_keeps_its_people() {
     let model = crate::human::tests_support::tiny_model();
     let grid = crate::scene::planner::tests::grid(30.0, 20.0, &[], 0.25);
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&grid), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: None, places: &[], doors: &[], seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.frames = 601;
     cfg.humans.count = [3, 3];
@@ -158,7 +158,7 @@ fn one_waiting_for_a_way_is_taken_out_once_left_behind() {
     walls.push([60.0, 6.0, 600.0, 12.0]);
     let street = crate::scene::planner::tests::grid(600.0, 12.0, &walls, 0.25);
     let arc = Trajectory { start_m: DVec2::new(20.0, 9.0), z_m: 1.7, heading0_rad: 0.0, speed_mps: 8.0, yaw_rate_rps: 0.0 };
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&street), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: Some(arc), places: &[], doors: &[], seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&street), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: Some(arc), places: &[], doors: &[], seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.frames = 601;
     cfg.humans.count = [4, 4];
@@ -244,7 +244,7 @@ fn a_place_to_come_back_in_between_frames_is_checked() {
     let env = crate::scene::planner::tests::floor_with_boxes(40.0, 16.0, &[[10.0, 4.0, 14.0, 8.0]], 2.5);
     let grid = crate::scene::WalkableGrid::from_environment(&env, 0.25).unwrap();
     let times_s: Vec<f64> = (0..20).map(|k| k as f64 * 0.1).collect();
-    let crowd = Crowd { grid: &grid, clearance_m: 0.3, separation_m: 0.5, sensor: None, others: &[], times_s: &times_s, doors: &[] };
+    let crowd = Crowd { grid: &grid, clearance_m: 0.3, separation_m: 0.5, sensor: None, others: &[], times_s: &times_s, doors: &[], world: None, held: None };
     let (inside, open) = (DVec2::new(12.0, 6.0), DVec2::new(30.0, 6.0));
     for t in [0.1, 0.15, 0.1 + 1e-12] {
         assert!(!crowd.clear_at(inside, t) && crowd.clear_at(open, t), "at {t} s");
@@ -260,7 +260,7 @@ fn coming_back(doors: &[crate::scene::world::Place], sensor_mps: f64, people: us
     let env = crate::scene::planner::tests::floor_with_boxes(600.0, 16.0, &kiosks, 2.5);
     let street = crate::scene::WalkableGrid::from_environment(&env, 0.25).unwrap();
     let arc = Trajectory { start_m: DVec2::new(20.0, 4.0), z_m: 1.7, heading0_rad: 0.0, speed_mps: sensor_mps, yaw_rate_rps: 0.0 };
-    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&street), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: Some(arc), places: &[], doors, seats: &[] };
+    let inp = PlanInputs { rate_hz: 10.0, grid: Some(&street), models: std::slice::from_ref(&model), tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: Some(arc), places: &[], doors, seats: &[], world: None };
     let mut cfg = Config::default();
     cfg.frames = 10 * seconds + 1;
     cfg.humans.count = [people, people];

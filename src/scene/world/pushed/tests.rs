@@ -122,7 +122,7 @@ fn pushed_things_keep_clear_of_the_world_the_people_and_each_other() {
                     let p = &people[i];
                     Walker { position_m: p.position(t), heading_rad: p.heading_rad(t), speed_mps: p.speed_mps, footprint_m: p.position(t).truncate() }
                 };
-                let pushers = w.add_pushed(1.0, &handles, at, |_| Vec::new(), duration, |_| None);
+                let pushers = w.add_pushed(&handles, at, |_| Vec::new(), duration, |_| None);
                 (w, people, handles, before, pushers)
             };
             let (w, people, handles, before, pushers) = make();

@@ -1,0 +1,87 @@
+//! People who push (`humans.pushing`): their walks planned so that what they push fits.
+
+use super::*;
+use crate::scene::world::movers::PERSON_RADIUS_M;
+use crate::scene::world::pushed::Walker;
+use crate::scene::world::{World, WorldKind, WorldParams};
+
+fn bundled(name: &str) -> HumanModel {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans").join(name);
+    HumanModel::load(&path, true).unwrap()
+}
+
+/// Plans `frames` frames of ten people, a third of them children, in sequence `index` of a
+/// built `kind` world with everybody who can asked to push, and checks what the planner
+/// promises at every frame: each pusher's thing clear of the world's obstacles and its sensor
+/// vehicle, of the carrier (indoors), of every other person and apart from the other things;
+/// their walks turning no faster than [`crate::scene::sequence::push::TURN_RPS`] (away from a cut). Then adds the
+/// things as a sequence does ([`World::add_pushed`], which checks between the frames too).
+/// Returns the adults, the pushers planned and those the world kept.
+fn planned(kind: WorldKind, index: usize, frames: usize) -> (usize, usize, usize) {
+    let models = [bundled("h1700_w60.glb"), bundled("h1200_w20.glb"), bundled("h1800_w90.glb")];
+    let params = WorldParams { duration_s: (frames - 1) as f64 * 0.1, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 1.0], clearance_m: 0.35, markets: 0.5, side_streets: 0.5 };
+    let mut w = World::build(kind, 3, index, &params).unwrap();
+    let mut cfg = Config::default();
+    cfg.frames = frames;
+    cfg.humans.count = [10, 10];
+    cfg.humans.spawn_radius_m = 20.0;
+    cfg.humans.standing = 0.2;
+    cfg.humans.pushing = 1.0;
+    let plan = {
+        let inp = PlanInputs { rate_hz: 10.0, grid: Some(&w.grid), models: &models, tracks: &[], sensor: None, floor_z_m: 0.0, sensor_arc: w.sensor, places: &w.places, doors: &w.doors, seats: &w.seats, world: Some(&w) };
+        sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(index as u64), &cfg, &inp).unwrap()
+    };
+    let people = &plan.humans;
+    let carried = w.sensor.is_none();
+    let carrier = |t: f64| carried.then(|| plan.sensor.position(t).truncate());
+    for (i, p) in people.iter().enumerate() {
+        let Some(held) = p.pushed else { continue };
+        assert!(models[p.model].push_handle().is_some() && p.seat_m == 0.0, "{kind:?} {index}: {i} cannot push");
+        let cuts = p.cuts();
+        for &t in &plan.times_s {
+            let f = p.pushed_at(t).unwrap();
+            let (at, h, _) = p.floor_pose(t);
+            assert!(f.centre.distance(at.truncate() + held.ahead_m * DVec2::new(h.cos(), h.sin())) < 1e-9);
+            assert!(w.pushed_clear(&f, t, 0.0), "{kind:?} {index} t {t}: {i}'s thing off the floor or on the vehicle");
+            assert!(carrier(t).is_none_or(|q| f.gap(q) >= PERSON_RADIUS_M), "{kind:?} {index} t {t}: {i}'s thing on the carrier");
+            for (j, o) in people.iter().enumerate().filter(|&(j, _)| j != i) {
+                assert!(f.gap(o.footprint_m(t)) >= PERSON_RADIUS_M, "{kind:?} {index} t {t}: {i}'s thing touches {j}");
+                assert!(o.pushed_at(t).is_none_or(|g| g.apart(&f)), "{kind:?} {index} t {t}: {i}'s and {j}'s things");
+            }
+            let e = 0.01;
+            if cuts.iter().all(|c| (c - t).abs() > 2.0 * e) {
+                let turn = p.floor_pose(t + e).1 - p.floor_pose(t - e).1;
+                let rate = turn.sin().atan2(turn.cos()).abs() / (2.0 * e);
+                assert!(rate <= crate::scene::sequence::push::TURN_RPS + 1e-6, "{kind:?} {index} t {t}: {i} turns at {rate} rad/s");
+            }
+        }
+    }
+    let adults = people.iter().filter(|p| models[p.model].push_handle().is_some() && p.seat_m == 0.0).count();
+    let planned = people.iter().filter(|p| p.pushed.is_some()).count();
+    let handles: Vec<_> = people.iter().map(|p| p.pushed.and_then(|_| models[p.model].push_handle())).collect();
+    let at = |i: usize, t: f64| {
+        let (position_m, heading_rad, speed_mps) = people[i].floor_pose(t);
+        Walker { position_m, heading_rad, speed_mps, footprint_m: people[i].footprint_m(t) }
+    };
+    let duration = *plan.times_s.last().unwrap();
+    let kept = w.add_pushed(&handles, at, |i| people[i].cuts(), duration + 0.1, carrier).len();
+    (adults, planned, kept)
+}
+
+/// `humans.pushing = 1`: in streets and halls, short sequences and a long one (where people
+/// leave and come back in and walk goal after goal), all but a few of the adults are planned
+/// to push, their things clear at every frame and their walks turning gently ([`planned`]),
+/// and the world keeps all but a few of those things between the frames too. Without the
+/// planner's care most of them would not fit: a thing must be clear all through.
+#[test]
+fn people_drawn_to_push_are_planned_so_their_things_fit() {
+    let (mut adults, mut planned_n, mut kept) = (0, 0, 0);
+    for (kind, index, frames) in [(WorldKind::Street, 0, 30), (WorldKind::Street, 1, 30), (WorldKind::Indoor, 0, 30), (WorldKind::Indoor, 1, 30), (WorldKind::Street, 2, 450)] {
+        let (a, p, k) = planned(kind, index, frames);
+        assert!(p * 4 >= a * 3, "{kind:?} {index}, {frames} frames: {p} of {a} adults planned to push");
+        assert!(k * 10 >= p * 8, "{kind:?} {index}, {frames} frames: {k} of {p} things kept");
+        (adults, planned_n, kept) = (adults + a, planned_n + p, kept + k);
+    }
+    assert!(adults >= 20, "{adults} adults");
+    assert!(kept * 10 >= adults * 8, "{kept} of {adults} adults push");
+}
