@@ -368,3 +368,38 @@ fn refuses_shares_outside_0_1(dir: &std::path::Path, table: &str, key: &str) {
         assert!(!dir.join("x").exists(), "nothing written");
     }
 }
+
+/// `pedscan sheet --pushing --seated M` on lavapipe under the validation layer (no error): a
+/// row per phase, then the pushing row and the seated row. The adult's pushing row differs
+/// from its walk at the same phase (the arms held forward), the child's is its walk to the
+/// pixel (a child cannot push); seated differs from walking for both. A seat that is no seat's
+/// height is refused naming the flag, exit 2, nothing written.
+#[test]
+fn the_contact_sheet_draws_the_pushing_and_seated_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let humans = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/humans");
+    let (adult, child) = (humans.join("h1700_w60.glb"), humans.join("h1200_w20.glb"));
+    let (adult, child) = (adult.to_str().unwrap(), child.to_str().unwrap());
+    let args = ["sheet", "--models", adult, "--models", child, "--phases", "0,0.5", "--pushing", "--seated", "0.45", "--out", "s.png"];
+    common::ok(&common::pedscan(&args, dir));
+    let img = image::open(dir.join("s.png")).unwrap().to_rgb8();
+    // 150 columns a model; a 14-pixel caption, then 241 rows a row of the sheet.
+    let (cw, ch, top) = (150u32, 241u32, 14u32);
+    assert_eq!(img.dimensions(), (2 * cw, top + 4 * ch));
+    let cell = |model: u32, row: u32| -> Vec<[u8; 3]> {
+        (0..ch).flat_map(|y| (0..cw).map(move |x| (x, y))).map(|(x, y)| img.get_pixel(model * cw + x, top + row * ch + y).0).collect()
+    };
+    let differ = |a: &[[u8; 3]], b: &[[u8; 3]]| a.iter().zip(b).filter(|(p, q)| p != q).count();
+    for model in 0..2 {
+        let seen = cell(model, 0).iter().filter(|p| **p != [235, 235, 235] && **p != [255, 255, 255]).count();
+        assert!(seen > 1000, "model {model}: {seen} pixels of the person");
+        assert!(differ(&cell(model, 0), &cell(model, 3)) > 500, "model {model}: seated as walking");
+    }
+    assert!(differ(&cell(0, 0), &cell(0, 2)) > 100, "the adult pushes as it walks");
+    assert_eq!(differ(&cell(1, 0), &cell(1, 2)), 0, "the child pushes");
+    let bad = common::pedscan(&["sheet", "--models", adult, "--seated", "3", "--out", "bad.png"], dir);
+    assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--seated"));
+    assert!(!dir.join("bad.png").exists());
+}
