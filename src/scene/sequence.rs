@@ -652,6 +652,9 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
             }
             let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
             let mean_speed = if duration > 0.0 { path.distance(duration) / duration } else { 0.0 };
+            // Pushing (drawn only where asked for, in a built-in world): a recorded walk is not
+            // planned for it, the world keeps the thing only where it fits.
+            let pushed = push::draw(rng, hc.pushing, inp.world, humans.len(), &inp.models[model]);
             humans.push(HumanPlan {
                 model,
                 trajectory: path,
@@ -662,7 +665,7 @@ fn sample_paths(rng: &mut impl rand::Rng, cfg: &Config, inp: &PlanInputs) -> Res
                 stride_scale: 1.0,
                 seat_m: 0.0,
                 feet_room_m: f64::INFINITY,
-                pushed: None,
+                pushed,
             });
         }
         let enough = humans.len() >= lo.max(1).min(count.max(1));
@@ -773,6 +776,11 @@ fn sample_synthetic_people(
     // Where the sensor's carrier is, where it walks among the people (a built-in world
     // without a sensor vehicle: indoors).
     let carrier = |t: f64| inp.world.filter(|w| w.sensor.is_none()).map(|_| sensor.position(t).truncate());
+    // The times the world checks a pushed thing at, the last frame's sweep included.
+    let thing_times: Vec<f64> = match inp.world {
+        Some(_) if hc.pushing > 0.0 => crate::scene::world::pushed::checked_times(duration + 1.0 / inp.rate_hz).collect(),
+        _ => Vec::new(),
+    };
     for k in 0..count {
         let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
@@ -795,8 +803,8 @@ fn sample_synthetic_people(
                 let p = plan.footprint_m(t);
                 p.distance(sensor.position(t).truncate()) >= hc.min_separation_m
                     && humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m)
-                    && push::clear(inp.world, &humans, carrier(t), p, plan.pushed_at(t), t)
-            })
+                    && push::others_clear(inp.world, &humans, p, t)
+            }) && (plan.pushed.is_none() || thing_times.iter().all(|&t| plan.pushed_at(t).is_none_or(|f| inp.world.is_none_or(|w| push::thing_clear(w, &humans, carrier(t), &f, t)))))
         };
         let placeable = |plan: &HumanPlan| {
             times_s.iter().all(|&t| inp.grid.is_none_or(|g| g.clearance(plan.position_m(t).truncate()) >= hc.clearance_m)) && clear(plan)
@@ -858,7 +866,7 @@ fn sample_synthetic_people(
                 let held = push.filter(|_| tries < LONG_TRIES / 2);
                 tries += 1;
                 let (Some(grid), Some(planner)) = (inp.grid, planner.as_mut()) else { unreachable!("long sequences have a walkable area") };
-                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s, doors: inp.doors, world: inp.world, held };
+                let crowd = Crowd { grid, clearance_m: hc.clearance_m, separation_m: hc.min_separation_m, sensor: Some(sensor), others: &humans, times_s, doors: inp.doors, world: inp.world, held, thing_times: &thing_times };
                 planner.min_turn_radius_m = held.map_or(0.0, |_| speed.max(0.1) / push::TURN_RPS);
                 let Some(path) = long_walk(rng, planner, &crowd, start, speed.max(0.1), stands, hc.spawn_radius_m, inp.floor_z_m, duration) else { continue };
                 placed = Some(HumanPlan {
@@ -902,13 +910,11 @@ fn sample_synthetic_people(
                 }
                 _ => {
                     let mut u01 = || rng.random::<f64>();
-                    HumanPath::Arc(Trajectory {
-                        start_m: start,
-                        z_m: inp.floor_z_m,
-                        heading0_rad: (u01() * 2.0 - 1.0) * std::f64::consts::PI,
-                        speed_mps: speed,
-                        yaw_rate_rps: uniform(&mut u01, hc.yaw_rate_rps),
-                    })
+                    let heading0_rad = (u01() * 2.0 - 1.0) * std::f64::consts::PI;
+                    let yaw = uniform(&mut u01, hc.yaw_rate_rps);
+                    // One who pushes turns it gently.
+                    let yaw_rate_rps = if held.is_some() { yaw.clamp(-push::TURN_RPS, push::TURN_RPS) } else { yaw };
+                    HumanPath::Arc(Trajectory { start_m: start, z_m: inp.floor_z_m, heading0_rad, speed_mps: speed, yaw_rate_rps })
                 }
             };
             let path = if speed > 0.0 && hc.stop_and_go > 0.0 && rng.random::<f64>() < hc.stop_and_go {

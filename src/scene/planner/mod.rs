@@ -26,7 +26,8 @@
 //!    the clearance along chords at most `min(cell/4, radius/4)` long (each chord checked
 //!    exactly, as the lines); an arc that fails is halved in radius until it passes (an arc
 //!    shrinks towards its corner, which is clear), and the attempt fails if that needs a
-//!    radius under [`MIN_FILLET_RADIUS_M`].
+//!    radius under [`MIN_FILLET_RADIUS_M`], or under [`Planner::min_turn_radius_m`] where that
+//!    is larger (the walks of people pushing something; the last try then at that radius).
 //!
 //! [`Planner::plan_to`] runs steps 2 to 4 between a given start and goal, without randomness.
 //! [`Planner::plan_leg`] (a long sequence's next walk) draws its goal within a given distance
@@ -878,7 +879,9 @@ fn fillet(grid: &WalkableGrid, c: f64, v: &[DVec2], speed: f64, min_r: f64) -> O
                 arcs[i] = Some(arc);
                 break;
             }
-            r *= 0.5;
+            // Halved, but tried once at the least radius where halving would skip it (a
+            // least radius above the default: a pusher's walk).
+            r = if min_r > MIN_FILLET_RADIUS_M && r > min_r { (0.5 * r).max(min_r) } else { 0.5 * r };
         }
     }
     let mut pieces = Vec::with_capacity(2 * m);

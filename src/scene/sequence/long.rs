@@ -15,7 +15,7 @@ use std::sync::Arc;
 pub(super) fn walk_the_sensor(rng: &mut impl rand::Rng, cfg: &Config, grid: &WalkableGrid, times_s: &[f64]) -> Option<SensorPath> {
     let sc = &cfg.scene;
     let duration = *times_s.last()?;
-    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s, doors: &[], world: None, held: None };
+    let crowd = Crowd { grid, clearance_m: sc.sensor_clearance_m, separation_m: 0.0, sensor: None, others: &[], times_s, doors: &[], world: None, held: None, thing_times: &[] };
     let mut planner = crate::scene::planner::Planner::new();
     let [lo, hi] = sc.sensor_speed_mps;
     for _ in 0..LONG_TRIES {
@@ -82,17 +82,27 @@ pub(super) struct Crowd<'a> {
     pub world: Option<&'a crate::scene::world::World>,
     /// What the new person pushes, held where this says (`humans.pushing`); None: nothing.
     pub held: Option<Held>,
+    /// The times the world checks a pushed thing at
+    /// ([`crate::scene::world::pushed::checked_times`]); empty where nobody pushes.
+    pub thing_times: &'a [f64],
 }
 
 impl Crowd<'_> {
     /// Whether `path` (its own time 0 at `t0`) keeps clear at every frame in `[t0, t1)`.
-    /// What the new person pushes is clear too.
+    /// What the new person pushes is clear too, at the world's times for it in `[t0, t1)`
+    /// (from the first of them where `t0` is the sequence's start).
     fn clear(&self, path: &HumanPath, t0: f64, t1: f64) -> bool {
         let a = self.times_s.partition_point(|&t| t < t0);
-        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| {
-            let p = path.position(t - t0).truncate();
-            self.clear_at(p, t) && self.held.is_none_or(|h| push::clear(self.world, self.others, self.carrier(t), p, Some(h.footprint(p, path.heading_rad(t - t0))), t))
-        })
+        let b = if t0 <= 0.0 { 0 } else { self.thing_times.partition_point(|&t| t < t0) };
+        let at = |t: f64| (path.position(t - t0).truncate(), path.heading_rad(t - t0));
+        self.times_s[a..].iter().take_while(|&&t| t < t1).all(|&t| self.clear_at(at(t).0, t))
+            && (self.held.is_none() || self.thing_times[b..].iter().take_while(|&&t| t < t1).all(|&t| self.thing_fits(at(t).0, at(t).1, t)))
+    }
+
+    /// Whether what the new person pushes, with the person at `p` heading `h`, is clear at
+    /// `t` ([`push::thing_clear`]); true for one who pushes nothing.
+    pub(super) fn thing_fits(&self, p: DVec2, h: f64, t: f64) -> bool {
+        self.held.is_none_or(|held| self.world.is_none_or(|w| push::thing_clear(w, self.others, self.carrier(t), &held.footprint(p, h), t)))
     }
 
     /// Where the sensor's carrier is at `t`, where it walks among the people (a built-in
@@ -107,7 +117,7 @@ impl Crowd<'_> {
         self.grid.clearance(p) >= self.clearance_m
             && self.sensor.is_none_or(|s| p.distance(s.position(t).truncate()) >= self.separation_m)
             && self.others.iter().all(|h| h.footprint_m(t).distance(p) >= self.separation_m)
-            && push::clear(self.world, self.others, self.carrier(t), p, None, t)
+            && push::others_clear(self.world, self.others, p, t)
     }
 }
 
@@ -143,11 +153,12 @@ pub(super) fn long_walk(
     let (mut t, mut d, mut pos) = (0.0, 0.0, start);
     let mut heading = u(rng, [-std::f64::consts::PI, std::f64::consts::PI]);
     let stand = |p: DVec2, h: f64| HumanPath::Arc(Trajectory::fixed(p, floor_z, h));
+    // The turn from heading `a` to `b`, the shorter way, rad.
+    let shorter = |a: f64, b: f64| (b - a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
     // Standing at `p` for `w` s, turning at a constant rate from heading `a` to `b` (the
     // shorter way).
     let turning = |p: DVec2, a: f64, b: f64, w: f64| {
-        let turn = (b - a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-        let rate = if w > 0.0 { turn / w } else { 0.0 };
+        let rate = if w > 0.0 { shorter(a, b) / w } else { 0.0 };
         HumanPath::Arc(Trajectory { start_m: p, z_m: floor_z, heading0_rad: a, speed_mps: 0.0, yaw_rate_rps: rate })
     };
     // Somebody a vehicle leaves far behind (none for the sensor's own walk).
@@ -183,7 +194,11 @@ pub(super) fn long_walk(
             let mut door = None;
             if !crowd.doors.is_empty() && rng.random::<f64>() < DOOR_ARRIVALS {
                 let reach = 0.3 * spawn_radius_m..=spawn_radius_m;
-                let free: Vec<_> = crowd.doors.iter().filter(|d| reach.contains(&d.at.distance(here)) && d.at.distance(pos) > 1.0 && crowd.clear_at(d.at, t)).collect();
+                let free: Vec<_> = crowd
+                    .doors
+                    .iter()
+                    .filter(|d| reach.contains(&d.at.distance(here)) && d.at.distance(pos) > 1.0 && crowd.clear_at(d.at, t) && crowd.thing_fits(d.at, d.facing_rad, t))
+                    .collect();
                 door = drawn(rng, &free);
             }
             if let Some(d) = door {
@@ -195,8 +210,14 @@ pub(super) fn long_walk(
                         let (r, a) = (spawn_radius_m * u(rng, [0.3, reach]), u(rng, [0.0, std::f64::consts::TAU]));
                         (k, here + r * DVec2::new(a.cos(), a.sin()))
                     })
-                    .find(|&(k, p)| (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear_at(p, t));
+                    .find(|&(k, p)| {
+                        (k >= ARRIVAL_TRIES / 2 || crowd.grid.hidden_from(here, p)) && crowd.clear_at(p, t) && crowd.thing_fits(p, (here - p).to_angle(), t)
+                    });
                 pos = back?.1;
+                // One who pushes something comes in facing the sensor, the thing ahead.
+                if crowd.held.is_some() {
+                    heading = (here - pos).to_angle();
+                }
             }
             at_rest = false;
             gone_in = false;
@@ -231,8 +252,7 @@ pub(super) fn long_walk(
             let walk_s = w.duration_s();
             let (path, arrive) = eased(HumanPath::Walk(w, floor_z), walk_s, at_rest);
             // One who pushes something waits long enough to turn it at [`push::TURN_RPS`].
-            let angle = (path.heading_rad(0.0) - heading + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-            let wait = if crowd.held.is_some() && at_rest { wait.max(angle.abs() / push::TURN_RPS) } else { wait };
+            let wait = if crowd.held.is_some() && at_rest { wait.max(shorter(heading, path.heading_rad(0.0)).abs() / push::TURN_RPS) } else { wait };
             let turn = turning(pos, heading, path.heading_rad(0.0), wait);
             if crowd.clear(&turn, t, t + wait) && crowd.clear(&path, t + wait, t + wait + arrive) {
                 walked = Some((arrive, path, turn, wait, k == 0 && door_goal.is_some()));

@@ -35,17 +35,23 @@ impl HumanPlan {
     }
 }
 
-/// Whether, at `t_s`, somebody whose footprint is at `p` and who pushes `own` (its footprint
-/// then) keeps clear of what `others` push (the world's rule: a person's footprint 0.35 m from
-/// a thing's, things apart by their circles), and `own` of the world (its obstacles and the
-/// sensor's vehicle: [`World::pushed_clear`]), of the sensor's carrier `carrier` and of the
-/// others; each with [`PLANNED_ROOM_M`] to spare, as the world checks between the frames too.
-pub(super) fn clear(world: Option<&World>, others: &[HumanPlan], carrier: Option<DVec2>, p: DVec2, own: Option<Footprint>, t_s: f64) -> bool {
-    let Some(world) = world else { return true };
-    let (room, gap) = (PLANNED_ROOM_M, PERSON_RADIUS_M + PLANNED_ROOM_M);
-    let mine = |f: &Footprint| {
-        world.pushed_clear(f, t_s, room) && carrier.is_none_or(|q| f.gap(q) >= gap) && others.iter().all(|o| f.gap(o.footprint_m(t_s)) >= gap)
-    };
-    own.as_ref().is_none_or(mine)
-        && others.iter().filter_map(|o| o.pushed_at(t_s)).all(|f| f.gap(p) >= gap && own.is_none_or(|g| g.centre.distance(f.centre) > g.half.length() + f.half.length() + room))
+/// Whether, at `t_s`, somebody whose footprint is at `p` keeps clear of what `others` push:
+/// 0.35 m from its footprint (the world's rule), and [`PLANNED_ROOM_M`] more, as it is
+/// checked at the frames only and the world checks between them too.
+pub(super) fn others_clear(world: Option<&World>, others: &[HumanPlan], p: DVec2, t_s: f64) -> bool {
+    world.is_none() || others.iter().filter_map(|o| o.pushed_at(t_s)).all(|f| f.gap(p) >= PERSON_RADIUS_M + PLANNED_ROOM_M)
+}
+
+/// Whether a pushed thing's footprint `f` keeps clear at `t_s` of the world (its obstacles
+/// and the sensor's vehicle: [`World::pushed_clear`]), of the sensor's carrier `carrier`, of
+/// `others` and of what they push (things apart by their circles): the world's rules, checked
+/// at the world's times ([`crate::scene::world::pushed::checked_times`]); with
+/// [`PLANNED_ROOM_M`] to spare from the others, who were placed at the frames only.
+pub(super) fn thing_clear(world: &World, others: &[HumanPlan], carrier: Option<DVec2>, f: &Footprint, t_s: f64) -> bool {
+    let gap = PERSON_RADIUS_M + PLANNED_ROOM_M;
+    world.pushed_clear(f, t_s)
+        && carrier.is_none_or(|q| f.gap(q) >= PERSON_RADIUS_M)
+        && others.iter().all(|o| {
+            f.gap(o.footprint_m(t_s)) >= gap && o.pushed_at(t_s).is_none_or(|g| g.centre.distance(f.centre) > g.half.length() + f.half.length() + PLANNED_ROOM_M)
+        })
 }

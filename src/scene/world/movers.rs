@@ -107,7 +107,9 @@ pub const EGO_HALF_M: DVec2 = DVec2::new(2.3, 0.95);
 /// A box on the floor turned to a heading: a mover's footprint at an instant.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Footprint {
+    /// Its centre, world frame, m.
     pub centre: DVec2,
+    /// The way its length points, radians counter-clockwise from +x.
     pub heading_rad: f64,
     /// Half its length (along the heading) and half its width, m.
     pub half: DVec2,

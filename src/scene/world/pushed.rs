@@ -40,9 +40,9 @@ const STANDING_MPS: f64 = 0.1;
 const STANDING_TURN_RPS: f64 = 0.05;
 /// Room kept between a thing and the walkable area's obstacles, beside its half width, m.
 const ROOM_M: f64 = 0.05;
-/// Room a planner that checks a pushed thing at the frames keeps besides, m: about as far as
-/// its far corner moves in the quarter of a frame (at 10 Hz) between a frame and the nearest
-/// step of the table the world checks (1.5 m/s and 1.5 rad/s 1.5 m out).
+/// Room a planner keeps besides these rules between a pushed thing and the people, whom it
+/// places checking the frames only, m: about as far as a person or a thing moves in the
+/// quarter of a frame (at 10 Hz) between a frame and the nearest time the world checks.
 pub const PLANNED_ROOM_M: f64 = 0.1;
 
 /// A thing to push, not yet pushed: its mesh (body frame: x forward, z up from the ground, the
@@ -67,7 +67,9 @@ impl PushedSpec {
 /// sequence's planner keeps clear while it plans a pusher's walk.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Held {
+    /// From the pusher's hips to its footprint's centre along the heading, m.
     pub ahead_m: f64,
+    /// Half its footprint's length and width, m.
     pub half: DVec2,
 }
 
@@ -183,6 +185,20 @@ pub struct Walker {
     pub footprint_m: DVec2,
 }
 
+/// The rows of a pushed thing's table ([`STEP_S`] apart from `-MARGIN_S`) that
+/// [`World::add_pushed`] checks over `duration_s` (the frames' sweeps included): from the one
+/// before time 0 to the one after `duration_s` (the rest only carry the table on either side).
+fn checked_rows(duration_s: f64) -> [usize; 2] {
+    [(MARGIN_S / STEP_S).floor() as usize, ((duration_s.max(0.0) + MARGIN_S) / STEP_S).ceil() as usize]
+}
+
+/// The times [`World::add_pushed`] checks a thing at over `duration_s` ([`checked_rows`]): a
+/// planner that checks these with the same rules plans what the world keeps.
+pub fn checked_times(duration_s: f64) -> impl Iterator<Item = f64> {
+    let [first, last] = checked_rows(duration_s);
+    (first..=last).map(|k| -MARGIN_S + k as f64 * STEP_S)
+}
+
 impl World {
     /// The thing person `person` of the sequence pushes where they do, for hands at `handle`:
     /// a stroller (the street) or a trolley (indoors), drawn from a stream of its own (the
@@ -198,36 +214,29 @@ impl World {
         }
     }
 
-    /// Whether a pushed thing's footprint `f` keeps clear of the world at `t_s` with `room_m`
-    /// to spare: the walkable area's obstacles (clearance at the middle and the ends of its
-    /// long axis at least its half width and [`ROOM_M`], at its corners [`ROOM_M`], each and
-    /// `room_m`) and the sensor's vehicle (an exact test of the two boxes, the vehicle's grown
-    /// by `room_m` and, along its way, by as far as it drives in a step of the pose table).
-    /// The world's own check spares nothing; a planner checking frames spares what moves
-    /// between them ([`PLANNED_ROOM_M`]).
-    pub fn pushed_clear(&self, f: &Footprint, t_s: f64, room_m: f64) -> bool {
+    /// Whether a pushed thing's footprint `f` keeps clear of the world at `t_s`: the walkable
+    /// area's obstacles (clearance at the middle and the ends of its long axis at least its
+    /// half width and [`ROOM_M`], at its corners [`ROOM_M`]) and the sensor's vehicle (an
+    /// exact test of the two boxes).
+    pub fn pushed_clear(&self, f: &Footprint, t_s: f64) -> bool {
         let axis = DVec2::new(f.heading_rad.cos(), f.heading_rad.sin()) * (f.half.x - f.half.y).max(0.0);
-        let room = ROOM_M + room_m;
-        [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(f.centre + s * axis) >= f.half.y + room)
-            && f.corners().iter().all(|&q| self.grid.clearance(q) >= room)
-            && self.sensor.as_ref().is_none_or(|s| {
-                let drive = if room_m > 0.0 { s.speed_mps.abs() * STEP_S } else { 0.0 };
-                !f.overlaps(s.position(t_s).truncate(), EGO_HALF_M + DVec2::new(room_m + drive, room_m))
-            })
+        [-1.0, 0.0, 1.0].iter().all(|&s| self.grid.clearance(f.centre + s * axis) >= f.half.y + ROOM_M)
+            && f.corners().iter().all(|&q| self.grid.clearance(q) >= ROOM_M)
+            && self.sensor.as_ref().is_none_or(|s| !f.overlaps(s.position(t_s).truncate(), EGO_HALF_M))
     }
 
-    /// Adds the things a sequence's people push over its `duration_s` (from its first frame to
-    /// the end of its last frame's sweep): to each person with a
-    /// `handles` entry (where their hands hold it; None: they push nothing) the thing of
-    /// [`World::pushed_spec`], held ahead of them, where it stays clear of everything (the
-    /// module's rules) over that time; the things are added
-    /// to the world as movers (before its traffic), their meshes to the environment. `at`:
-    /// a person at a time; `cuts`: the times a person is taken from one place to another (a
-    /// long sequence's, leaving and coming back in), the thing with them. `carrier`: the
-    /// sensor's carrier's floor position at a time, where it walks among the people (the
-    /// world's own sensor vehicle, the street's, is kept clear of too). The sequence's planner
-    /// has kept the things clear at its frames ([`crate::scene::sequence`]); this is the
-    /// check between them. Returns who pushes, in order.
+    /// Adds the things a sequence's people push over its `duration_s` (from its first frame
+    /// to the end of its last frame's sweep): to each person with a `handles` entry (where
+    /// their hands hold it; None: they push nothing) the thing of [`World::pushed_spec`], held
+    /// ahead of them, where it stays clear of everything (the module's rules) at every one of
+    /// [`checked_times`]; the things are added to the world as movers (before its traffic),
+    /// their meshes to the environment. `at`: a person at a time; `cuts`: the times a person
+    /// is taken from one place to another (a long sequence's, leaving and coming back in), the
+    /// thing with them. `carrier`: the sensor's carrier's floor position at a time, where it
+    /// walks among the people (the world's own sensor vehicle, the street's, is kept clear of
+    /// too). The sequence's planner has kept the things clear already (`crate::scene::sequence`);
+    /// this checks what it checked at the frames only (the people placed after a pusher) and
+    /// the things' speeds. Returns who pushes, in order.
     pub fn add_pushed(
         &mut self,
         handles: &[Option<PushHandle>],
@@ -241,10 +250,7 @@ impl World {
         }
         let t0 = -MARGIN_S;
         let rows = ((duration_s.max(0.0) + 2.0 * MARGIN_S) / STEP_S).ceil() as usize + 1;
-        // The rows from the one before time 0 to the one after `duration_s` are checked: those
-        // about the frames' sweeps (the rest only carry the table on either side).
-        let first = (MARGIN_S / STEP_S).floor() as usize;
-        let last = (((duration_s.max(0.0) + MARGIN_S) / STEP_S).ceil() as usize).min(rows - 1);
+        let [first, last] = checked_rows(duration_s);
         let mut drawn: Vec<(usize, PushedSpec, Mover)> = Vec::new();
         for (i, handle) in handles.iter().enumerate() {
             let Some(handle) = handle else { continue };
@@ -282,7 +288,7 @@ impl World {
                 let reach = m.half.length() + PERSON_RADIUS_M;
                 let lo = by_x.partition_point(|e| e.0 < f.centre.x - reach);
                 let near = by_x[lo..].iter().take_while(|e| e.0 <= f.centre.x + reach).map(|e| e.1);
-                *ok = self.pushed_clear(&f, t, 0.0)
+                *ok = self.pushed_clear(&f, t)
                     && near.filter(|&j| j != *i).all(|j| !m.touches(t, people[j].footprint_m))
                     && carried.is_none_or(|q| !m.touches(t, q));
             }

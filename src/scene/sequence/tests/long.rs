@@ -244,7 +244,7 @@ fn a_place_to_come_back_in_between_frames_is_checked() {
     let env = crate::scene::planner::tests::floor_with_boxes(40.0, 16.0, &[[10.0, 4.0, 14.0, 8.0]], 2.5);
     let grid = crate::scene::WalkableGrid::from_environment(&env, 0.25).unwrap();
     let times_s: Vec<f64> = (0..20).map(|k| k as f64 * 0.1).collect();
-    let crowd = Crowd { grid: &grid, clearance_m: 0.3, separation_m: 0.5, sensor: None, others: &[], times_s: &times_s, doors: &[], world: None, held: None };
+    let crowd = Crowd { grid: &grid, clearance_m: 0.3, separation_m: 0.5, sensor: None, others: &[], times_s: &times_s, doors: &[], world: None, held: None, thing_times: &[] };
     let (inside, open) = (DVec2::new(12.0, 6.0), DVec2::new(30.0, 6.0));
     for t in [0.1, 0.15, 0.1 + 1e-12] {
         assert!(!crowd.clear_at(inside, t) && crowd.clear_at(open, t), "at {t} s");

@@ -12,12 +12,14 @@ fn bundled(name: &str) -> HumanModel {
 
 /// Plans `frames` frames of ten people, a third of them children, in sequence `index` of a
 /// built `kind` world with everybody who can asked to push, and checks what the planner
-/// promises at every frame: each pusher's thing clear of the world's obstacles and its sensor
-/// vehicle, of the carrier (indoors), of every other person and apart from the other things;
-/// their walks turning no faster than [`crate::scene::sequence::push::TURN_RPS`] (away from a cut). Then adds the
-/// things as a sequence does ([`World::add_pushed`], which checks between the frames too).
-/// Returns the adults, the pushers planned and those the world kept.
+/// promises: at every time the world checks a thing, each pusher's thing clear of the world's
+/// obstacles and its sensor vehicle and of the carrier (indoors); at every frame, 0.1 m more
+/// than the world asks from every other person and the other things; the walks turning no
+/// faster than 1.5 rad/s (away from a cut). Then adds the things as a sequence does
+/// ([`World::add_pushed`]), each where the plan holds it. Returns the adults, the pushers
+/// planned and those the world kept.
 fn planned(kind: WorldKind, index: usize, frames: usize) -> (usize, usize, usize) {
+    use crate::scene::world::pushed::{checked_times, PLANNED_ROOM_M};
     let models = [bundled("h1700_w60.glb"), bundled("h1200_w20.glb"), bundled("h1800_w90.glb")];
     let params = WorldParams { duration_s: (frames - 1) as f64 * 0.1, sensor_height_m: 1.73, sensor_speed_mps: [0.0, 1.0], clearance_m: 0.35, markets: 0.5, side_streets: 0.5 };
     let mut w = World::build(kind, 3, index, &params).unwrap();
@@ -34,19 +36,20 @@ fn planned(kind: WorldKind, index: usize, frames: usize) -> (usize, usize, usize
     let people = &plan.humans;
     let carried = w.sensor.is_none();
     let carrier = |t: f64| carried.then(|| plan.sensor.position(t).truncate());
-    for (i, p) in people.iter().enumerate() {
-        let Some(held) = p.pushed else { continue };
+    let duration = *plan.times_s.last().unwrap() + 0.1;
+    for (i, p) in people.iter().enumerate().filter(|(_, p)| p.pushed.is_some()) {
         assert!(models[p.model].push_handle().is_some() && p.seat_m == 0.0, "{kind:?} {index}: {i} cannot push");
+        for t in checked_times(duration) {
+            let f = p.pushed_at(t).unwrap();
+            assert!(w.pushed_clear(&f, t), "{kind:?} {index} t {t}: {i}'s thing off the floor or on the vehicle");
+            assert!(carrier(t).is_none_or(|q| f.gap(q) >= PERSON_RADIUS_M), "{kind:?} {index} t {t}: {i}'s thing on the carrier");
+        }
         let cuts = p.cuts();
         for &t in &plan.times_s {
             let f = p.pushed_at(t).unwrap();
-            let (at, h, _) = p.floor_pose(t);
-            assert!(f.centre.distance(at.truncate() + held.ahead_m * DVec2::new(h.cos(), h.sin())) < 1e-9);
-            assert!(w.pushed_clear(&f, t, 0.0), "{kind:?} {index} t {t}: {i}'s thing off the floor or on the vehicle");
-            assert!(carrier(t).is_none_or(|q| f.gap(q) >= PERSON_RADIUS_M), "{kind:?} {index} t {t}: {i}'s thing on the carrier");
             for (j, o) in people.iter().enumerate().filter(|&(j, _)| j != i) {
-                assert!(f.gap(o.footprint_m(t)) >= PERSON_RADIUS_M, "{kind:?} {index} t {t}: {i}'s thing touches {j}");
-                assert!(o.pushed_at(t).is_none_or(|g| g.apart(&f)), "{kind:?} {index} t {t}: {i}'s and {j}'s things");
+                assert!(f.gap(o.footprint_m(t)) >= PERSON_RADIUS_M + PLANNED_ROOM_M, "{kind:?} {index} t {t}: {i}'s thing touches {j}");
+                assert!(o.pushed_at(t).is_none_or(|g| g.centre.distance(f.centre) > g.half.length() + f.half.length() + PLANNED_ROOM_M), "{kind:?} {index} t {t}: {i}'s and {j}'s things");
             }
             let e = 0.01;
             if cuts.iter().all(|c| (c - t).abs() > 2.0 * e) {
@@ -63,9 +66,16 @@ fn planned(kind: WorldKind, index: usize, frames: usize) -> (usize, usize, usize
         let (position_m, heading_rad, speed_mps) = people[i].floor_pose(t);
         Walker { position_m, heading_rad, speed_mps, footprint_m: people[i].footprint_m(t) }
     };
-    let duration = *plan.times_s.last().unwrap();
-    let kept = w.add_pushed(&handles, at, |i| people[i].cuts(), duration + 0.1, carrier).len();
-    (adults, planned, kept)
+    let kept = w.add_pushed(&handles, at, |i| people[i].cuts(), duration, carrier);
+    // The world's thing is the one planned, where the plan holds it (within 2 cm: the world
+    // tables its pose every 0.05 s, linear in between).
+    for (m, &i) in w.movers.iter().zip(&kept) {
+        for &t in &plan.times_s {
+            let (f, g) = (m.footprint(t), people[i].pushed_at(t).unwrap());
+            assert!(f.centre.distance(g.centre) < 0.02 && (f.half - g.half).length() < 1e-9, "{kind:?} {index} t {t}: {i}'s thing {f:?}, planned {g:?}");
+        }
+    }
+    (adults, planned, kept.len())
 }
 
 /// `humans.pushing = 1`: in streets and halls, short sequences and a long one (where people
