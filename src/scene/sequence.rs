@@ -781,7 +781,11 @@ fn sample_synthetic_people(
         Some(_) if hc.pushing > 0.0 => crate::scene::world::pushed::checked_times(duration + 1.0 / inp.rate_hz).collect(),
         _ => Vec::new(),
     };
-    for k in 0..count {
+    // People are placed in turn; one who finds no room because of the things pushed before
+    // them (a long sequence's crowd has to keep clear of them for minutes) takes the things
+    // from the pushers placed before (their walks keep clear without them) and is placed again.
+    let mut k = 0;
+    while k < count {
         let model = crate::scene::pick_model(rng, inp.models.len(), hc.carrying);
         let joining = hc.groups > 0.0 && k > 0 && rng.random::<f64>() < hc.groups;
         let stands = hc.standing > 0.0 && rng.random::<f64>() < hc.standing;
@@ -813,6 +817,7 @@ fn sample_synthetic_people(
         if hc.sitting > 0.0 && rng.random::<f64>() < hc.sitting {
             if let Some(p) = seats::seat(rng, &seats, (model, &inp.models[model]), inp.floor_z_m, hc.motion, clear) {
                 humans.push(p);
+                k += 1;
                 continue;
             }
         }
@@ -940,7 +945,15 @@ fn sample_synthetic_people(
             }
         }
         match placed {
-            Some(p) => humans.push(p),
+            Some(p) => {
+                humans.push(p);
+                k += 1;
+            }
+            None if humans.iter().any(|h| h.pushed.is_some()) => {
+                for h in &mut humans {
+                    h.pushed = None;
+                }
+            }
             None => {
                 // Only the faster walkers may be too long for the area: say so too.
                 let long = walk_length(hc.speed_mps[1])
