@@ -52,6 +52,6 @@ pub(super) fn thing_clear(world: &World, others: &[HumanPlan], carrier: Option<D
     world.pushed_clear(f, t_s)
         && carrier.is_none_or(|q| f.gap(q) >= PERSON_RADIUS_M)
         && others.iter().all(|o| {
-            f.gap(o.footprint_m(t_s)) >= gap && o.pushed_at(t_s).is_none_or(|g| g.centre.distance(f.centre) > g.half.length() + f.half.length() + PLANNED_ROOM_M)
+            f.gap(o.footprint_m(t_s)) >= gap && o.pushed_at(t_s).is_none_or(|g| g.apart(f, PLANNED_ROOM_M))
         })
 }

@@ -143,10 +143,10 @@ impl Footprint {
             d.dot(*a).abs() < own + half.x * a.x.abs() + half.y * a.y.abs()
         })
     }
-    /// Whether it and `other` are apart by their circumscribed circles (the pushed things'
-    /// rule among themselves).
-    pub fn apart(&self, other: &Footprint) -> bool {
-        self.centre.distance(other.centre) > self.half.length() + other.half.length()
+    /// Whether it and `other` are apart by their circumscribed circles and `room_m` more (the
+    /// pushed things' rule among themselves: no room where the world checks it).
+    pub fn apart(&self, other: &Footprint, room_m: f64) -> bool {
+        self.centre.distance(other.centre) > self.half.length() + other.half.length() + room_m
     }
 }
 

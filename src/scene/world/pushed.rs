@@ -296,7 +296,7 @@ impl World {
         // In order, each thing still clear against the things kept before it.
         let mut kept: Vec<usize> = Vec::new();
         for (n, (_, _, m)) in drawn.iter().enumerate().filter(|(n, _)| clear[*n]) {
-            let apart = |o: &Mover| (first..=last).map(|k| t0 + k as f64 * STEP_S).all(|t| o.footprint(t).apart(&m.footprint(t)));
+            let apart = |o: &Mover| (first..=last).map(|k| t0 + k as f64 * STEP_S).all(|t| o.footprint(t).apart(&m.footprint(t), 0.0));
             if kept.iter().all(|&o| apart(&drawn[o].2)) {
                 kept.push(n);
             }
