@@ -267,6 +267,12 @@ impl FrameGeometry {
     }
 }
 
+/// `a` wrapped into [-π, π), as `(a + π) mod 2π - π`: the signed turn an angle difference
+/// stands for, the shorter way.
+pub fn wrap_pi(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
 /// A bounding sphere: centre of the axis-aligned box, radius to the farthest vertex.
 pub fn bounding_sphere(positions: &[[f32; 3]]) -> ([f32; 3], f32) {
     if positions.is_empty() {

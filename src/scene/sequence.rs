@@ -238,7 +238,7 @@ impl PoseTrack {
             let x = poses[k].x_axis;
             x.y.atan2(x.x)
         };
-        let wrap = |a: f64| (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let wrap = crate::geometry::wrap_pi;
         let deriv = |k: usize| -> (DVec3, f64) {
             if n < 2 {
                 return (DVec3::ZERO, 0.0);
@@ -452,7 +452,7 @@ impl HumanPlan {
             let (p, h) = at;
             let pinned = p_pin + DVec2::from_angle(h_pin) * (d_at - d_pin);
             let local = DVec2::from_angle(-h).rotate(pinned - p);
-            let yaw = (h_pin - h + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            let yaw = crate::geometry::wrap_pi(h_pin - h);
             Some(local.extend(yaw))
         };
         let toe_off = TOE_OFF as f64;

@@ -117,7 +117,7 @@ impl BeamCaster {
                 let d = dirs[r * columns + c];
                 let az = std::f64::consts::PI * (1.0 - 2.0 * (c as f64 + 0.5) / columns as f64);
                 let dz = (d.z - z).abs();
-                let daz = (d.y.atan2(d.x) - az + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                let daz = crate::geometry::wrap_pi(d.y.atan2(d.x) - az);
                 assert!(dz <= 1e-12 && daz.abs() <= 1e-9, "beam ({r}, {c}) is off the sensor's grid");
             }
         }

@@ -44,7 +44,7 @@
 //! skipped.
 
 use std::collections::BTreeMap;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::PI;
 use std::path::Path;
 
 use glam::DVec2;
@@ -393,7 +393,7 @@ fn wrap_angle(a: f64) -> f64 {
     if (-PI..PI).contains(&a) {
         a
     } else {
-        (a + PI).rem_euclid(TAU) - PI
+        crate::geometry::wrap_pi(a)
     }
 }
 

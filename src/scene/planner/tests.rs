@@ -61,9 +61,7 @@ fn hall() -> WalkableGrid {
     grid(36.0, 24.0, &boxes, 0.1)
 }
 
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
-}
+use crate::geometry::wrap_pi as wrap;
 
 /// Dense check of the whole walk (every cell/10 of arc length) against the clearance.
 fn assert_clear(g: &WalkableGrid, path: &WalkPath, c: f64) {

@@ -154,7 +154,7 @@ pub(super) fn long_walk(
     let mut heading = u(rng, [-std::f64::consts::PI, std::f64::consts::PI]);
     let stand = |p: DVec2, h: f64| HumanPath::Arc(Trajectory::fixed(p, floor_z, h));
     // The turn from heading `a` to `b`, the shorter way, rad.
-    let shorter = |a: f64, b: f64| (b - a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    let shorter = |a: f64, b: f64| crate::geometry::wrap_pi(b - a);
     // Standing at `p` for `w` s, turning at a constant rate from heading `a` to `b` (the
     // shorter way).
     let turning = |p: DVec2, a: f64, b: f64, w: f64| {

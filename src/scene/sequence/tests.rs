@@ -525,7 +525,7 @@ fn behaviours_come_in_the_shares_asked_for() {
                     if i > 0 {
                         let other = plan.humans[i - 1].trajectory.position(0.0).truncate();
                         let to = other - a.start_m;
-                        let off = (to.y.atan2(to.x) - a.heading0_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                        let off = crate::geometry::wrap_pi(to.y.atan2(to.x) - a.heading0_rad);
                         if (0.8..=1.4).contains(&to.length()) && off.abs() <= 0.36 {
                             facing += 1;
                         }
@@ -646,7 +646,7 @@ fn people_asked_to_stand_before_things_have_one_behind_them() {
 fn people_asked_to_stand_behind_things_have_one_before_them() {
     let [(anywhere, total), (asked, all)] = placed_by_a_share(0.9, |c| &mut c.humans.behind_things, |g, mid, p| {
         let at = p.position_m(0.0).truncate();
-        let off = (p.trajectory.heading_rad(0.0) - (mid - at).to_angle() + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let off = crate::geometry::wrap_pi(p.trajectory.heading_rad(0.0) - (mid - at).to_angle());
         let walks = p.trajectory.velocity(0.0).length() > 0.0;
         g.low_obstacle_before(mid, at, crate::scene::BEHIND_THING_M) && (walks || off.abs() <= std::f64::consts::FRAC_PI_6 + 1e-9)
     });
@@ -693,7 +693,7 @@ fn people_asked_to_stand_at_places_stand_on_them() {
         let plan = sample_plan(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &cfg, &inp).unwrap();
         for p in &plan.humans {
             let q = w.places.iter().find(|q| q.at.distance(p.position_m(0.0).truncate()) < 1e-9).unwrap();
-            let off = (p.trajectory.heading_rad(0.0) - q.facing_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            let off = crate::geometry::wrap_pi(p.trajectory.heading_rad(0.0) - q.facing_rad);
             assert!(off.abs() <= std::f64::consts::FRAC_PI_6 + 1e-9, "faces {off} rad off its place's way");
         }
     }

@@ -167,7 +167,7 @@ fn push_path(pusher: usize, at: &impl Fn(usize, f64) -> Walker, cuts: &[f64], ha
         let (p, mut h) = (w.position_m, w.heading_rad);
         if let (Some(prev), false) = (table.last(), after_cut) {
             // Unwrapped: the nearest turn of the heading to the last one.
-            h = prev[4] + (h - prev[4] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            h = prev[4] + crate::geometry::wrap_pi(h - prev[4]);
         }
         table.push([t, p.x + ahead * h.cos(), p.y + ahead * h.sin(), p.z, h]);
     }

@@ -83,7 +83,7 @@ fn long_sequences_keep_their_people_walking_to_the_end() {
             turns += 1;
             let span = w[2].t0_s - w[1].t0_s;
             let end = turn.heading_rad(span);
-            let gap = |x: f64, y: f64| ((x - y + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI).abs();
+            let gap = |x: f64, y: f64| crate::geometry::wrap_pi(x - y).abs();
             assert!(gap(turn.heading0_rad, a.heading_rad(a.duration_s())) < 1e-9 && gap(end, b.heading_rad(0.0)) < 1e-9);
         }
     }

@@ -61,7 +61,7 @@ fn a_pushed_path_moves_as_its_rates_say() {
     // Around a circle of 3 m at 1.5 m/s, the heading given wrapped.
     let at = |_: usize, t: f64| {
         let a = 0.5 * t;
-        let h = (a + std::f64::consts::FRAC_PI_2 + std::f64::consts::PI).rem_euclid(TAU) - std::f64::consts::PI;
+        let h = crate::geometry::wrap_pi(a + std::f64::consts::FRAC_PI_2);
         Walker { position_m: DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.0), heading_rad: h, speed_mps: 1.5, footprint_m: DVec2::ZERO }
     };
     let path = push_path(0, &at, &[], &handle, &spec, 0.0, 400);
@@ -153,7 +153,7 @@ fn pushed_things_keep_clear_of_the_world_the_people_and_each_other() {
                     let t = k as f64 * 0.1;
                     let (c, h) = (m.position(t).truncate(), m.heading_rad(t));
                     let want = p.position(t).truncate() + ahead * DVec2::new(p.heading_rad(t).cos(), p.heading_rad(t).sin());
-                    assert!(c.distance(want) < 1e-3 && (h - p.heading_rad(t)).rem_euclid(TAU).min((p.heading_rad(t) - h).rem_euclid(TAU)) < 1e-6, "{kind:?} {index} t {t}: not at the hands");
+                    assert!(c.distance(want) < 1e-3 && crate::geometry::wrap_pi(h - p.heading_rad(t)).abs() < 1e-6, "{kind:?} {index} t {t}: not at the hands");
                     let (ax, ay) = (DVec2::new(h.cos(), h.sin()), DVec2::new(-h.sin(), h.cos()));
                     for a in -10..=10 {
                         for b in -6..=6 {
