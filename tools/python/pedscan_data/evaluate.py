@@ -16,6 +16,9 @@ Prints the human IoU, precision and recall over all returned beams and in the pa
 distance bins (0-4, 4-8, 8+ m; no-return beams excluded), and the velocity end-point error
 on the ground truth's human beams when the predictions carry velocities. A beam whose
 ground-truth ``/label`` is 255 (:data:`NOT_SCORED`: a recording's own people) is not scored.
+Where the ground truth has ``/class``, the false alarms by their true SemanticKITTI class;
+where it has a built-in world's movers (``/movers/kind``), each kind's scored beams and how
+many of them are called human (a stroller taken for its pusher, a car for a person).
 
 **Labeled scans, per point.** GROUND_TRUTH is a SemanticKITTI sequence folder (``velodyne/``
 and ``labels/``) or a dataset root (``sequences/SS/labels/``); PREDICTIONS what
@@ -267,6 +270,28 @@ class Report:
     notes: list[str] = field(default_factory=list)
     from_frame: int = 0
     bins: list[Counts] = field(default_factory=lambda: [Counts() for _ in BINS])
+    #: False-alarm beams by their true SemanticKITTI class (``/class``, where it was written).
+    false_alarm_classes: dict[int, int] = field(default_factory=dict)
+    #: A built-in world's movers' scored beams by kind (``/movers/kind``): [called human, beams].
+    movers: dict[str, list[int]] = field(default_factory=dict)
+
+    def add_breakdown(self, seq: Sequence, t: int, range_m: np.ndarray, label: np.ndarray, human: np.ndarray) -> None:
+        """Frame ``t``'s false alarms by true class, and its movers' beams called human, by kind."""
+        scored = (range_m > 0) & (label != NOT_SCORED)
+        f = seq.dataset("range").file
+        if "class" in f:
+            cls = f["class"][t]
+            for k, n in zip(*np.unique(cls[human & scored & (label != 1)], return_counts=True)):
+                self.false_alarm_classes[int(k)] = self.false_alarm_classes.get(int(k), 0) + int(n)
+        if "movers/kind" in f and seq.has("instance"):
+            kinds = [k.decode() if isinstance(k, bytes) else str(k) for k in f["movers/kind"][()]]
+            instance = seq.read("instance", t)
+            first = len(seq.humans.model) + 1
+            for j, kind in enumerate(kinds):
+                mine = scored & (instance == first + j)
+                tally = self.movers.setdefault(kind, [0, 0])
+                tally[0] += int(np.count_nonzero(mine & human))
+                tally[1] += int(np.count_nonzero(mine))
 
     def as_dict(self) -> dict[str, Any]:
         total = Counts()
@@ -284,6 +309,14 @@ class Report:
             "bins": [
                 {"min_m": lo, "max_m": None if math.isinf(hi) else hi, **c.scores(self.velocity)}
                 for (lo, hi), c in zip(BINS, self.bins)
+            ],
+            "false_alarms_by_class": [
+                {"class": k, "name": CLASS_NAMES.get(k, str(k)), "beams": n, "share": n / total.fp}
+                for k, n in sorted(self.false_alarm_classes.items(), key=lambda kv: (-kv[1], kv[0]))
+            ],
+            "movers_called_human": [
+                {"kind": k, "beams": n, "called_human": c, "share": _ratio(c, n)}
+                for k, (c, n) in sorted(self.movers.items())
             ],
         }
 
@@ -367,6 +400,7 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
             report.velocity |= v_true is not None
             label = seq.read("label", t)
             _score_frame(report, range_m, label == 1, human, v_true, v_pred, axes, label != NOT_SCORED)
+            report.add_breakdown(seq, t, range_m, label, human)
             report.frames += 1
     if problems:
         raise MismatchError(problems)
@@ -717,6 +751,14 @@ def format_report(d: dict[str, Any]) -> str:
             f"{b['human_beams']:>13}"
         )
         lines.append(row + (f"{_fmt(b['epe_mps'], 3):>9}" if velocity else ""))
+    if d.get("false_alarms_by_class"):
+        lines.append("false alarms by true class: " + ", ".join(f"{c['name']} {100 * c['share']:.0f} %"
+                                                                for c in d["false_alarms_by_class"][:8]))
+    if d.get("movers_called_human"):
+        lines.append("movers' beams called human: " + ", ".join(
+            f"{m['kind']} {m['called_human']} of {m['beams']}"
+            + (f" ({100 * m['share']:.1f} %)" if m["share"] is not None else "")
+            for m in d["movers_called_human"]))
     return "\n".join(lines)
 
 

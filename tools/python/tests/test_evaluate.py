@@ -75,7 +75,9 @@ def test_ground_truth_as_prediction_scores_one(sample: Path, tmp_path: Path, cap
     assert o["beams"] == sum(np.count_nonzero(g["range"] > 0) for g in gt.values())
     assert (report["sequences"], report["frames"], report["format"]) == (2, 8, "hdf5")
     assert (report["ground_truth"], report["predictions"], report["from_frame"], report["notes"]) == (str(sample), str(sample), 0, [])
-    assert list(report) == ["ground_truth", "predictions", "format", "sequences", "frames", "from_frame", "notes", "overall", "bins"]
+    assert list(report) == ["ground_truth", "predictions", "format", "sequences", "frames", "from_frame", "notes", "overall", "bins",
+                            "false_alarms_by_class", "movers_called_human"]
+    assert report["false_alarms_by_class"] == [] and report["movers_called_human"] == []  # no false alarm; the hall has no movers
     assert [(b["min_m"], b["max_m"]) for b in report["bins"]] == [(0, 4), (4, 8), (8, None)]
     assert "human IoU 1.0000  precision 1.0000  recall 1.0000" in out
     assert "velocity end-point error on human beams: 0.000 m/s" in out
@@ -126,7 +128,8 @@ def test_known_corruption_gives_the_known_scores(sample: Path, tmp_path: Path, c
     assert near["iou"] == pytest.approx(human[BINS[0]] / (human[BINS[0]] + false_pos))
     assert mid["iou"] == 1.0
     assert far["iou"] == 0.0 and far["recall"] == 0.0 and far["precision"] is None
-    assert "n/a" in out.splitlines()[-1]  # the 8+ m precision: nothing predicted there
+    far_row = next(line for line in out.splitlines() if line.startswith("8+ m"))
+    assert "n/a" in far_row  # the 8+ m precision: nothing predicted there
 
 
 def test_semantickitti_labels(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -381,3 +384,56 @@ def test_beams_labelled_not_scored_count_nowhere(sample: Path, tmp_path: Path, c
     assert (code, err) == (0, "")
     o = json.loads((tmp_path / "s.json").read_text())["overall"]
     assert (o["iou"], o["fp"], o["fn"], o["beams"]) == (1.0, 0, 0, returned - not_scored)
+
+
+def test_false_alarms_by_class_and_movers_called_human(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Background beams made a stroller's and a car's (their /instance after the people's,
+    their /class 99 and 10, `/movers/kind` written): with 7 of the stroller's beams a frame
+    called human, 3 building beams too, and one stroller beam not scored (255, called human),
+    the report counts each kind's scored beams and those called human, and the false alarms
+    by class, exactly."""
+    gt_dir, preds = tmp_path / "gt", tmp_path / "preds"
+    shutil.copytree(sample, gt_dir)
+    want = {"stroller": [0, 0], "car": [0, 0]}
+    by_class = {99: 0, 50: 0}
+    for name, g in ground_truth(sample).items():
+        label, instance = g["label"].copy(), g["instance"].copy()
+        with h5py.File(gt_dir / name, "a") as f:
+            assert "class" in f and "movers" not in f
+            cls = f["class"][()]
+            n = f["humans/height_m"].shape[0]
+            f["movers/kind"] = np.array([b"stroller", b"car"], dtype=h5py.string_dtype())
+            human = label == 1
+            for t in range(label.shape[0]):
+                free = np.flatnonzero((g["range"][t] > 0) & (label[t] == 0) & (cls[t] == 50))
+                stroller, car, building = free[:20], free[20:50], free[50:53]
+                instance[t].flat[stroller] = n + 1
+                instance[t].flat[car] = n + 2
+                cls[t].flat[stroller] = 99
+                cls[t].flat[car] = 10
+                label[t].flat[stroller[0]] = 255  # not scored, whatever is predicted
+                human[t].flat[stroller[:8]] = True  # the first of them not scored
+                human[t].flat[building] = True
+                want["stroller"][0] += 7
+                want["stroller"][1] += 19
+                want["car"][1] += 30
+                by_class[99] += 7
+                by_class[50] += 3
+            f["instance"][...] = instance
+            f["class"][...] = cls
+            f["label"][...] = label
+        write_h5(preds, name, human.astype(np.uint8))
+    code, out, err = run(capsys, gt_dir, preds, "--json", tmp_path / "s.json")
+    assert (code, err) == (0, "")
+    report = json.loads((tmp_path / "s.json").read_text())
+    assert report["overall"]["fp"] == by_class[99] + by_class[50]
+    assert [(c["class"], c["name"], c["beams"]) for c in report["false_alarms_by_class"]] == [
+        (99, "other-object", by_class[99]), (50, "building", by_class[50])]
+    assert sum(c["share"] for c in report["false_alarms_by_class"]) == pytest.approx(1.0)
+    assert [(m["kind"], m["called_human"], m["beams"]) for m in report["movers_called_human"]] == [
+        ("car", 0, want["car"][1]), ("stroller", want["stroller"][0], want["stroller"][1])]
+    s = want["stroller"]
+    assert (f"movers' beams called human: car 0 of {want['car'][1]} (0.0 %), stroller {s[0]} of {s[1]} "
+            f"({100 * s[0] / s[1]:.1f} %)") in out
+    share = 100 * by_class[99] / (by_class[99] + by_class[50])
+    assert f"false alarms by true class: other-object {share:.0f} %, building {100 - share:.0f} %" in out
