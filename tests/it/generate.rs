@@ -290,7 +290,7 @@ fn the_sensor_motion_is_stored_and_is_the_derivative_of_its_poses() {
             let fd = (b[i] - a[i]) / dt;
             assert!((fd - v[3 * k + i]).abs() < 0.02, "frame {k} axis {i}: stored {} vs poses {fd}", v[3 * k + i]);
         }
-        let dyaw = (yaw(k + 1) - yaw(k - 1) + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let dyaw = pedscan::geometry::wrap_pi(yaw(k + 1) - yaw(k - 1));
         assert!((dyaw / dt - w[k]).abs() < 0.01, "frame {k}: yaw rate {} vs poses {}", w[k], dyaw / dt);
     }
     assert!(v.chunks(3).all(|c| (c[0].hypot(c[1]) - 1.5).abs() < 1e-9), "speed 1.5 m/s: {v:?}");

@@ -221,7 +221,7 @@ fn imported_tracks_are_walked_at_the_frame_times() {
             assert!((pos[i] - want[0]).abs() < 1e-4 && (pos[i + 1] - want[1]).abs() < 1e-4, "frame {k} track {id}: {:?} vs {want:?}", &pos[i..i + 2]);
             let wv = [-vy, vx];
             assert!((vel[i] - wv[0]).abs() < 1e-5 && (vel[i + 1] - wv[1]).abs() < 1e-5, "velocity {:?} vs {wv:?}", &vel[i..i + 2]);
-            let dh = (heading[k * 3 + h] - wv[1].atan2(wv[0]) + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            let dh = pedscan::geometry::wrap_pi(heading[k * 3 + h] - wv[1].atan2(wv[0]));
             assert!(dh.abs() < 1e-5, "heading faces the motion");
         }
     }

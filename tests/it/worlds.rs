@@ -209,7 +209,7 @@ fn people_push_strollers_that_move_and_turn_with_them() {
                 // at each end's rate and half a frame at the step's between them.
                 let w = |t: usize| mw[t * movers + j] as f64;
                 if t + 1 < frames {
-                    let turn = (mh[(t + 1) * movers + j] as f64 - mh[t * movers + j] as f64 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+                    let turn = pedscan::geometry::wrap_pi(mh[(t + 1) * movers + j] as f64 - mh[t * movers + j] as f64);
                     let ends = 0.025 * (w(t) + w(t + 1));
                     let (lo, hi) = (ends + 0.05 * w(t).min(w(t + 1)), ends + 0.05 * w(t).max(w(t + 1)));
                     assert!(turn > lo - 0.002 && turn < hi + 0.002, "seq {seq} frame {t}: stroller {j} turns {turn} rad, its rates {} and {} rad/s", w(t), w(t + 1));

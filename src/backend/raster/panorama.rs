@@ -108,7 +108,8 @@ fn vert(pano: &Panorama, p: DVec3) -> Vert {
     Vert { p, phi: pano.phi(p), el: p.z.atan2(rho), axis: rho <= 1e-12 * p.z.abs() || rho == 0.0 }
 }
 
-/// `a` wrapped into [-pi, pi).
+/// `a` wrapped into [-pi, pi), in its own `floor` form rather than
+/// [`crate::geometry::wrap_pi`]'s: the raster path's bits were fixed with it.
 fn wrap_pi(a: f64) -> f64 {
     a - TAU * ((a + PI) / TAU).floor()
 }

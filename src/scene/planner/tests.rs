@@ -1,4 +1,5 @@
 use super::*;
+use crate::geometry::wrap_pi as wrap;
 use crate::scene::{EnvMesh, Environment};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -60,8 +61,6 @@ fn hall() -> WalkableGrid {
     boxes.push([14.0, 14.0, 30.0, 15.0]);
     grid(36.0, 24.0, &boxes, 0.1)
 }
-
-use crate::geometry::wrap_pi as wrap;
 
 /// Dense check of the whole walk (every cell/10 of arc length) against the clearance.
 fn assert_clear(g: &WalkableGrid, path: &WalkPath, c: f64) {
