@@ -389,9 +389,9 @@ def test_beams_labelled_not_scored_count_nowhere(sample: Path, tmp_path: Path, c
 def test_false_alarms_by_class_and_movers_called_human(sample: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Background beams made a stroller's and a car's (their /instance after the people's,
     their /class 99 and 10, `/movers/kind` written): with 7 of the stroller's beams a frame
-    called human, 3 building beams too, and one stroller beam not scored (255, called human),
-    the report counts each kind's scored beams and those called human, and the false alarms
-    by class, exactly."""
+    called human, 3 building beams and 2 no-return beams too, and one stroller beam not scored
+    (255, called human), the report counts each kind's scored beams and those called human,
+    and the false alarms by class, exactly."""
     gt_dir, preds = tmp_path / "gt", tmp_path / "preds"
     shutil.copytree(sample, gt_dir)
     want = {"stroller": [0, 0], "car": [0, 0]}
@@ -414,6 +414,9 @@ def test_false_alarms_by_class_and_movers_called_human(sample: Path, tmp_path: P
                 label[t].flat[stroller[0]] = 255  # not scored, whatever is predicted
                 human[t].flat[stroller[:8]] = True  # the first of them not scored
                 human[t].flat[building] = True
+                nothing = np.flatnonzero(g["range"][t] <= 0)[:2]  # no return: never a false alarm
+                assert nothing.size == 2
+                human[t].flat[nothing] = True
                 want["stroller"][0] += 7
                 want["stroller"][1] += 19
                 want["car"][1] += 30
