@@ -773,9 +773,6 @@ fn sample_synthetic_people(
     // The world's places within reach (`humans.at_places`).
     let places: Vec<crate::scene::world::Place> = inp.places.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
     let seats: Vec<crate::scene::world::Seat> = inp.seats.iter().copied().filter(|q| q.at.distance(s0) <= hc.spawn_radius_m).collect();
-    // Where the sensor's carrier is, where it walks among the people (a built-in world
-    // without a sensor vehicle: indoors).
-    let carrier = |t: f64| inp.world.filter(|w| w.sensor.is_none()).map(|_| sensor.position(t).truncate());
     // The times the world checks a pushed thing at, the last frame's sweep included.
     let thing_times: Vec<f64> = match inp.world {
         Some(_) if hc.pushing > 0.0 => crate::scene::world::pushed::checked_times(duration + 1.0 / inp.rate_hz).collect(),
@@ -808,7 +805,7 @@ fn sample_synthetic_people(
                 p.distance(sensor.position(t).truncate()) >= hc.min_separation_m
                     && humans.iter().all(|h| h.footprint_m(t).distance(p) >= hc.min_separation_m)
                     && push::others_clear(inp.world, &humans, p, t)
-            }) && (plan.pushed.is_none() || thing_times.iter().all(|&t| plan.pushed_at(t).is_none_or(|f| inp.world.is_none_or(|w| push::thing_clear(w, &humans, carrier(t), &f, t)))))
+            }) && (plan.pushed.is_none() || thing_times.iter().all(|&t| plan.pushed_at(t).is_none_or(|f| inp.world.is_none_or(|w| push::thing_clear(w, &humans, Some(sensor), &f, t)))))
         };
         let placeable = |plan: &HumanPlan| {
             times_s.iter().all(|&t| inp.grid.is_none_or(|g| g.clearance(plan.position_m(t).truncate()) >= hc.clearance_m)) && clear(plan)

@@ -102,13 +102,7 @@ impl Crowd<'_> {
     /// Whether what the new person pushes, with the person at `p` heading `h`, is clear at
     /// `t` ([`push::thing_clear`]); true for one who pushes nothing.
     pub(super) fn thing_fits(&self, p: DVec2, h: f64, t: f64) -> bool {
-        self.held.is_none_or(|held| self.world.is_none_or(|w| push::thing_clear(w, self.others, self.carrier(t), &held.footprint(p, h), t)))
-    }
-
-    /// Where the sensor's carrier is at `t`, where it walks among the people (a built-in
-    /// world without a sensor vehicle: indoors).
-    fn carrier(&self, t: f64) -> Option<DVec2> {
-        self.world.filter(|w| w.sensor.is_none()).and(self.sensor).map(|s| s.position(t).truncate())
+        self.held.is_none_or(|held| self.world.is_none_or(|w| push::thing_clear(w, self.others, self.sensor, &held.footprint(p, h), t)))
     }
 
     /// Whether somebody at `p` is clear at time `t`, a frame's or any other (one coming back in

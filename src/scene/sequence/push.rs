@@ -2,7 +2,7 @@
 //! their walks are planned, so the thing the world then adds to them
 //! ([`crate::scene::world::World::add_pushed`]) fits all through the sequence.
 
-use super::HumanPlan;
+use super::{HumanPlan, SensorPath};
 use crate::human::HumanModel;
 use crate::scene::world::movers::{Footprint, PERSON_RADIUS_M};
 use crate::scene::world::pushed::{Held, PLANNED_ROOM_M};
@@ -43,12 +43,14 @@ pub(super) fn others_clear(world: Option<&World>, others: &[HumanPlan], p: DVec2
 }
 
 /// Whether a pushed thing's footprint `f` keeps clear at `t_s` of the world (its obstacles
-/// and the sensor's vehicle: [`World::pushed_clear`]), of the sensor's carrier `carrier`, of
+/// and the sensor's vehicle: [`World::pushed_clear`]), of the sensor's carrier where it walks
+/// among the people (on `sensor`'s path, in a world without a sensor vehicle: indoors), of
 /// `others` and of what they push (things apart by their circles): the world's rules, checked
 /// at the world's times ([`crate::scene::world::pushed::checked_times`]); with
 /// [`PLANNED_ROOM_M`] to spare from the others, who were placed at the frames only.
-pub(super) fn thing_clear(world: &World, others: &[HumanPlan], carrier: Option<DVec2>, f: &Footprint, t_s: f64) -> bool {
+pub(super) fn thing_clear(world: &World, others: &[HumanPlan], sensor: Option<&SensorPath>, f: &Footprint, t_s: f64) -> bool {
     let gap = PERSON_RADIUS_M + PLANNED_ROOM_M;
+    let carrier = sensor.filter(|_| world.sensor.is_none()).map(|s| s.position(t_s).truncate());
     world.pushed_clear(f, t_s)
         && carrier.is_none_or(|q| f.gap(q) >= PERSON_RADIUS_M)
         && others.iter().all(|o| {
