@@ -275,16 +275,17 @@ class Report:
     #: A built-in world's movers' scored beams by kind (``/movers/kind``): [called human, beams].
     movers: dict[str, list[int]] = field(default_factory=dict)
 
-    def add_breakdown(self, seq: Sequence, t: int, range_m: np.ndarray, label: np.ndarray, human: np.ndarray) -> None:
-        """Frame ``t``'s false alarms by true class, and its movers' beams called human, by kind."""
+    def add_breakdown(self, seq: Sequence, kinds: list[str], t: int, range_m: np.ndarray, label: np.ndarray,
+                      human: np.ndarray) -> None:
+        """Frame ``t``'s false alarms by true class, and its movers' beams called human, by kind
+        (``kinds``: :func:`mover_kinds`)."""
         scored = (range_m > 0) & (label != NOT_SCORED)
         f = seq.dataset("range").file
         if "class" in f:
             cls = f["class"][t]
             for k, n in zip(*np.unique(cls[human & scored & (label != 1)], return_counts=True)):
                 self.false_alarm_classes[int(k)] = self.false_alarm_classes.get(int(k), 0) + int(n)
-        if "movers/kind" in f and seq.has("instance"):
-            kinds = [k.decode() if isinstance(k, bytes) else str(k) for k in f["movers/kind"][()]]
+        if kinds:
             instance = seq.read("instance", t)
             first = len(seq.humans.model) + 1
             for j, kind in enumerate(kinds):
@@ -368,6 +369,15 @@ def _score_frame(
                 c.axis_beams += int(np.count_nonzero(t))
 
 
+def mover_kinds(seq: Sequence) -> list[str]:
+    """The sequence's movers' kinds (``/movers/kind``; mover j is instance N + 1 + j); none
+    without movers or without ``/instance`` to find their beams by."""
+    f = seq.dataset("range").file
+    if "movers/kind" not in f or not seq.has("instance"):
+        return []
+    return [k.decode() if isinstance(k, bytes) else str(k) for k in f["movers/kind"][()]]
+
+
 def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int = 0) -> Report:
     """Scores ``predictions`` against ``ground_truth`` on frames ``from_frame`` onwards.
 
@@ -382,6 +392,7 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
     report.from_frame = from_frame
     for seq in sequences:
         axes = beam_axes(seq.elevation_deg, seq.azimuth_deg)
+        kinds = mover_kinds(seq)
         noted = False
         for t in range(from_frame, seq.frames):
             if not preds.available(seq, t):
@@ -400,7 +411,7 @@ def evaluate(ground_truth: str | Path, predictions: str | Path, from_frame: int 
             report.velocity |= v_true is not None
             label = seq.read("label", t)
             _score_frame(report, range_m, label == 1, human, v_true, v_pred, axes, label != NOT_SCORED)
-            report.add_breakdown(seq, t, range_m, label, human)
+            report.add_breakdown(seq, kinds, t, range_m, label, human)
             report.frames += 1
     if problems:
         raise MismatchError(problems)
